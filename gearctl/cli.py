@@ -1,0 +1,220 @@
+"""The ``gearctl`` command line. The only module that prints or exits.
+
+A :class:`~gearctl.errors.GearctlError` becomes one line on stderr and exit code 2; argparse's own usage
+errors also exit with 2. Anything else is a bug and surfaces as a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .catalog import load_model, model_names
+from .errors import GearctlError, InputError
+from .geometry import pair_geometry
+
+__all__ = ["main"]
+
+
+# --- helpers -------------------------------------------------------------------------------------------
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{v} must be >= 1")
+    return v
+
+
+def _finite_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{text!r} must be finite")
+    return v
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _dump_json(obj: Any) -> str:
+    def clean(o: Any) -> Any:  # JSON has no inf/nan: write null
+        if isinstance(o, float) and not math.isfinite(o):
+            return None
+        if isinstance(o, dict):
+            return {k: clean(v) for k, v in o.items()}
+        if isinstance(o, list | tuple):
+            return [clean(v) for v in o]
+        return o
+
+    return json.dumps(clean(json.loads(json.dumps(obj, default=_json_default))), indent=2)
+
+
+def _write_csv(path: str, header: Sequence[str], columns: Sequence[Any]) -> None:
+    p = Path(path)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with open(p, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for row in zip(*columns, strict=True):
+                w.writerow([f"{v:.10g}" if isinstance(v, float | np.floating) else v for v in row])
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror}") from None
+
+
+def _save_figure(fig: Any, path: str) -> None:
+    from .plots import save
+
+    try:
+        save(fig, path)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot write plot {path}: {exc}") from None
+
+
+# --- commands ------------------------------------------------------------------------------------------
+
+
+def _cmd_models(args: argparse.Namespace) -> int:
+    rows = []
+    for name in model_names():
+        m = load_model(name)
+        geo = pair_geometry(m.pair)
+        rows.append((name, f"{m.pair.teeth1}x{m.pair.teeth2}", f"{m.pair.module * 1e3:g}",
+                     f"{math.degrees(m.pair.pressure_angle):g}", f"{geo.contact_ratio:.3f}",
+                     m.source.get("citation", "")))
+    if args.json:
+        keys = ("name", "teeth", "module_mm", "pressure_angle_deg", "contact_ratio", "source")
+        print(_dump_json([dict(zip(keys, r, strict=True)) for r in rows]))
+        return 0
+    head = ("name", "teeth", "m [mm]", "phi [deg]", "eps", "source")
+    widths = [max(len(str(r[i])) for r in [*rows, head]) for i in range(5)]
+    print("  ".join(h.ljust(w) for h, w in zip(head[:5], widths, strict=True)) + "  " + head[5])
+    for r in rows:
+        src = r[5] if len(r[5]) <= 70 else r[5][:67] + "..."
+        print("  ".join(str(v).ljust(w) for v, w in zip(r[:5], widths, strict=True)) + "  " + src)
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from .summary import model_summary
+
+    s = model_summary(load_model(args.model))
+    if args.json:
+        print(_dump_json(s))
+        return 0
+    ms = s["mesh_stiffness"]
+    loa = s["line_of_action"]
+    p = s["plant"]
+    print(f"{s['model']}: {s['teeth'][0]} x {s['teeth'][1]} teeth, module {s['module'] * 1e3:g} mm, "
+          f"pressure angle {s['pressure_angle_deg']:g} deg, face width {s['face_width'] * 1e3:g} mm")
+    print(f"  contact ratio          {s['contact_ratio']:.6g}")
+    print(f"  base pitch             {s['base_pitch'] * 1e3:.6g} mm")
+    print(f"  pitch radius           {s['pitch_radius'][0] * 1e3:.6g}, {s['pitch_radius'][1] * 1e3:.6g} mm")
+    print(f"  base radius            {s['base_radius'][0] * 1e3:.6g}, {s['base_radius'][1] * 1e3:.6g} mm")
+    print("  line of action [mm]    " + ", ".join(f"{k} {v * 1e3:.4f}" for k, v in loa.items()))
+    print(f"  inertia                I1 {s['inertia'][0]:.5g}, I2 {s['inertia'][1]:.5g} kg m^2")
+    print(f"  equivalent mass        {s['equivalent_mass']:.5g} kg (along the line of action)")
+    print(f"  mesh stiffness         mean {ms['mean']:.5g} N/m ({s['mesh_stiffness_per_width']:.3g} N/(mm um)), "
+          f"C1 {ms['c1']:.4g}, C2 {ms['c2']:.4g}, min {ms['min']:.4g}, max {ms['max']:.4g}")
+    print(f"  damping coefficient    {s['damping_coefficient']:.5g} N s/m (eq 38, consistent form)")
+    print(f"  Yang-Sun stiffness     {s['yang_sun_stiffness']:.5g} N/m (eq 39)")
+    print(f"  backlash                {s['backlash'] * 1e6:.4g} um along the line of action")
+    print(f"  plant                  k {p['k']:.5g} N/m, c {p['c']:.5g} N s/m, J1 {p['J1']:.5g}, J2 {p['J2']:.5g} "
+          f"kg m^2, mesh mode {p['natural_frequency_hz']:.5g} Hz, {p['contact_law']} contact law")
+    return 0
+
+
+def _cmd_stiffness(args: argparse.Namespace) -> int:
+    from .stiffness import COMPONENTS, mesh_stiffness, mesh_stiffness_at, tooth_deflections
+
+    model = load_model(args.model)
+    ms = mesh_stiffness(model.pair, points=args.points)
+    td = tooth_deflections(model.pair, points=args.points)
+    if args.csv:
+        K = mesh_stiffness_at(model.pair, td.theta1)
+        header = ["theta1", "K"] + [f"{c}_{j}" for j in (1, 2) for c in (*COMPONENTS, "total")]
+        header += ["k1", "k2", "k_pair"]
+        cols = [td.theta1, K] + [d[c] for d in (td.gear1, td.gear2) for c in (*COMPONENTS, "total")]
+        cols += [td.stiffness1, td.stiffness2, td.pair_stiffness]
+        _write_csv(args.csv, header, cols)
+    if args.plot:
+        from .plots import plot_stiffness
+
+        _save_figure(plot_stiffness(td, ms, title=model.name), args.plot)
+    print(f"{model.name}: mesh stiffness over one mesh cycle ({ms.theta1.size} points): "
+          f"mean {ms.mean:.5g} N/m, C1 {ms.c1:.4g}, C2 {ms.c2:.4g}, min {ms.min:.4g}, max {ms.max:.4g} N/m")
+    if args.csv:
+        print(f"  wrote {args.csv} (theta1 over the path of contact C->D, deflections per unit load [m/N])")
+    if args.plot:
+        print(f"  wrote {args.plot} (report Figures 8-11)")
+    return 0
+
+
+# --- parser --------------------------------------------------------------------------------------------
+
+_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {}
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="gearctl",
+        description="Control design for geared servos with backlash (Shing, Tsai & Krishnaprasad, TR 93-28).",
+    )
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("models", help="list the catalog of gear models")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    _COMMANDS["models"] = _cmd_models
+
+    p = sub.add_parser("info", help="geometry, mesh stiffness, damping and plant figures of a model")
+    p.add_argument("model", help="catalog name (see `gearctl models`) or path to a TOML file")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    _COMMANDS["info"] = _cmd_info
+
+    p = sub.add_parser("stiffness", help="mesh stiffness and tooth deflections over the mesh cycle (Figs 8-11)")
+    p.add_argument("model", help="catalog name or path to a TOML file")
+    p.add_argument("--points", type=_positive_int, default=401, help="sample points (default 401)")
+    p.add_argument("--csv", metavar="FILE", help="write theta1, K and the deflection components")
+    p.add_argument("--plot", metavar="FILE", help="write the figure (png, pdf, svg)")
+    _COMMANDS["stiffness"] = _cmd_stiffness
+
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``gearctl`` command line; return the exit code (0 success, 2 bad input)."""
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help (0) or a usage error (2)
+        return int(exc.code or 0)
+    try:
+        return _COMMANDS[args.command](args)
+    except GearctlError as exc:
+        print(f"gearctl {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,55 @@
+"""Exceptions raised by gearctl.
+
+Every error a user can cause is an :class:`InputError`; the CLI turns any :class:`GearctlError` into one
+line on stderr and exit code 2. Anything else escaping gearctl is a bug.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["GearctlError", "InputError", "SimulationError", "SolverError"]
+
+
+class GearctlError(Exception):
+    """Base class of the errors gearctl raises on purpose."""
+
+
+class InputError(GearctlError, ValueError):
+    """Bad user input: a missing, unknown, mistyped or out-of-range value.
+
+    Parameters
+    ----------
+    message : str
+        One line naming the field, the value and the allowed range.
+    field : str, optional
+        Name of the offending field (dataclass field or TOML key), if there is one.
+    rule : str, optional
+        What was expected, e.g. ``"is out of range: expected a number with 0 < value <= 0.1 [m]"``;
+        lets the TOML loader restate the message with the file and key the user typed.
+    """
+
+    def __init__(self, message: str, *, field: str | None = None, rule: str | None = None) -> None:
+        super().__init__(message)
+        self.field = field
+        self.rule = rule
+
+
+class SimulationError(GearctlError, RuntimeError):
+    """A simulation that diverged, produced NaN or could not continue.
+
+    Parameters
+    ----------
+    message : str
+        What went wrong, when (simulated time) and where.
+    result : object, optional
+        The partial result up to the failure, so nothing computed is lost.
+    """
+
+    def __init__(self, message: str, *, result: Any = None) -> None:
+        super().__init__(message)
+        self.result = result
+
+
+class SolverError(GearctlError, RuntimeError):
+    """An optimisation solver could not be built or run at all (not a per-step failure)."""

@@ -1,0 +1,77 @@
+"""Figures. Only this module and :mod:`gearctl.cli` import matplotlib.
+
+Every function takes computed data (a result dataclass) and returns a :class:`matplotlib.figure.Figure`;
+nothing is shown or written unless the caller saves the figure (:func:`save`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from .stiffness import COMPONENTS, MeshStiffness, ToothDeflections
+
+__all__ = ["plot_stiffness", "save"]
+
+_LABELS = {
+    "bending_cos": r"$\delta_{bp}$ bending by $F\cos\phi$",
+    "bending_sin": r"$\delta_{bn}$ bending by $F\sin\phi$",
+    "shear": r"$\delta_s$ shear",
+    "foundation": r"$\delta_f$ foundation",
+    "hertz": r"$\delta_h$ Hertz",
+    "total": r"$\delta_t$ total",
+}
+
+
+def save(fig: Figure, path: str | Path) -> Path:
+    """Write a figure to ``path`` (format from the suffix), creating the folder; return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    return path
+
+
+def plot_stiffness(deflections: ToothDeflections, mesh: MeshStiffness, *, title: str = "") -> Figure:
+    """Report Figures 8–11: deflections of each gear, tooth stiffnesses and the mesh stiffness.
+
+    Parameters
+    ----------
+    deflections : ToothDeflections
+        From :func:`gearctl.stiffness.tooth_deflections` (one tooth pair, path of contact C → D).
+    mesh : MeshStiffness
+        From :func:`gearctl.stiffness.mesh_stiffness` (one mesh cycle C → F).
+    title : str
+        Figure title.
+    """
+    fig = Figure(figsize=(11, 8), layout="constrained")
+    axs = fig.subplots(2, 2)
+    th = deflections.theta1
+    for ax, d, name in ((axs[0, 0], deflections.gear1, "gear 1 (Fig. 8)"), (axs[0, 1], deflections.gear2,
+                                                                            "gear 2 (Fig. 9)")):
+        for key in (*COMPONENTS, "total"):
+            ax.plot(th, d[key] * 1e9, label=_LABELS[key], lw=2.0 if key == "total" else 1.2)
+        ax.set(xlabel=r"$\vartheta_1$ [rad]", ylabel="deflection per unit load [nm/N]", title=f"Deflection, {name}")
+        ax.grid(True, alpha=0.3)
+    axs[0, 0].legend(fontsize=8)
+    ax = axs[1, 0]
+    ax.plot(th, deflections.stiffness1, label="$k_1$ tooth of gear 1")
+    ax.plot(th, deflections.stiffness2, label="$k_2$ tooth of gear 2")
+    ax.plot(th, deflections.pair_stiffness, label=r"$k_1 k_2/(k_1+k_2)$ tooth pair", lw=2)
+    ax.set(xlabel=r"$\vartheta_1$ [rad]", ylabel="stiffness [N/m]", title="Tooth stiffness (Fig. 10)", yscale="log")
+    ax.grid(True, alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax = axs[1, 1]
+    ax.plot(mesh.theta1, mesh.K, label="K (eq. 21)")
+    ax.axhline(mesh.mean, color="k", ls="--", label=f"mean {mesh.mean:.4e} N/m")
+    ax.set(xlabel=r"$\vartheta_1$ [rad]", ylabel="mesh stiffness [N/m]", title="Mesh stiffness, one cycle (Fig. 11)")
+    ax.set_ylim(0, 1.1 * np.max(mesh.K))
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
