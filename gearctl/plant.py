@@ -28,7 +28,7 @@ from .stiffness import damping_coefficient, equivalent_mass, mesh_stiffness, mes
 if TYPE_CHECKING:
     from .catalog import GearModel
 
-__all__ = ["Mode", "PlantKind", "Plant", "build_plant", "STATES", "INPUTS"]
+__all__ = ["Mode", "PlantKind", "Plant", "build_plant", "plant_nlsys", "STATES", "INPUTS"]
 
 STATES = ("theta1", "theta2", "omega1", "omega2")
 INPUTS = ("xi1", "xi2")
@@ -248,4 +248,79 @@ def build_plant(
         mesh_period=geo.mesh_period_angle,
         mesh_phase=(geo.AP - geo.AC) / rb1,
         kv_table=kv,
+    )
+
+
+def plant_nlsys(plant: Plant, *, name: str | None = None) -> Any:
+    """The plant as a python-control ``nlsys`` with named states, inputs and outputs.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    name : str, optional
+        System name (default ``"gear_<kind>"``).
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        States ``theta1, theta2, omega1, omega2`` (and ``v_impact`` for Yang–Sun); inputs ``xi1, xi2``
+        [N m]; outputs ``theta1, theta2, omega1, omega2, s, force``. The update function has
+        python-control's ``(t, x, u, params)`` signature; ``params`` may override ``backlash``, ``k`` and
+        ``c``. The servo's ``load_torque`` is added to ``xi2``.
+
+    Notes
+    -----
+    This is for interconnection with the user's own blocks; it has no event location, so
+    ``input_output_response`` steps across the contact switches at whatever accuracy its tolerances
+    give. gearctl's own :func:`~gearctl.simulate.simulate` is the exact, fast path.
+
+    Yang–Sun's damping factor is fixed at each contact onset from the impact speed; a continuous-time
+    system cannot hold a sample, so the Yang–Sun ``nlsys`` carries a fifth state ``v_impact`` that
+    follows ``|s'|`` with a 1 µs time constant while the flanks are apart and is frozen in contact.
+    """
+    import control as ct
+
+    from .stiffness import yang_sun_damping_factor
+
+    p = plant
+    ys = p.kind is PlantKind.YANG_SUN
+    states = [*STATES, "v_impact"] if ys else list(STATES)
+
+    def force(x: NDArray[np.float64], params: dict[str, Any]) -> tuple[float, int]:
+        b = params.get("backlash", p.backlash)
+        k = params.get("k", p.k)
+        c = params.get("c", p.c)
+        s = p.rb1 * x[0] - p.rb2 * x[1]
+        v = p.rb1 * x[2] - p.rb2 * x[3]
+        side = 1 if s > b else (-1 if s < -b else 0)
+        if side == 0:
+            return 0.0, 0
+        delta, ddelta = side * s - b, side * v
+        if ys:
+            F = (yang_sun_damping_factor(k, x[4]) * ddelta + k) * delta
+        else:
+            kk = float(p.stiffness_at(x[0])) if p.kv_table is not None else k
+            F = kk * delta + c * ddelta
+        if p.contact_law is ContactLaw.NO_PULL and F < 0.0:
+            F = 0.0
+        return side * F, side
+
+    def updfcn(t: float, x: NDArray[np.float64], u: NDArray[np.float64], params: dict[str, Any]) -> Any:
+        F, side = force(x, params)
+        f1 = p.d1 * x[2] + (p.tc1 * math.tanh(x[2] / p.coulomb_velocity) if p.tc1 else 0.0)
+        f2 = p.d2 * x[3] + (p.tc2 * math.tanh(x[3] / p.coulomb_velocity) if p.tc2 else 0.0)
+        dx = [x[2], x[3], (u[0] - p.rb1 * F - f1) / p.J1, (u[1] + p.load_torque + p.rb2 * F - f2) / p.J2]
+        if ys:
+            v = abs(p.rb1 * x[2] - p.rb2 * x[3])
+            dx.append(0.0 if side else (v - x[4]) / 1e-6)
+        return np.array(dx)
+
+    def outfcn(t: float, x: NDArray[np.float64], u: NDArray[np.float64], params: dict[str, Any]) -> Any:
+        F, _ = force(x, params)
+        return np.array([x[0], x[1], x[2], x[3], p.rb1 * x[0] - p.rb2 * x[1], F])
+
+    return ct.nlsys(
+        updfcn, outfcn, states=states, inputs=list(INPUTS),
+        outputs=[*STATES, "s", "force"], name=name or f"gear_{p.kind.value.replace('-', '_')}",
     )

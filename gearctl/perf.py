@@ -1,0 +1,169 @@
+"""Speed benchmarks: gearctl's simulator against python-control's ``input_output_response``.
+
+Each figure is a ratio measured in the same run on the same plant and scenario, with each solver's
+error against an independent tight reference (:func:`gearctl.reference.reference_solution`):
+
+- ``free``: the report's free vibration (``omega1(0) = 50 rad/s``) on ``shing1993``, outputs every 10 µs;
+- ``pd``: a 1 kHz sampled PD position loop on a 1 Hz sine, on ``shing1993_servo`` (zero-order hold).
+
+Error is the largest ``|s - s_ref|`` over the outputs, as a fraction of the backlash ``b``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .catalog import load_model
+from .kernel import Kernel
+from .plant import Plant, build_plant, plant_nlsys
+from .reference import reference_solution
+from .simulate import simulate
+
+__all__ = ["sim_speed", "pd_gains"]
+
+
+def pd_gains(plant: Plant, bandwidth_hz: float = 20.0) -> tuple[float, float]:
+    """Motor-side PD gains ``(Kp, Kd)`` [N m/rad, N m s/rad] for a rigid-body loop of the given bandwidth."""
+    N = plant.gear_ratio
+    J = plant.J1 + plant.J2 / N**2
+    wc = 2 * math.pi * bandwidth_hz
+    return J * wc**2, 2 * 0.7 * J * wc
+
+
+def _pd_controller(plant: Plant, Ts: float) -> Callable[[int, np.ndarray], tuple[float, float]]:
+    Kp, Kd = pd_gains(plant)
+    N = plant.gear_ratio
+    lim = plant.torque_limit
+
+    def ctrl(i: int, x: np.ndarray) -> tuple[float, float]:
+        r = 0.1 * math.sin(2 * math.pi * 1.0 * i * Ts) * N  # motor-side reference of a 0.1 rad, 1 Hz load sine
+        u = Kp * (r - x[0]) - Kd * x[2]
+        return (min(max(u, -lim), lim), 0.0)
+
+    return ctrl
+
+
+def _run_gearctl(plant: Plant, x0: np.ndarray, n: int, dt: float,
+                 ctrl: Callable[[int, np.ndarray], tuple[float, float]] | None) -> np.ndarray:
+    if ctrl is None:  # open loop: the user's path, one kernel call for the whole run
+        return simulate(plant, x0, n * dt, dt=dt).x
+    kn = Kernel(plant, x0, dt=dt)
+    out = np.empty((4, n + 1))
+    out[:, 0] = x0
+    u = (0.0, 0.0)
+    for i in range(n):
+        if ctrl is not None:
+            u = ctrl(i, out[:, i])
+        status = kn.advance(u[0], u[1] + plant.load_torque, dt)
+        if status:
+            raise RuntimeError(Kernel.status_message(status))
+        out[:, i + 1] = kn._st.x
+    return out
+
+
+def _run_python_control(plant: Plant, x0: np.ndarray, n: int, dt: float,
+                        ctrl: Callable[[int, np.ndarray], tuple[float, float]] | None,
+                        solve_ivp_kwargs: dict[str, Any]) -> np.ndarray:
+    import control as ct
+
+    sys = plant_nlsys(plant)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # python-control warns about solver accuracy; that is measured
+        if ctrl is None:
+            T = np.arange(n + 1) * dt
+            r = ct.input_output_response(sys, T, 0.0, X0=x0, solve_ivp_kwargs=solve_ivp_kwargs)
+            return np.asarray(r.states)
+        out = np.empty((4, n + 1))
+        out[:, 0] = x0
+        x = x0
+        for i in range(n):
+            u = ctrl(i, x)
+            r = ct.input_output_response(sys, [0.0, dt], np.array([[u[0], u[0]], [u[1], u[1]]]), X0=x,
+                                         solve_ivp_kwargs=solve_ivp_kwargs)
+            x = np.asarray(r.states)[:, -1]
+            out[:, i + 1] = x
+        return out
+
+
+def sim_speed(scenario: str = "free", *, duration: float | None = None,
+              python_control_duration: float | None = None) -> dict[str, Any]:
+    """Simulated seconds per wall second of gearctl and python-control, with their errors.
+
+    Parameters
+    ----------
+    scenario : str
+        ``"free"`` or ``"pd"`` (see module docstring).
+    duration : float, optional
+        Simulated time for gearctl and the reference [s] (default 0.02 for free, 0.5 for pd).
+    python_control_duration : float, optional
+        Simulated time for python-control (it is slow; default 0.02 for free, 0.05 for pd) [s].
+
+    Returns
+    -------
+    dict
+        ``gearctl_sim_per_wall``, ``python_control_sim_per_wall`` (default tolerances),
+        ``python_control_tight_sim_per_wall`` (rtol 1e-10), ``ratio`` (gearctl over python-control at
+        default tolerances), ``ratio_equal_accuracy`` (over python-control at rtol 1e-10),
+        ``gearctl_error``, ``python_control_error``, ``python_control_tight_error`` (max ``|s - s_ref| / b``).
+    """
+    if scenario == "free":
+        plant = build_plant(load_model("shing1993"))
+        dt, T = 1e-5, duration or 0.02
+        Tpc = python_control_duration or T
+        x0 = np.array([0.0, 0.0, 50.0, 0.0])
+        ctrl = None
+    elif scenario == "pd":
+        plant = build_plant(load_model("shing1993_servo"))
+        dt, T = 1e-3, duration or 0.5
+        Tpc = python_control_duration or 0.05
+        x0 = np.zeros(4)
+        ctrl = _pd_controller(plant, dt)
+    else:
+        raise ValueError(scenario)
+    n, npc = round(T / dt), round(Tpc / dt)
+    # reference (independent: solve_ivp + events, tight)
+    ref, _ = reference_solution(plant, x0, np.arange(max(n, npc) + 1) * dt,
+                                torque=ctrl if ctrl is not None else (0.0, 0.0), rtol=1e-12)
+    s_ref = plant.rb1 * ref[0] - plant.rb2 * ref[1]
+
+    def err(x: np.ndarray) -> float:
+        s = plant.rb1 * x[0] - plant.rb2 * x[1]
+        return float(np.max(np.abs(s - s_ref[: s.size])) / plant.backlash)
+
+    Kernel(plant, x0, dt=dt)  # compile/load once outside the timing
+    reps = 0
+    t0 = time.perf_counter()
+    while True:  # at least 0.2 s of wall time for a stable figure
+        xg = _run_gearctl(plant, x0, n, dt, ctrl)
+        reps += 1
+        if time.perf_counter() - t0 > 0.2:
+            break
+    wall_g = (time.perf_counter() - t0) / reps
+    t0 = time.perf_counter()
+    xpc = _run_python_control(plant, x0, npc, dt, ctrl, {})
+    wall_pc = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    xpt = _run_python_control(plant, x0, npc, dt, ctrl, {"rtol": 1e-10, "atol": 1e-13})
+    wall_pt = time.perf_counter() - t0
+    g_rate, pc_rate, pt_rate = T / wall_g, Tpc / wall_pc, Tpc / wall_pt
+    return {
+        "scenario": scenario,
+        "model": "shing1993" if scenario == "free" else "shing1993_servo",
+        "duration": T,
+        "python_control_duration": Tpc,
+        "output_interval": dt,
+        "gearctl_sim_per_wall": g_rate,
+        "python_control_sim_per_wall": pc_rate,
+        "python_control_tight_sim_per_wall": pt_rate,
+        "ratio": g_rate / pc_rate,
+        "ratio_equal_accuracy": g_rate / pt_rate,
+        "gearctl_error": err(xg),
+        "python_control_error": err(xpc),
+        "python_control_tight_error": err(xpt),
+    }
