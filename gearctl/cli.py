@@ -47,6 +47,13 @@ def _finite_float(text: str) -> float:
     return v
 
 
+def _positive_float(text: str) -> float:
+    v = _finite_float(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
+    return v
+
+
 def _json_default(obj: Any) -> Any:
     if isinstance(obj, np.ndarray):
         return obj.tolist()
@@ -171,6 +178,58 @@ def _cmd_stiffness(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .plant import build_plant
+    from .simulate import report_case
+
+    model = load_model(args.model)
+    plant = build_plant(model, args.plant)
+    res = report_case(plant, args.case, args.duration, omega1=args.omega1, omega2=args.omega2,
+                      torque1=args.torque1, torque2=args.torque2, dt=args.dt)
+    energy = res.energy()
+    counts = res.impact_counts()
+    summary = {
+        "model": model.name,
+        "plant": plant.kind.value,
+        "case": args.case,
+        "duration": float(res.t[-1]),
+        "solver": res.solver,
+        "impacts": counts,
+        "impact_times": [e.t for e in res.impacts],
+        "max_impact_velocity": max((abs(e.velocity) for e in res.impacts), default=0.0),
+        "max_penetration": res.max_penetration,
+        "final": dict(zip(("theta1", "theta2", "omega1", "omega2"), res.x[:, -1].tolist(), strict=True)),
+        "final_mode": res.mode_labels()[-1],
+        "energy": {"initial": float(energy[0]), "final": float(energy[-1])},
+        "backlash": plant.backlash,
+        "mesh_stiffness": plant.k,
+        "damping_coefficient": plant.c,
+    }
+    if args.csv:
+        _write_csv(args.csv, ["t", "theta1", "theta2", "omega1", "omega2", "s", "mode", "force"],
+                   [res.t, *res.x, res.s, res.mode_labels(), res.force])
+    if args.plot:
+        from .plots import plot_simulation
+
+        _save_figure(plot_simulation({plant.kind.value: res}, title=f"{model.name}, {args.case} case"), args.plot)
+    if args.json:
+        print(_dump_json(summary))
+        return 0
+    f = summary["final"]
+    print(f"{model.name} ({plant.kind.value} plant, {args.case} case, {summary['duration'] * 1e3:.4g} ms, "
+          f"{res.solver} solver)")
+    print(f"  impacts                front {counts['front']}, back {counts['back']}, fastest "
+          f"{summary['max_impact_velocity']:.4g} m/s")
+    print(f"  max penetration        {res.max_penetration * 1e6:.4g} um (|s| - b)")
+    print(f"  final                  theta1 {f['theta1']:.6g} rad, theta2 {f['theta2']:.6g} rad, "
+          f"omega1 {f['omega1']:.6g} rad/s, omega2 {f['omega2']:.6g} rad/s, {summary['final_mode']}")
+    print(f"  energy                 {energy[0]:.6g} J -> {energy[-1]:.6g} J")
+    for path, what in ((args.csv, "CSV"), (args.plot, "plot")):
+        if path:
+            print(f"  wrote {path} ({what})")
+    return 0
+
+
 # --- parser --------------------------------------------------------------------------------------------
 
 _COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {}
@@ -198,6 +257,23 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", metavar="FILE", help="write theta1, K and the deflection components")
     p.add_argument("--plot", metavar="FILE", help="write the figure (png, pdf, svg)")
     _COMMANDS["stiffness"] = _cmd_stiffness
+
+    p = sub.add_parser("simulate", help="simulate the report's free-vibration or constant-load case")
+    p.add_argument("model", help="catalog name or path to a TOML file")
+    p.add_argument("--case", choices=("free", "load"), default="free",
+                   help="free: omega1(0)=50 rad/s, no torque; load: plus xi1=1 N m, xi2=-1 N m (default free)")
+    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved",
+                   help="mesh law (default improved)")
+    p.add_argument("--duration", type=_positive_float, default=0.02, help="simulated time [s] (default 0.02)")
+    p.add_argument("--dt", type=_positive_float, default=1e-6, help="output interval [s] (default 1e-6)")
+    p.add_argument("--omega1", type=_finite_float, help="initial velocity of gear 1 [rad/s]")
+    p.add_argument("--omega2", type=_finite_float, help="initial velocity of gear 2 [rad/s]")
+    p.add_argument("--torque1", type=_finite_float, help="torque on gear 1 [N m], clockwise positive")
+    p.add_argument("--torque2", type=_finite_float, help="torque on gear 2 [N m], counter-clockwise positive")
+    p.add_argument("--csv", metavar="FILE", help="write t, theta1, theta2, omega1, omega2, s, mode, force")
+    p.add_argument("--plot", metavar="FILE", help="write the figure (angles, velocities, s, force)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    _COMMANDS["simulate"] = _cmd_simulate
 
     return ap
 

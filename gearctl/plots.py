@@ -10,11 +10,13 @@ from pathlib import Path
 
 
 import numpy as np
+from typing import Any
+
 from matplotlib.figure import Figure
 
 from .stiffness import COMPONENTS, MeshStiffness, ToothDeflections
 
-__all__ = ["plot_stiffness", "save"]
+__all__ = ["plot_stiffness", "plot_simulation", "save"]
 
 _LABELS = {
     "bending_cos": r"$\delta_{bp}$ bending by $F\cos\phi$",
@@ -75,3 +77,40 @@ def plot_stiffness(deflections: ToothDeflections, mesh: MeshStiffness, *, title:
     return fig
 
 
+
+
+def plot_simulation(results: dict[str, Any], *, title: str = "") -> Figure:
+    """Angles, velocities and relative displacement of one or more runs on common axes (Figs 12–21).
+
+    Parameters
+    ----------
+    results : dict of str to SimulationResult
+        Label (e.g. ``"improved"``, ``"Yang-Sun"``) to result; all are drawn on the same axes.
+    title : str
+        Figure title.
+    """
+    fig = Figure(figsize=(11, 10), layout="constrained")
+    axs = fig.subplots(3, 2)
+    panels = [
+        (axs[0, 0], lambda r: r.x[0], r"$\theta_1$ [rad]", "Angular displacement of gear 1"),
+        (axs[0, 1], lambda r: r.x[1], r"$\theta_2$ [rad]", "Angular displacement of gear 2"),
+        (axs[1, 0], lambda r: r.x[2], r"$\dot\theta_1$ [rad/s]", "Angular velocity of gear 1"),
+        (axs[1, 1], lambda r: r.x[3], r"$\dot\theta_2$ [rad/s]", "Angular velocity of gear 2"),
+        (axs[2, 0], lambda r: r.s * 1e3, "s [mm]", "Relative displacement along the line of action"),
+        (axs[2, 1], lambda r: r.force, "F [N]", "Contact force (front flank positive)"),
+    ]
+    styles = ["-", "--", ":", "-."]
+    for (label, res), ls in zip(results.items(), styles * 4, strict=False):
+        for ax, get, ylabel, name in panels:
+            ax.plot(res.t * 1e3, get(res), ls, label=label, lw=1.2)
+            ax.set(xlabel="t [ms]", ylabel=ylabel, title=name)
+    first = next(iter(results.values()))
+    b = first.plant.backlash * 1e3
+    for sgn in (1, -1):
+        axs[2, 0].axhline(sgn * b, color="k", lw=0.6, ls=":")
+    for ax, *_ in panels:
+        ax.grid(True, alpha=0.3)
+    axs[0, 0].legend()
+    if title:
+        fig.suptitle(title)
+    return fig

@@ -100,13 +100,17 @@ def test_gear_pair_rejects_bad_field(shing, field: str, value: float) -> None:
     with pytest.raises(InputError, match=field) as info:
         dataclasses.replace(shing.pair, **{field: value})
     assert info.value.field == field
-    assert "expected" in str(info.value)  # the message states the rule
+    assert f"{field} = {value!r}" in str(info.value)  # names the field and the value
 
 
 @pytest.mark.parametrize(
     ("field", "value"),
     [("module", -0.002), ("module", "two"), ("poisson_ratio", 0.0), ("pressure_angle", 5 * DEG),
-     ("teeth1", math.nan), ("face_width", math.inf)],
+     ("face_width", math.inf), ("density", math.nan),
+     # FAILS (gearctl bug): units.validate_fields runs int(value) on an integer field before checking
+     # that the value is finite, so NaN raises a bare ValueError ("cannot convert float NaN to
+     # integer") and inf an OverflowError instead of InputError
+     ("teeth1", math.nan), ("teeth2", math.inf)],
 )
 def test_gear_pair_rejects_more_bad_values(shing, field: str, value: object) -> None:
     with pytest.raises(InputError, match=field):
@@ -200,12 +204,13 @@ def test_every_field_has_a_bad_input_case() -> None:
 
 MODULE_LINE = "module = 0.002                # m (pitch radii 0.02 m and 0.08 m)\n"
 CITATION = 'citation = "T. K. Shing'
+MATERIAL = "[material]\nyoung_modulus = 2.068e11      # Pa\npoisson_ratio = 0.3\ndensity = 7800.0              # kg/m^3\n"
 
 # (id, replacements in shing1993.toml, substrings the one-line message must contain)
 FILE_CASES = [
     ("missing_key", [(MODULE_LINE, "")], ["missing key", "module"]),
     ("misspelt_key", [("module = 0.002", "modul = 0.002")], ["modul", "did you mean 'module'"]),
-    ("unknown_section", [("[dynamics]", "[servoo]\nmotor_inertia = 1e-5\n\n[dynamics]")],
+    ("unknown_section", [("[dynamics]\ndamping_ratio", "[servoo]\nmotor_inertia = 1e-5\n\n[dynamics]\ndamping_ratio")],
      ["[servoo]", "did you mean [servo]"]),
     ("wrong_type", [("module = 0.002", 'module = "two"')], ["module", "'two'", "not a number"]),
     ("teeth_undercut", [("teeth = 20", "teeth = 12")], ["[gear1] teeth", "12", "undercut"]),
@@ -223,10 +228,16 @@ FILE_CASES = [
      ["pressure_angle_deg", "5", "10", "[deg]"]),
     ("contact_law", [('contact_law = "linear"', 'contact_law = "sticky"')],
      ["contact_law", "sticky", "linear", "no_pull"]),
+    # FAILS (gearctl bug, same as test_gear_pair_rejects_more_bad_values[teeth1-nan]): TOML allows
+    # nan and inf; the ValueError / OverflowError of units.validate_fields escapes the loader (which
+    # only turns InputError and TypeError into messages) and the CLI prints a traceback
+    ("teeth_nan", [("teeth = 20", "teeth = nan")], ["[gear1] teeth", "nan"]),
+    ("teeth_inf", [("teeth = 80", "teeth = inf")], ["[gear2] teeth", "inf"]),
     ("toml_syntax", [("module = 0.002", "module = = 0.002")], ["not valid TOML", "line"]),
-    ("missing_citation", [(CITATION, 'cite = "T. K. Shing')], ["[source]", "cite"]),
-    ("missing_source", [("[source]", "[sauce]")], ["[sauce]"]),
-    ("missing_section", [("[material]", "#")], ["young_modulus"]),
+    ("misspelt_citation", [(CITATION, 'citaton = "T. K. Shing')], ["[source] citaton", "did you mean 'citation'"]),
+    ("missing_citation", [("citation = ", "doi = ")], ["missing key [source] citation"]),
+    ("missing_source", [("[source]", "[sauce]")], ["missing section [source]"]),
+    ("missing_section", [(MATERIAL, "")], ["missing section [material]"]),
 ]
 
 
@@ -252,16 +263,6 @@ def test_bad_file_at_cli(write_model, capsys: pytest.CaptureFixture[str], replac
     assert str(path) in err
     for text in expected:
         assert text in err, (text, err)
-
-
-def test_missing_citation_key_only(write_model) -> None:
-    # a [source] table without citation (other keys kept) names the missing key
-    path = write_model([(CITATION, 'notes2 = "x"\nunused = "T. K. Shing')])
-    with pytest.raises(InputError, match="notes2|citation"):
-        load_model(path)
-    path = write_model([("citation = ", "doi = ")])
-    with pytest.raises(InputError, match="missing key \\[source\\] citation"):
-        load_model(path)
 
 
 def test_interference_at_cli(write_model, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
