@@ -223,10 +223,14 @@ def build_sections(
                     field=key,
                 )
     for fname, value in (overrides or {}).items():
-        for cls in kwargs:
-            if fname in {f.name for f in dataclasses.fields(cls)}:
-                kwargs[cls][fname] = value
-                where[fname] = ("override", fname, value)
+        owners = [cls for cls, _, _ in schema.values() if fname in {f.name for f in dataclasses.fields(cls)}]
+        if not owners:
+            every = sorted({f.name for cls, _, _ in schema.values() for f in dataclasses.fields(cls)})
+            close = difflib.get_close_matches(fname, every, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise InputError(f"unknown override {fname!r}: expected a field of the model{hint}", field=fname)
+        kwargs.setdefault(owners[0], {})[fname] = value
+        where[fname] = ("override", fname, value)
     out: dict[type, Any] = {}
     for cls, kw in kwargs.items():
         try:
@@ -321,11 +325,11 @@ def load_model(name_or_path: str | Path, **overrides: Any) -> GearModel:
     """
     path = resolve(name_or_path, "models")
     data = read_toml(path)
-    if "source" not in data:
-        raise InputError(f"{path}: missing section [source] (citation, table, notes)", field="source")
     built = build_sections(
         path, data, MODEL_SCHEMA, extra_sections={"source": _check_source(path)}, overrides=overrides
     )
+    if "source" not in data:
+        raise InputError(f"{path}: missing section [source] (citation, table, notes)", field="source")
     return GearModel(
         name=path.stem,
         pair=built[GearPair],

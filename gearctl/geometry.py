@@ -195,6 +195,13 @@ def pair_geometry(pair: GearPair) -> Geometry:
     ``b`` enters the dynamics only as the clearance of eqs 4 and 11). Where the dedendum circle lies
     outside the base circle the beam starts at the base circle (eqs 24–25).
 
+    Limitation: eqs 24–25 start the tooth beam at the base circle whenever the dedendum circle lies
+    outside it (above ``2 h_f* / (1 - cos phi)`` teeth: 42 at 20 deg, 27 at 25 deg). The report's own
+    80-tooth gear uses this branch and Table 1 is reproduced with it, but for much larger gears the beam
+    grows longer than the real tooth and the mesh stiffness per face width falls below ISO 6336-1's
+    band (about 9 N/(mm um) for 100 x 100 teeth at 20 deg, 6 for 150 x 150). gearctl keeps the report's
+    model; for gears beyond about 100 teeth give a measured ``[dynamics] mesh_stiffness``.
+
     Unless the pair gives them, the inertias are those of solid steel disks of the pitch radius and
     the face width, ``I = rho pi f r_p^4 / 2``; this is how the report's ``I1 = 1.9604e-5`` and
     ``I2 = 0.0050 kg m^2`` follow from its data (section 3.2).

@@ -105,7 +105,7 @@ def validate_fields(obj: Any) -> None:
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             rule = f"is not a number: expected {allowed}{unit}"
             raise InputError(f"{f.name} = {value!r} {rule}", field=f.name, rule=rule)
-        if meta["integer"] and float(value) != int(value):
+        if meta["integer"] and (not math.isfinite(float(value)) or float(value) != int(value)):
             rule = f"is not whole: expected {allowed}{unit}"
             raise InputError(f"{f.name} = {value!r} {rule}", field=f.name, rule=rule)
         v = float(value)

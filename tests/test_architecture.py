@@ -103,7 +103,8 @@ MODULES = package_modules()
 
 def test_scan_sees_the_package() -> None:
     # guards the scan itself: it must find the modules we know exist
-    assert {"gearctl", "gearctl.geometry", "gearctl.stiffness", "gearctl.cli", "gearctl.plots"} <= set(MODULES)
+    known = {"gearctl", "gearctl.geometry", "gearctl.stiffness", "gearctl.cli", "gearctl.plots"}
+    assert known <= set(MODULES)
     assert "gearctl.plots" in {n for n in imports_of("gearctl.cli", MODULES["gearctl.cli"])}
 
 
@@ -177,6 +178,27 @@ def test_import_gearctl_loads_no_matplotlib() -> None:
         "             or m in ('gearctl.cli', 'gearctl.plots'))\n"
         "print(','.join(bad))\n"
     )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False
+    )
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "", result.stdout
+
+
+def test_scanner_resolves_relative_and_lazy_imports(tmp_path: Path) -> None:
+    """The scanner itself: relative imports, ``from . import``, TYPE_CHECKING and lazy imports."""
+    src = tmp_path / "x.py"
+    src.write_text(
+        "from typing import TYPE_CHECKING\n"
+        "from ..plots import save\n"
+        "from . import pid\n"
+        "if TYPE_CHECKING:\n"
+        "    from ..cli import main\n"
+        "def f():\n"
+        "    import matplotlib.pyplot\n"
+    )
+    found = imports_of("gearctl.design.x", src)
+    assert {"gearctl.plots", "gearctl.design.pid", "matplotlib.pyplot"} <= found
+    assert not _imports(found, "gearctl.cli")
+    assert _rank("gearctl.design.x") is not None and _rank("gearctl.design.x") < _rank("gearctl.plots")
+    assert not _imports(imports_of("gearctl.design.x", src, module_level_only=True), "matplotlib")

@@ -76,6 +76,17 @@ def test_overrides_and_variants(shing) -> None:
         load_model("shing1993", backlash=-1e-5)
 
 
+def test_override_with_unknown_name_is_rejected() -> None:
+    # a misspelt override must not return the file's value unchanged
+    with pytest.raises(InputError, match="backlsh"):
+        load_model("shing1993", backlsh=0.0)
+
+
+def test_override_of_a_section_absent_from_the_file() -> None:
+    # shing1993.toml has no [servo] table; the override must still reach the Servo
+    assert load_model("shing1993", motor_inertia=1e-3).servo.motor_inertia == 1e-3
+
+
 # --- bad input at the API: one case per field -------------------------------------------------------
 
 GEAR_PAIR_CASES = [
@@ -107,9 +118,7 @@ def test_gear_pair_rejects_bad_field(shing, field: str, value: float) -> None:
     ("field", "value"),
     [("module", -0.002), ("module", "two"), ("poisson_ratio", 0.0), ("pressure_angle", 5 * DEG),
      ("face_width", math.inf), ("density", math.nan),
-     # FAILS (gearctl bug): units.validate_fields runs int(value) on an integer field before checking
-     # that the value is finite, so NaN raises a bare ValueError ("cannot convert float NaN to
-     # integer") and inf an OverflowError instead of InputError
+     # non-finite whole numbers must be an InputError, not int()'s ValueError / OverflowError
      ("teeth1", math.nan), ("teeth2", math.inf)],
 )
 def test_gear_pair_rejects_more_bad_values(shing, field: str, value: object) -> None:
@@ -204,13 +213,17 @@ def test_every_field_has_a_bad_input_case() -> None:
 
 MODULE_LINE = "module = 0.002                # m (pitch radii 0.02 m and 0.08 m)\n"
 CITATION = 'citation = "T. K. Shing'
-MATERIAL = "[material]\nyoung_modulus = 2.068e11      # Pa\npoisson_ratio = 0.3\ndensity = 7800.0              # kg/m^3\n"
+MATERIAL = (
+    "[material]\nyoung_modulus = 2.068e11      # Pa\npoisson_ratio = 0.3\n"
+    "density = 7800.0              # kg/m^3\n"
+)
 
 # (id, replacements in shing1993.toml, substrings the one-line message must contain)
 FILE_CASES = [
     ("missing_key", [(MODULE_LINE, "")], ["missing key", "module"]),
     ("misspelt_key", [("module = 0.002", "modul = 0.002")], ["modul", "did you mean 'module'"]),
-    ("unknown_section", [("[dynamics]\ndamping_ratio", "[servoo]\nmotor_inertia = 1e-5\n\n[dynamics]\ndamping_ratio")],
+    ("unknown_section",
+     [("[dynamics]\ndamping_ratio", "[servoo]\nmotor_inertia = 1e-5\n\n[dynamics]\ndamping_ratio")],
      ["[servoo]", "did you mean [servo]"]),
     ("wrong_type", [("module = 0.002", 'module = "two"')], ["module", "'two'", "not a number"]),
     ("teeth_undercut", [("teeth = 20", "teeth = 12")], ["[gear1] teeth", "12", "undercut"]),
@@ -228,15 +241,14 @@ FILE_CASES = [
      ["pressure_angle_deg", "5", "10", "[deg]"]),
     ("contact_law", [('contact_law = "linear"', 'contact_law = "sticky"')],
      ["contact_law", "sticky", "linear", "no_pull"]),
-    # FAILS (gearctl bug, same as test_gear_pair_rejects_more_bad_values[teeth1-nan]): TOML allows
-    # nan and inf; the ValueError / OverflowError of units.validate_fields escapes the loader (which
-    # only turns InputError and TypeError into messages) and the CLI prints a traceback
+    # TOML allows nan and inf: one line, exit 2, no traceback
     ("teeth_nan", [("teeth = 20", "teeth = nan")], ["[gear1] teeth", "nan"]),
     ("teeth_inf", [("teeth = 80", "teeth = inf")], ["[gear2] teeth", "inf"]),
     ("toml_syntax", [("module = 0.002", "module = = 0.002")], ["not valid TOML", "line"]),
-    ("misspelt_citation", [(CITATION, 'citaton = "T. K. Shing')], ["[source] citaton", "did you mean 'citation'"]),
+    ("misspelt_citation", [(CITATION, 'citaton = "T. K. Shing')],
+     ["[source] citaton", "did you mean 'citation'"]),
     ("missing_citation", [("citation = ", "doi = ")], ["missing key [source] citation"]),
-    ("missing_source", [("[source]", "[sauce]")], ["missing section [source]"]),
+    ("misspelt_source", [("[source]", "[sauce]")], ["unknown section [sauce]", "did you mean [source]"]),
     ("missing_section", [(MATERIAL, "")], ["missing section [material]"]),
 ]
 
@@ -253,7 +265,9 @@ def test_bad_file_at_loader(write_model, replace, expected: list[str]) -> None:
 
 
 @pytest.mark.parametrize(("replace", "expected"), [c[1:] for c in FILE_CASES], ids=[c[0] for c in FILE_CASES])
-def test_bad_file_at_cli(write_model, capsys: pytest.CaptureFixture[str], replace, expected: list[str]) -> None:
+def test_bad_file_at_cli(
+    write_model, capsys: pytest.CaptureFixture[str], replace, expected: list[str]
+) -> None:
     path = write_model(replace)
     assert main(["info", str(path)]) == 2
     out, err = capsys.readouterr()

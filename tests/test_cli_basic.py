@@ -49,7 +49,8 @@ def test_info_json_report_geometry(shing_json: dict) -> None:
     assert_allclose(I2, 7800.0 * math.pi * 0.01 * 0.08**4 / 2, rtol=1e-12)
     # section 3.2 data: base radii r_p cos 20 deg, base pitch pi m cos 20 deg, backlash 0.00005 m;
     # rtol 1e-12 (closed forms; JSON writes floats with repr precision)
-    assert_allclose(shing_json["base_radius"], [0.02 * math.cos(20 * DEG), 0.08 * math.cos(20 * DEG)], rtol=1e-12)
+    rb = [0.02 * math.cos(20 * DEG), 0.08 * math.cos(20 * DEG)]
+    assert_allclose(shing_json["base_radius"], rb, rtol=1e-12)
     assert_allclose(shing_json["base_pitch"], math.pi * 0.002 * math.cos(20 * DEG), rtol=1e-12)
     assert shing_json["backlash"] == 5e-5
 
@@ -81,7 +82,8 @@ def test_info_json_report_damping_and_yang_sun(shing_json: dict) -> None:
     # the pitch-radius-disk value differs by more than 10 %
     assert abs(shing_json["damping_coefficient"] / 237.6651 - 1) > 0.10
     # eq 39: pi E f / (4 (1 - nu^2)); rtol 1e-12
-    assert_allclose(shing_json["yang_sun_stiffness"], math.pi * 2.068e11 * 0.01 / (4 * (1 - 0.3**2)), rtol=1e-12)
+    k_ys = math.pi * 2.068e11 * 0.01 / (4 * (1 - 0.3**2))
+    assert_allclose(shing_json["yang_sun_stiffness"], k_ys, rtol=1e-12)
 
 
 def test_info_human(capsys: pytest.CaptureFixture[str]) -> None:
@@ -108,7 +110,8 @@ def test_models_lists_catalog(capsys: pytest.CaptureFixture[str]) -> None:
 
 def test_stiffness_writes_csv_and_plot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     csv_path, png_path = tmp_path / "k.csv", tmp_path / "sub" / "k.png"
-    code = main(["stiffness", "shing1993", "--points", "101", "--csv", str(csv_path), "--plot", str(png_path)])
+    argv = ["stiffness", "shing1993", "--points", "101", "--csv", str(csv_path), "--plot", str(png_path)]
+    code = main(argv)
     assert code == 0
     out = capsys.readouterr().out
     assert str(csv_path) in out and str(png_path) in out
@@ -129,8 +132,12 @@ def test_stiffness_writes_csv_and_plot(tmp_path: Path, capsys: pytest.CaptureFix
 
 @pytest.mark.parametrize(
     "argv",
-    [["stiffness", "shing1993", "--points", "0"], ["stiffness", "shing1993", "--points", "x"], ["nosuchcommand"],
-     ["info"]],
+    [
+        ["stiffness", "shing1993", "--points", "0"],
+        ["stiffness", "shing1993", "--points", "x"],
+        ["nosuchcommand"],
+        ["info"],
+    ],
 )
 def test_usage_errors_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     assert main(argv) == 2

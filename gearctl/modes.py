@@ -1,0 +1,250 @@
+"""Linear models of the gear plant per contact mode, as python-control objects.
+
+In contact (front or back) the improved plant is exactly linear about any operating point, and both flanks
+share the same dynamics; in separation it is two free inertias. These models are built analytically from
+the plant's parameters (the same matrices the exact simulator integrates), not by finite differences
+across the backlash kink.
+
+State ``[theta1, theta2, omega1, omega2]`` (deviations from the operating point); inputs ``xi1`` (motor
+torque) and ``xi2`` (load torque) [N m]; outputs ``theta1`` (motor angle), ``theta2`` (load angle) [rad],
+``s`` (relative displacement along the line of action) [m] and ``force`` (contact force) [N].
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import control as ct
+import numpy as np
+
+from .kernel import contact_matrices
+from .plant import INPUTS, STATES, Plant
+
+__all__ = [
+    "ContactModes",
+    "MeshMode",
+    "contact_mode_model",
+    "separation_model",
+    "rigid_model",
+    "linearize_modes",
+    "mesh_mode",
+    "loop_margins",
+    "OUTPUTS",
+]
+
+OUTPUTS = ("theta1", "theta2", "s", "force")
+
+
+def _outputs(plant: Plant, contact: bool) -> tuple[np.ndarray, np.ndarray]:
+    p = plant
+    C = np.zeros((4, 4))
+    C[0, 0] = 1.0
+    C[1, 1] = 1.0
+    C[2, :2] = [p.rb1, -p.rb2]
+    if contact:  # F = k (s - b) + c s' about the operating point: k ds + c dv
+        C[3] = [p.k * p.rb1, -p.k * p.rb2, p.c * p.rb1, -p.c * p.rb2]
+    return C, np.zeros((4, 2))
+
+
+def contact_mode_model(plant: Plant, *, name: str = "contact") -> ct.StateSpace:
+    """Linear model of the plant in contact (front or back: the same dynamics), eqs 1–5 and 8–12.
+
+    Parameters
+    ----------
+    plant : Plant
+        The (improved) plant; motor/load inertias and viscous friction of a ``[servo]`` are included.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.StateSpace
+        Named states ``theta1, theta2, omega1, omega2``, inputs ``xi1, xi2``, outputs
+        ``theta1, theta2, s, force``; deviations about the operating point (the ``+-k b`` offset of the
+        contact law only shifts the operating point).
+    """
+    A, _, B = contact_matrices(plant)
+    C, D = _outputs(plant, True)
+    return ct.ss(A, B, C, D, states=list(STATES), inputs=list(INPUTS), outputs=list(OUTPUTS), name=name)
+
+
+def separation_model(plant: Plant, *, name: str = "separation") -> ct.StateSpace:
+    """Linear model in separation: two free inertias with their viscous friction (eqs 6–7).
+
+    Same signals as :func:`contact_mode_model`; the ``force`` output is identically zero.
+    """
+    _, A, B = contact_matrices(plant)
+    C, D = _outputs(plant, False)
+    return ct.ss(A, B, C, D, states=list(STATES), inputs=list(INPUTS), outputs=list(OUTPUTS), name=name)
+
+
+def rigid_model(plant: Plant, *, name: str = "rigid") -> ct.StateSpace:
+    """Infinitely stiff mesh: the limit ``k -> inf`` of the contact model, seen from the motor shaft.
+
+    ``J_eq theta1'' = xi1 + xi2 / N - d_eq theta1'`` with ``N = r_b2 / r_b1``, ``J_eq = J1 + J2 / N^2``,
+    ``d_eq = d1 + d2 / N^2``; ``theta2 = theta1 / N``, ``s = 0``. States ``theta1, omega1``; inputs
+    ``xi1, xi2``; outputs ``theta1, theta2, s, force`` (the force the stiff mesh transmits).
+    """
+    p = plant
+    N = p.gear_ratio
+    J = p.J1 + p.J2 / N**2
+    d = p.d1 + p.d2 / N**2
+    A = np.array([[0.0, 1.0], [0.0, -d / J]])
+    B = np.array([[0.0, 0.0], [1.0 / J, 1.0 / (N * J)]])
+    # force from gear 2's equation: r_b2 F = J2 theta2'' - xi2 + d2 omega2, with theta2 = theta1 / N
+    acc_row = np.array([0.0, -d / J])
+    acc_in = np.array([1.0 / J, 1.0 / (N * J)])
+    C = np.array([[1.0, 0.0], [1.0 / N, 0.0], [0.0, 0.0],
+                  (p.J2 / N * acc_row + np.array([0.0, p.d2 / N])) / p.rb2])
+    D = np.zeros((4, 2))
+    D[3] = (p.J2 / N * acc_in - np.array([0.0, 1.0])) / p.rb2
+    return ct.ss(A, B, C, D, states=["theta1", "omega1"], inputs=list(INPUTS), outputs=list(OUTPUTS), name=name)
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class MeshMode:
+    """The mesh (tooth-contact) mode of the contact model.
+
+    Attributes
+    ----------
+    natural_frequency : float
+        Undamped natural frequency of the resonance [rad/s] (``|lambda|`` of the complex pole pair).
+    damping_ratio : float
+        Its damping ratio.
+    antiresonance : float
+        Anti-resonance of the motor-torque to motor-angle transfer [rad/s] (the load ringing on the mesh
+        spring with the motor held), from the zeros of that transfer function.
+    antiresonance_damping : float
+        Damping ratio of that zero pair.
+    """
+
+    natural_frequency: float
+    damping_ratio: float
+    antiresonance: float
+    antiresonance_damping: float
+
+    @property
+    def natural_frequency_hz(self) -> float:
+        """Resonance in Hz."""
+        return self.natural_frequency / (2 * math.pi)
+
+    @property
+    def antiresonance_hz(self) -> float:
+        """Anti-resonance in Hz."""
+        return self.antiresonance / (2 * math.pi)
+
+
+def _siso_tf(sys: ct.StateSpace, out: int, inp: int, scale: float) -> ct.TransferFunction:
+    """SISO transfer function of ``sys[out, inp]`` without the round-off coefficients of ``ss2tf``.
+
+    A coefficient ``a_i`` is dropped when ``|a_i| scale^i`` is below 1e-7 of the largest such term of its
+    polynomial (``scale``: the mesh frequency), which removes spurious zeros near 1e15 rad/s and poles at
+    1e-12 rad/s that ``ss2tf`` leaves, and keeps every physical one.
+    """
+    tf = ct.ss2tf(sys[out, inp])
+
+    def clean(c: np.ndarray) -> np.ndarray:
+        c = np.atleast_1d(np.asarray(c, dtype=float)).copy()
+        w = np.abs(c) * scale ** np.arange(c.size - 1, -1, -1, dtype=float)
+        c[w < 1e-7 * w.max()] = 0.0
+        return np.trim_zeros(c, "f")
+
+    return ct.tf(clean(tf.num[0][0]), clean(tf.den[0][0]))
+
+
+def mesh_mode(plant: Plant) -> MeshMode:
+    """Resonance and anti-resonance of the mesh mode in contact (poles and zeros of the contact model)."""
+    sys = contact_mode_model(plant)
+    poles = sys.poles()
+    osc = poles[np.abs(poles.imag) > 1e-9 * np.max(np.abs(poles))]
+    lam = osc[np.argmax(np.abs(osc))]
+    zeros = ct.zeros(_siso_tf(sys, 0, 0, abs(lam)))
+    zosc = zeros[np.abs(zeros.imag) > 1e-9 * abs(lam)] if zeros.size else zeros
+    z = zosc[np.argmax(np.abs(zosc))] if zosc.size else complex("nan")
+    return MeshMode(
+        natural_frequency=float(abs(lam)),
+        damping_ratio=float(-lam.real / abs(lam)),
+        antiresonance=float(abs(z)),
+        antiresonance_damping=float(-z.real / abs(z)) if zosc.size else float("nan"),
+    )
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class ContactModes:
+    """The linear models a designer reaches for, from one plant.
+
+    Attributes
+    ----------
+    contact, separation, rigid : control.StateSpace
+        Models of :func:`contact_mode_model`, :func:`separation_model`, :func:`rigid_model`.
+    motor_angle, load_angle : control.TransferFunction
+        Contact-mode transfer functions from motor torque ``xi1`` to motor angle and to load angle.
+    mesh : MeshMode
+        Resonance and anti-resonance of the mesh mode.
+    plant : Plant
+        The plant they come from.
+    """
+
+    contact: ct.StateSpace
+    separation: ct.StateSpace
+    rigid: ct.StateSpace
+    motor_angle: ct.TransferFunction
+    load_angle: ct.TransferFunction
+    mesh: MeshMode
+    plant: Plant
+
+    def mode(self, name: str) -> ct.StateSpace:
+        """The model of ``"contact"``, ``"separation"`` or ``"rigid"``."""
+        from .errors import InputError
+
+        if name not in ("contact", "separation", "rigid"):
+            raise InputError(f"mode = {name!r} is not a mode: expected contact, separation or rigid", field="mode")
+        return getattr(self, name)
+
+
+def linearize_modes(plant: Plant) -> ContactModes:
+    """All linear models of a plant: contact, separation, rigid, the two transfer functions, the mesh mode.
+
+    Examples
+    --------
+    >>> from gearctl import load_model, build_plant
+    >>> m = linearize_modes(build_plant(load_model("shing1993")))
+    >>> round(m.mesh.natural_frequency_hz)
+    8196
+    """
+    contact = contact_mode_model(plant)
+    scale = plant.natural_frequency
+    tf_motor = _siso_tf(contact, 0, 0, scale)
+    tf_load = _siso_tf(contact, 1, 0, scale)
+    return ContactModes(
+        contact=contact, separation=separation_model(plant), rigid=rigid_model(plant),
+        motor_angle=ct.tf(tf_motor.num, tf_motor.den, inputs="xi1", outputs="theta1", name="motor_angle"),
+        load_angle=ct.tf(tf_load.num, tf_load.den, inputs="xi1", outputs="theta2", name="load_angle"),
+        mesh=mesh_mode(plant), plant=plant,
+    )
+
+
+def loop_margins(loop: Any) -> dict[str, float]:
+    """Gain and phase margins of an open loop (python-control's ``stability_margins``).
+
+    Parameters
+    ----------
+    loop : control.LTI
+        Open-loop transfer function (controller times plant, SISO).
+
+    Returns
+    -------
+    dict
+        ``gain_margin`` [1] and ``gain_margin_db``, ``phase_margin`` [deg], ``gain_crossover_hz``,
+        ``phase_crossover_hz`` (``inf``/``nan`` where a crossover does not exist).
+    """
+    gm, pm, _, wpc, wgc, _ = ct.stability_margins(loop)
+    return {
+        "gain_margin": float(gm),
+        "gain_margin_db": float(20 * np.log10(gm)) if np.isfinite(gm) and gm > 0 else float("inf"),
+        "phase_margin": float(pm),
+        "gain_crossover_hz": float(wgc / (2 * math.pi)),
+        "phase_crossover_hz": float(wpc / (2 * math.pi)),
+    }

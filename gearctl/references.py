@@ -1,0 +1,146 @@
+"""Load-angle references: step, ramp, sine and point-to-point moves (trapezoidal or S-curve velocity).
+
+Each reference gives the load angle and its first two derivatives at any time, so controllers can use
+feedforward and the dead-zone inverse can tell which flank must carry the load.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import InputError
+from .units import quantity, validate_fields
+
+__all__ = ["Reference", "reference", "REFERENCES"]
+
+REFERENCES = ("sine", "step", "ramp", "move")
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class Reference:
+    """A load-angle reference ``r(t)`` [rad] with derivatives.
+
+    Attributes
+    ----------
+    kind : str
+        ``sine``, ``step``, ``ramp`` or ``move``.
+    amplitude : float
+        Sine amplitude, step height, ramp or move distance [rad].
+    frequency : float
+        Sine frequency [Hz].
+    start : float
+        Time the step, ramp or move starts [s].
+    rate : float
+        Ramp rate [rad/s]; for a move, the cruise velocity [rad/s].
+    accel : float
+        Move acceleration [rad/s^2].
+    profile : str
+        Move velocity profile: ``trapezoid`` or ``s-curve`` (sinusoidal jerk-limited ramps).
+    disturbance_time : float
+        Time a load-torque step starts [s] (``inf``: none).
+    disturbance : float
+        Load-torque step on shaft 2 [N m], counter-clockwise positive.
+    """
+
+    kind: str
+    amplitude: float = quantity(unit="rad", doc="amplitude / distance", low=-100.0, high=100.0, default=0.1)
+    frequency: float = quantity(unit="Hz", doc="sine frequency", low=0.0, high=1e3, low_open=True, default=1.0)
+    start: float = quantity(unit="s", doc="start time", low=0.0, default=0.0)
+    rate: float = quantity(unit="rad/s", doc="ramp rate / cruise velocity", low=0.0, low_open=True, default=0.5)
+    accel: float = quantity(unit="rad/s^2", doc="move acceleration", low=0.0, low_open=True, default=5.0)
+    profile: str = "s-curve"
+    disturbance_time: float = quantity(unit="s", doc="load disturbance start", low=0.0, default=math.inf)
+    disturbance: float = quantity(unit="N m", doc="load disturbance", low=-1e4, high=1e4, default=0.0)
+
+    def __post_init__(self) -> None:
+        if self.kind not in REFERENCES:
+            raise InputError(f"reference = {self.kind!r} is not a reference: expected one of "
+                             f"{', '.join(REFERENCES)}", field="reference")
+        if self.profile not in ("trapezoid", "s-curve"):
+            raise InputError(f"profile = {self.profile!r}: expected trapezoid or s-curve", field="profile")
+        validate_fields(self)
+
+    def at(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """``(r, r', r'')`` at time(s) ``t`` [rad, rad/s, rad/s^2]."""
+        t = np.asarray(t, dtype=float)
+        tau = t - self.start
+        on = tau >= 0
+        z = np.zeros_like(t)
+        if self.kind == "sine":
+            w = 2 * math.pi * self.frequency
+            return self.amplitude * np.sin(w * t), self.amplitude * w * np.cos(w * t), -self.amplitude * w**2 * np.sin(w * t)
+        if self.kind == "step":
+            return np.where(on, self.amplitude, 0.0), z, z
+        if self.kind == "ramp":
+            sgn = math.copysign(1.0, self.amplitude)
+            T = abs(self.amplitude) / self.rate
+            r = np.where(on, sgn * self.rate * np.minimum(tau, T), 0.0)
+            return r, np.where(on & (tau < T), sgn * self.rate, 0.0), z
+        return self._move(tau)
+
+    def _move(self, tau: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
+        D, sgn = abs(self.amplitude), math.copysign(1.0, self.amplitude)
+        a, v = self.accel, self.rate
+        ta = v / a
+        if a * ta**2 > D:  # triangular: never reaches the cruise velocity
+            ta = math.sqrt(D / a)
+            v = a * ta
+        tc = (D - a * ta**2) / v if v > 0 else 0.0
+        T = 2 * ta + tc
+        tt = np.clip(tau, 0.0, T)
+        if self.profile == "trapezoid":
+            acc = np.where(tt < ta, a, np.where(tt < ta + tc, 0.0, -a))
+            p1 = 0.5 * a * np.minimum(tt, ta) ** 2
+            vel = np.where(tt < ta, a * tt, np.where(tt < ta + tc, v, v - a * (tt - ta - tc)))
+            p2 = v * np.clip(tt - ta, 0.0, tc)
+            td = np.clip(tt - ta - tc, 0.0, ta)
+            p3 = v * td - 0.5 * a * td**2
+            pos = p1 + p2 + p3
+        else:  # s-curve: acceleration a (1 - cos(2 pi t / ta)) over each ramp, same ta and peak velocity v
+            w = 2 * math.pi / ta
+
+            def ramp(s: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+                acc_ = (v / ta) * (1 - np.cos(w * s))
+                vel_ = (v / ta) * (s - np.sin(w * s) / w)
+                pos_ = (v / ta) * (s**2 / 2 + (np.cos(w * s) - 1) / w**2)
+                return pos_, vel_, acc_
+
+            s1 = np.minimum(tt, ta)
+            P1, V1, A1 = ramp(s1)
+            p2 = v * np.clip(tt - ta, 0.0, tc)
+            s3 = np.clip(tt - ta - tc, 0.0, ta)
+            P3r, V3r, A3r = ramp(ta - s3)
+            P3 = v * ta / 2 - P3r  # mirror of the first ramp
+            pos = np.where(tt <= ta, P1, v * ta / 2 + p2 + np.where(tt > ta + tc, P3, 0.0))
+            vel = np.where(tt <= ta, V1, np.where(tt <= ta + tc, v, V3r))
+            acc = np.where(tt <= ta, A1, np.where(tt <= ta + tc, 0.0, -A3r))
+        inside = (tau >= 0) & (tau <= T)
+        pos = np.where(tau < 0, 0.0, pos)
+        return sgn * pos, sgn * np.where(inside, vel, 0.0), sgn * np.where(inside, acc, 0.0)
+
+    def load_disturbance(self, t: float) -> float:
+        """Load-torque disturbance at time ``t`` [N m]."""
+        return self.disturbance if t >= self.disturbance_time else 0.0
+
+
+def reference(kind: str, **kwargs: float | str) -> Reference:
+    """The benchmark's reference of a kind, with defaults a servo engineer would pick.
+
+    ``sine``: 0.1 rad at 1 Hz (a reversal every 0.5 s). ``step``: 0.05 rad at 0.1 s with a 0.5 N m
+    load-torque step against the motion at 1.0 s. ``ramp``: 0.2 rad at 0.5 rad/s from 0.1 s. ``move``: a
+    0.2 rad point-to-point move, S-curve, 1 rad/s, 10 rad/s^2, from 0.1 s.
+    """
+    defaults: dict[str, dict[str, float | str]] = {
+        "sine": {"amplitude": 0.1, "frequency": 1.0},
+        "step": {"amplitude": 0.05, "start": 0.1, "disturbance_time": 1.0, "disturbance": -0.5},
+        "ramp": {"amplitude": 0.2, "rate": 0.5, "start": 0.1},
+        "move": {"amplitude": 0.2, "rate": 1.0, "accel": 10.0, "start": 0.1, "profile": "s-curve"},
+    }
+    if kind not in defaults:
+        raise InputError(f"reference = {kind!r} is not a reference: expected one of {', '.join(REFERENCES)}",
+                         field="reference")
+    return Reference(kind=kind, **{**defaults[kind], **kwargs})  # type: ignore[arg-type]
