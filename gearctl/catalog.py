@@ -23,6 +23,8 @@ from .units import describe_range
 __all__ = [
     "GearModel",
     "load_model",
+    "load_controller",
+    "controller_names",
     "model_names",
     "catalog_dirs",
     "resolve",
@@ -50,6 +52,11 @@ def _names(kind: str) -> list[str]:
 def model_names() -> list[str]:
     """Names of the models in the catalog, sorted."""
     return _names("models")
+
+
+def controller_names() -> list[str]:
+    """Names of the controllers in the catalog, sorted."""
+    return _names("controllers")
 
 
 def resolve(name_or_path: str | Path, kind: str) -> Path:
@@ -339,3 +346,30 @@ def load_model(name_or_path: str | Path, **overrides: Any) -> GearModel:
         source=dict(data["source"]),
         path=path,
     )
+
+
+def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | None = None) -> Any:
+    """Load a controller by catalog name (``pid``, ``deadzone_inverse``, ``mpc``) or TOML path.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        Catalog name or path.
+    plant : Plant
+        The nominal plant it is designed on.
+    backlash : float, optional
+        Backlash estimate overriding the file's and the model's [m].
+
+    Returns
+    -------
+    gearctl.design.Controller
+
+    Raises
+    ------
+    InputError
+        Unknown name, bad key or value.
+    """
+    from .design.registry import build_controller
+
+    path = resolve(name_or_path, "controllers")
+    return build_controller(read_toml(path), plant, path=path, backlash=backlash)

@@ -54,6 +54,13 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _nonnegative_float(text: str) -> float:
+    v = _finite_float(text)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be >= 0")
+    return v
+
+
 def _json_default(obj: Any) -> Any:
     if isinstance(obj, np.ndarray):
         return obj.tolist()
@@ -230,6 +237,67 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_track(model_name: str, controller_name: str, plant_kind: str, ref_kind: str, duration: float | None,
+               backlash: float | None, seed: int) -> tuple[Any, Any, Any]:
+    """Build plant and controller and run one closed loop (shared by track and describe)."""
+    from .catalog import load_controller
+    from .closedloop import simulate_closed_loop
+    from .plant import build_plant
+    from .references import reference
+
+    model = load_model(model_name)
+    # --backlash changes the model: the plant and the controller's default estimate (a controller file's
+    # own `backlash` key still wins, to test a wrong estimate)
+    nominal = build_plant(model, backlash=backlash)  # controllers are designed on the improved plant
+    plant = build_plant(model, plant_kind, backlash=backlash)
+    ctrl = load_controller(controller_name, nominal)
+    ref = reference(ref_kind)
+    dur = duration if duration is not None else _DEFAULT_DURATION[ref_kind]
+    res = simulate_closed_loop(plant, ctrl, ref, dur, sensors=model.sensors, seed=seed)
+    return model, ctrl, res
+
+
+_DEFAULT_DURATION = {"sine": 3.0, "step": 2.0, "ramp": 1.5, "move": 1.0}
+
+
+def _cmd_track(args: argparse.Namespace) -> int:
+    from .metrics import tracking_metrics
+
+    model, ctrl, res = _run_track(args.model, args.controller, args.plant, args.reference, args.duration,
+                                  args.backlash, args.seed)
+    m = tracking_metrics(res)
+    out = {"model": model.name, "controller": res.controller, "plant": args.plant, "reference": args.reference,
+           "backlash": res.plant.backlash, "seed": args.seed, **m}
+    if args.csv:
+        _write_csv(args.csv, ["t", "reference", "theta1", "theta2", "omega1", "omega2", "s", "mode", "torque",
+                              "y_motor", "y_load"],
+                   [res.t, res.reference, *res.x, res.s, res.mode, res.torque, res.y_motor, res.y_load])
+    if args.plot:
+        from .plots import plot_tracking
+
+        _save_figure(plot_tracking({ctrl.name: res}, title=f"{model.name}, {args.plant} plant, {args.reference}"),
+                     args.plot)
+    if args.json:
+        print(_dump_json(out))
+        return 0
+    st = m["solve_time"]
+    print(f"{model.name}: {ctrl.name} on the {args.plant} plant, {args.reference} reference, "
+          f"{m['duration']:.3g} s (b = {res.plant.backlash * 1e6:.4g} um)")
+    print(f"  load-angle error       RMS {m['rms_error']:.4g} rad, max {m['max_error']:.4g} rad, "
+          f"final {m['final_error']:.3g} rad")
+    print(f"  impacts                {m['impacts']} (front {m['impacts_front']}, back {m['impacts_back']}), "
+          f"fastest {m['max_impact_velocity']:.3g} m/s")
+    if st is not None:
+        print(f"  solve time             median {st['median'] * 1e6:.0f} us, p99 {st['p99'] * 1e6:.0f} us, "
+              f"max {st['max'] * 1e6:.0f} us (sample period {ctrl.Ts * 1e6:.0f} us); fallbacks {m['fallbacks']}")
+    print(f"  wall time              {m['wall_time']:.3g} s ({m['duration'] / max(m['wall_time'], 1e-9):.0f} "
+          f"simulated s per wall s)")
+    for path, what in ((args.csv, "CSV"), (args.plot, "plot")):
+        if path:
+            print(f"  wrote {path} ({what})")
+    return 0
+
+
 # --- parser --------------------------------------------------------------------------------------------
 
 _COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {}
@@ -274,6 +342,21 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="FILE", help="write the figure (angles, velocities, s, force)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     _COMMANDS["simulate"] = _cmd_simulate
+
+    p = sub.add_parser("track", help="run a controller against the nonlinear plant on a reference")
+    p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
+    p.add_argument("controller", nargs="?", default="deadzone_inverse",
+                   help="controller: catalog name (pid, deadzone_inverse, mpc) or TOML path (default deadzone_inverse)")
+    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved", help="plant (default improved)")
+    p.add_argument("--reference", choices=("sine", "step", "ramp", "move"), default="sine",
+                   help="sine: 0.1 rad 1 Hz; step: 0.05 rad + 0.5 N m load step; ramp; move: S-curve (default sine)")
+    p.add_argument("--duration", type=_positive_float, help="simulated time [s] (default per reference)")
+    p.add_argument("--backlash", type=_nonnegative_float, help="override the plant's backlash [m] (0: none)")
+    p.add_argument("--seed", type=int, default=0, help="sensor-noise seed (default 0)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--csv", metavar="FILE", help="write the run per sample")
+    p.add_argument("--plot", metavar="FILE", help="write reference/load angle, error, torque and gap plot")
+    _COMMANDS["track"] = _cmd_track
 
     return ap
 

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from .stiffness import COMPONENTS, MeshStiffness, ToothDeflections
 
-__all__ = ["plot_stiffness", "plot_simulation", "save"]
+__all__ = ["plot_stiffness", "plot_simulation", "plot_tracking", "save"]
 
 _LABELS = {
     "bending_cos": r"$\delta_{bp}$ bending by $F\cos\phi$",
@@ -111,6 +111,40 @@ def plot_simulation(results: dict[str, Any], *, title: str = "") -> Figure:
     for ax, *_ in panels:
         ax.grid(True, alpha=0.3)
     axs[0, 0].legend()
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def plot_tracking(results: dict[str, Any], *, title: str = "") -> Figure:
+    """Reference and load angle, tracking error, motor torque and gap state of closed-loop runs.
+
+    Parameters
+    ----------
+    results : dict of str to ClosedLoopResult
+        Label to run; all on common axes.
+    title : str
+        Figure title.
+    """
+    fig = Figure(figsize=(11, 10), layout="constrained")
+    axs = fig.subplots(4, 1, sharex=True)
+    first = next(iter(results.values()))
+    axs[0].plot(first.t, first.reference, "k", lw=2, label="reference")
+    for label, r in results.items():
+        axs[0].plot(r.t, r.x[1], label=label)
+        axs[1].plot(r.t, r.error * 1e3, label=label)
+        axs[2].step(r.t, r.torque, where="post", label=label)
+        axs[3].plot(r.t, r.s * 1e6, label=label)
+    b = first.plant.backlash * 1e6
+    for sgn in (1, -1):
+        axs[3].axhline(sgn * b, color="k", lw=0.6, ls=":")
+    axs[0].set(ylabel=r"load angle $\theta_2$ [rad]", title="Reference and load angle")
+    axs[1].set(ylabel="error [mrad]", title=r"Tracking error $r - \theta_2$")
+    axs[2].set(ylabel="motor torque [N m]", title="Motor torque")
+    axs[3].set(ylabel=r"s [$\mu$m]", xlabel="t [s]", title="Gap state: relative displacement (contact beyond ±b)")
+    for ax in axs:
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right")
     if title:
         fig.suptitle(title)
     return fig

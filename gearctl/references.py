@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -44,6 +45,8 @@ class Reference:
         Time a load-torque step starts [s] (``inf``: none).
     disturbance : float
         Load-torque step on shaft 2 [N m], counter-clockwise positive.
+    settle : float
+        Start of the interval over which RMS and max error are taken [s] (skips a start-up transient).
     """
 
     kind: str
@@ -55,6 +58,7 @@ class Reference:
     profile: str = "s-curve"
     disturbance_time: float = quantity(unit="s", doc="load disturbance start", low=0.0, default=math.inf)
     disturbance: float = quantity(unit="N m", doc="load disturbance", low=-1e4, high=1e4, default=0.0)
+    settle: float = quantity(unit="s", doc="start of the interval the error statistics cover", low=0.0, default=0.0)
 
     def __post_init__(self) -> None:
         if self.kind not in REFERENCES:
@@ -64,8 +68,10 @@ class Reference:
             raise InputError(f"profile = {self.profile!r}: expected trapezoid or s-curve", field="profile")
         validate_fields(self)
 
-    def at(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """``(r, r', r'')`` at time(s) ``t`` [rad, rad/s, rad/s^2]."""
+    def at(self, t: ArrayLike) -> tuple[Any, Any, Any]:
+        """``(r, r', r'')`` at time(s) ``t`` [rad, rad/s, rad/s^2]; floats for a scalar ``t``."""
+        if isinstance(t, float | int):
+            return self._scalar(float(t))
         t = np.asarray(t, dtype=float)
         tau = t - self.start
         on = tau >= 0
@@ -81,6 +87,18 @@ class Reference:
             r = np.where(on, sgn * self.rate * np.minimum(tau, T), 0.0)
             return r, np.where(on & (tau < T), sgn * self.rate, 0.0), z
         return self._move(tau)
+
+    def _scalar(self, t: float) -> tuple[float, float, float]:
+        """Pure-float path of :meth:`at` (the controllers call it once per sample)."""
+        if self.kind == "sine":
+            w = 2 * math.pi * self.frequency
+            a = self.amplitude
+            sn, cs = math.sin(w * t), math.cos(w * t)
+            return a * sn, a * w * cs, -a * w * w * sn
+        if self.kind == "step":
+            return (self.amplitude if t >= self.start else 0.0), 0.0, 0.0
+        r, rd, rdd = self.at(np.array([t]))
+        return float(r[0]), float(rd[0]), float(rdd[0])
 
     def _move(self, tau: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
         D, sgn = abs(self.amplitude), math.copysign(1.0, self.amplitude)
@@ -130,12 +148,12 @@ class Reference:
 def reference(kind: str, **kwargs: float | str) -> Reference:
     """The benchmark's reference of a kind, with defaults a servo engineer would pick.
 
-    ``sine``: 0.1 rad at 1 Hz (a reversal every 0.5 s). ``step``: 0.05 rad at 0.1 s with a 0.5 N m
+    ``sine``: 0.1 rad at 1 Hz (a reversal every 0.5 s; error statistics from 0.5 s, after start-up). ``step``: 0.05 rad at 0.1 s with a 0.5 N m
     load-torque step against the motion at 1.0 s. ``ramp``: 0.2 rad at 0.5 rad/s from 0.1 s. ``move``: a
     0.2 rad point-to-point move, S-curve, 1 rad/s, 10 rad/s^2, from 0.1 s.
     """
     defaults: dict[str, dict[str, float | str]] = {
-        "sine": {"amplitude": 0.1, "frequency": 1.0},
+        "sine": {"amplitude": 0.1, "frequency": 1.0, "settle": 0.5},
         "step": {"amplitude": 0.05, "start": 0.1, "disturbance_time": 1.0, "disturbance": -0.5},
         "ramp": {"amplitude": 0.2, "rate": 0.5, "start": 0.1},
         "move": {"amplitude": 0.2, "rate": 1.0, "accel": 10.0, "start": 0.1, "profile": "s-curve"},

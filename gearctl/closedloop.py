@@ -1,0 +1,232 @@
+"""The sampled-data closed loop: a controller at its own period, the plant integrated exactly between samples.
+
+Per sample: the encoders read the true angles (with noise, then quantised to their counts), the
+controller returns a motor torque, the torque limit clips it, and the kernel advances the plant over the
+sample with that torque held (zero-order hold), locating every contact event inside the sample.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .design.base import Controller
+from .errors import InputError, SimulationError
+from .kernel import EventKind, Kernel
+from .params import Sensors
+from .plant import Plant
+from .references import Reference
+from .simulate import DIVERGENCE_LIMIT, Event
+
+__all__ = ["ClosedLoopResult", "simulate_closed_loop", "Encoder"]
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class Encoder:
+    """A position encoder: Gaussian noise (std [rad]), then quantisation to ``cpr`` counts per revolution."""
+
+    cpr: int | None
+    noise: float = 0.0
+
+    def read(self, angle: float, rng: np.random.Generator) -> float:
+        """Measured angle [rad]."""
+        if self.noise > 0.0:
+            angle += self.noise * rng.standard_normal()
+        if self.cpr:
+            q = 2 * math.pi / self.cpr
+            angle = q * math.floor(angle / q + 0.5)
+        return angle
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class ClosedLoopResult:
+    """A closed-loop run, arrays indexed ``(signal, sample)``.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Sample times [s].
+    x : ndarray, shape (4, n)
+        True plant states at the samples.
+    reference : ndarray, shape (n,)
+        Load-angle reference [rad].
+    torque : ndarray, shape (n,)
+        Motor torque applied over each sample (after the limit) [N m].
+    command : ndarray, shape (n,)
+        Torque the controller asked for [N m].
+    y_motor, y_load : ndarray, shape (n,)
+        Encoder readings [rad] (``y_load`` NaN without a load encoder).
+    mode : ndarray of int, shape (n,)
+        Contact mode at the samples (-1 back, 0 separation, 1 front).
+    events : list of Event
+        Impacts and separations located inside the samples.
+    solve_times : ndarray
+        Controller optimisation solve times [s] (empty for controllers that solve none).
+    fallbacks : list of dict
+        Samples where the controller fell back to a safe command.
+    plant : Plant
+    controller : dict
+        The controller's settings.
+    success : bool
+    message : str
+    wall_time : float
+        Wall time of the run [s].
+    settle : float
+        The reference's settle time [s] (start of the error statistics).
+    """
+
+    t: NDArray[np.float64]
+    x: NDArray[np.float64]
+    reference: NDArray[np.float64]
+    torque: NDArray[np.float64]
+    command: NDArray[np.float64]
+    y_motor: NDArray[np.float64]
+    y_load: NDArray[np.float64]
+    mode: NDArray[np.int_]
+    events: list[Event]
+    solve_times: NDArray[np.float64]
+    fallbacks: list[dict[str, Any]]
+    plant: Plant
+    controller: dict[str, Any]
+    success: bool
+    message: str
+    wall_time: float
+    settle: float = 0.0
+
+    @property
+    def error(self) -> NDArray[np.float64]:
+        """Load-angle tracking error ``r - theta2`` [rad]."""
+        return self.reference - self.x[1]
+
+    @property
+    def s(self) -> NDArray[np.float64]:
+        """Relative displacement along the line of action [m]."""
+        return self.plant.rb1 * self.x[0] - self.plant.rb2 * self.x[1]
+
+    @property
+    def impacts(self) -> list[Event]:
+        """Impacts, including plastic ones."""
+        return [e for e in self.events if e.kind in ("impact", "plastic")]
+
+
+def simulate_closed_loop(
+    plant: Plant,
+    controller: Controller,
+    ref: Reference,
+    duration: float,
+    *,
+    sensors: Sensors | None = None,
+    seed: int = 0,
+    x0: NDArray[np.float64] | None = None,
+    compiled: bool | None = None,
+    progress: Callable[[float], Any] | None = None,
+) -> ClosedLoopResult:
+    """Run a controller against the nonlinear plant.
+
+    Parameters
+    ----------
+    plant : Plant
+        The true plant (its backlash may differ from the controller's estimate).
+    controller : Controller
+        Reset before the run.
+    ref : Reference
+        Load-angle reference and load-torque disturbance.
+    duration : float
+        Simulated time [s].
+    sensors : Sensors, optional
+        Encoders (default: ideal). A controller that uses the load encoder gets an ideal one if none is
+        given.
+    seed : int
+        Seed of the sensor-noise generator (results are deterministic for a seed).
+    x0 : ndarray, optional
+        Initial state (default: at rest with the flanks centred, ``s = 0``).
+    compiled : bool, optional
+        Force the compiled or the Python kernel.
+    progress : callable, optional
+        Called with the fraction done about a hundred times.
+
+    Returns
+    -------
+    ClosedLoopResult
+
+    Raises
+    ------
+    SimulationError
+        If the loop diverges or the plant state becomes NaN; ``error.result`` holds the run so far.
+    """
+    Ts = controller.Ts
+    if not (duration > 0 and math.isfinite(duration)):
+        raise InputError(f"duration = {duration!r} is out of range: expected a number > 0 [s]", field="duration")
+    n = int(round(duration / Ts))
+    if n < 1:
+        raise InputError(f"duration = {duration!r} is shorter than one sample ({Ts:g} s)", field="duration")
+    sensors = sensors or Sensors()
+    enc_m = Encoder(sensors.motor_encoder_cpr, sensors.motor_noise)
+    enc_l = Encoder(sensors.load_encoder_cpr, sensors.load_noise)
+    rng = np.random.default_rng(seed)
+    x0 = np.zeros(4) if x0 is None else np.asarray(x0, dtype=float)
+    kn = Kernel(plant, x0, dt=Ts, compiled=compiled)
+    controller.reset()
+    t = np.arange(n + 1) * Ts
+    xs = np.empty((4, n + 1))
+    xs[:, 0] = x0
+    mode = np.zeros(n + 1, dtype=int)
+    mode[0] = int(np.sign(kn.mode))
+    u = np.zeros(n + 1)
+    cmd = np.zeros(n + 1)
+    ym = np.full(n + 1, np.nan)
+    yl = np.full(n + 1, np.nan)
+    r = ref.at(t)[0]
+    lim = plant.torque_limit
+    tl = plant.load_torque
+    use_load = controller.uses_load_encoder
+    tick = max(1, n // 100)
+    status, last, message = 0, n, "ok"
+    st = kn._st
+    wall0 = time.perf_counter()
+    for i in range(n):
+        x = st.x
+        ym[i] = enc_m.read(x[0], rng)
+        if use_load:
+            yl[i] = enc_l.read(x[1], rng)
+        c = controller.step(t[i], ym[i], yl[i] if use_load else None, ref)
+        if not math.isfinite(c):
+            c = 0.0
+            controller.fallbacks.append({"t": float(t[i]), "reason": "non-finite command, zero torque"})
+        cmd[i] = c
+        ui = c if -lim <= c <= lim else math.copysign(lim, c)
+        u[i] = ui
+        status = kn.advance(ui, tl + ref.load_disturbance(t[i]), Ts)
+        xs[:, i + 1] = st.x
+        mode[i + 1] = 1 if st.mode > 0 else (-1 if st.mode < 0 else 0)
+        if status != 0:
+            last, message = i + 1, Kernel.status_message(status)
+            break
+        if not (abs(xs[2, i + 1]) < DIVERGENCE_LIMIT and abs(xs[3, i + 1]) < DIVERGENCE_LIMIT):
+            last, message = i + 1, f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s at t = {t[i + 1]:.4g} s"
+            break
+        if progress is not None and i % tick == 0:
+            progress(i / n)
+    wall = time.perf_counter() - wall0
+    sl = slice(0, last + 1)
+    ym[last] = enc_m.read(xs[0, last], rng)
+    if use_load:
+        yl[last] = enc_l.read(xs[1, last], rng)
+    u[last], cmd[last] = u[last - 1], cmd[last - 1]
+    events = [Event(float(te), EventKind.NAMES[int(k)], "front" if sd > 0 else "back", float(v))
+              for te, k, sd, v in kn.events]
+    res = ClosedLoopResult(
+        t=t[sl], x=xs[:, sl], reference=r[sl], torque=u[sl], command=cmd[sl], y_motor=ym[sl], y_load=yl[sl],
+        mode=mode[sl], events=events, solve_times=np.asarray(controller.solve_times, dtype=float),
+        fallbacks=list(controller.fallbacks), plant=plant, controller=controller.describe(),
+        success=message == "ok", message=message, wall_time=wall, settle=ref.settle,
+    )
+    if not res.success:
+        raise SimulationError(f"closed loop failed: {message}", result=res)
+    return res

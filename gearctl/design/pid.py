@@ -1,0 +1,187 @@
+"""Position PID with filtered derivative, anti-windup and optional feedforward: the baseline.
+
+The PID works in load-angle units: with motor-side feedback it regulates ``theta1 / N`` (the motor
+encoder scaled by the gear ratio), with load-side feedback ``theta2``. Its output is the motor torque.
+Gains are given, or designed with python-control for a requested crossover and phase margin on the
+rigid-train model and then checked on the sampled contact-mode model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import control as ct
+
+from ..errors import InputError
+from ..references import Reference
+from ..units import quantity, validate_fields
+from .base import Controller, LoopInfo
+
+__all__ = ["PIDGains", "PID", "design_pid"]
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class PIDGains:
+    """Parallel PID ``C(s) = kp + ki / s + kd s / (1 + s / (2 pi f_d))`` on the load-angle error.
+
+    Units: ``kp`` [N m/rad], ``ki`` [N m/(rad s)], ``kd`` [N m s/rad], ``derivative_filter_hz`` [Hz].
+    """
+
+    kp: float = quantity(unit="N m/rad", doc="proportional gain", low=0.0)
+    ki: float = quantity(unit="N m/(rad s)", doc="integral gain", low=0.0, default=0.0)
+    kd: float = quantity(unit="N m s/rad", doc="derivative gain", low=0.0, default=0.0)
+    derivative_filter_hz: float = quantity(
+        unit="Hz", doc="derivative filter corner", low=0.0, low_open=True, default=1e3
+    )
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+
+    def tf(self) -> ct.TransferFunction:
+        """The continuous PID as a transfer function (error [rad] to torque [N m])."""
+        wf = 2 * math.pi * self.derivative_filter_hz
+        s = ct.tf("s")
+        return self.kp + self.ki / s + self.kd * s / (1 + s / wf)
+
+
+def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float = 50.0, Ts: float = 1e-3,
+               integral_ratio: float = 0.1) -> tuple[PIDGains, dict[str, float]]:
+    """PID gains for a crossover ``bandwidth_hz`` and phase margin on the rigid train.
+
+    Parameters
+    ----------
+    info : LoopInfo
+        Design-time plant knowledge.
+    bandwidth_hz : float
+        Open-loop crossover frequency [Hz].
+    phase_margin_deg : float
+        Phase margin [deg] the lead provides, on top of what the integral zero and half a sample of
+        hold delay cost.
+    Ts : float
+        Sample period [s] (its zero-order hold costs ``omega_c Ts / 2`` of phase).
+    integral_ratio : float
+        Integral zero as a fraction of the crossover.
+
+    Returns
+    -------
+    gains : PIDGains
+    margins : dict
+        Margins of the designed loop on the *sampled contact-mode* model (motor torque to motor angle
+        scaled to load units, ZOH at ``Ts``): ``gain_margin_db``, ``phase_margin`` [deg],
+        ``gain_crossover_hz``.
+
+    Notes
+    -----
+    Lead–lag design on ``G(s) = 1 / (N J_eq s^2 + N d_eq s)``: the lead ``(1 + s/z)/(1 + s/p)`` centred
+    on ``omega_c`` with ``p/z = (1 + sin phi) / (1 - sin phi)``, the integrator ``(s + omega_i)/s`` with
+    ``omega_i = integral_ratio omega_c``, and the gain that puts ``|L(j omega_c)| = 1``; then written in
+    parallel form with the lead pole as derivative filter.
+    """
+    if not (0.0 < bandwidth_hz < 0.5 / Ts):
+        raise InputError(f"bandwidth_hz = {bandwidth_hz!r} is out of range: expected 0 < value < "
+                         f"{0.5 / Ts:g} (half the sample rate) [Hz]", field="bandwidth_hz")
+    if not (0.0 < phase_margin_deg < 80.0):
+        raise InputError(f"phase_margin_deg = {phase_margin_deg!r} is out of range: expected 0 < value < 80 "
+                         f"[deg]", field="phase_margin_deg")
+    wc = 2 * math.pi * bandwidth_hz
+    wi = integral_ratio * wc
+    phi = math.radians(phase_margin_deg) + math.atan(wi / wc) + wc * Ts / 2
+    phi = min(phi, math.radians(80.0))
+    alpha = (1 + math.sin(phi)) / (1 - math.sin(phi))
+    z, p = wc / math.sqrt(alpha), wc * math.sqrt(alpha)
+    s = ct.tf("s")
+    G = 1 / (info.N * info.J_eq * s**2 + info.N * info.d_eq * s)
+    shape = (s + wi) / s * (1 + s / z) / (1 + s / p)
+    K = 1.0 / abs(complex((shape * G)(1j * wc)))
+    ki = K * wi
+    Tf = 1 / p
+    kp = K * (1 + wi / z) - ki * Tf
+    kd = K / z - kp * Tf
+    gains = PIDGains(kp=kp, ki=ki, kd=max(kd, 0.0), derivative_filter_hz=p / (2 * math.pi))
+    return gains, sampled_margins(info, gains, Ts)
+
+
+def sampled_margins(info: LoopInfo, gains: PIDGains, Ts: float, *, feedback: str = "motor") -> dict[str, float]:
+    """Margins of the PID on the contact-mode model, both discretised at ``Ts`` (ZOH, Tustin)."""
+    from ..modes import loop_margins
+
+    out = 0 if feedback == "motor" else 1
+    scale = 1.0 / info.N if feedback == "motor" else 1.0
+    G = ct.c2d(ct.ss(info.modes.contact[out, 0]) * scale, Ts, "zoh")
+    C = ct.c2d(gains.tf(), Ts, "tustin")
+    return loop_margins(C * G)
+
+
+class PID(Controller):
+    """Discrete position PID (filtered derivative on the measurement, back-calculation anti-windup).
+
+    Parameters
+    ----------
+    info : LoopInfo
+        Design-time plant knowledge (gear ratio, rigid-train inertia and friction for feedforward).
+    gains : PIDGains
+        The gains.
+    Ts : float
+        Sample period [s].
+    feedback : str
+        ``"motor"`` (motor encoder scaled by the gear ratio) or ``"load"`` (load encoder).
+    feedforward : bool
+        Add the rigid-train torque ``N (J_eq r'' + d_eq r') - load_torque / N`` for the reference.
+    name : str
+        Label.
+    """
+
+    def __init__(self, info: LoopInfo, gains: PIDGains, *, Ts: float = 1e-3, feedback: str = "motor",
+                 feedforward: bool = True, name: str = "pid") -> None:
+        super().__init__()
+        if feedback not in ("motor", "load"):
+            raise InputError(f"feedback = {feedback!r}: expected 'motor' or 'load'", field="feedback")
+        self.info, self.gains, self.Ts, self.feedback, self.feedforward = info, gains, Ts, feedback, feedforward
+        self.name = name
+        self.uses_load_encoder = feedback == "load"
+        self.N = info.N
+        self.limit = info.torque_limit
+        # derivative filter (backward Euler) and anti-windup tracking time
+        Tf = 1.0 / (2 * math.pi * gains.derivative_filter_hz)
+        self._a = Tf / (Tf + Ts)
+        self._Tt = math.sqrt(gains.kd / gains.ki) if gains.ki > 0 and gains.kd > 0 else 10 * Ts
+        self.reset()
+
+    def reset(self) -> None:
+        """Zero the integrator and the derivative filter."""
+        self._i = 0.0
+        self._yf = None  # filtered measurement for the derivative
+        self._dy = 0.0
+        self.solve_times, self.fallbacks = [], []
+
+    def torque(self, t: float, r: float, rd: float, rdd: float, e_p: float, y_p: float, e_i: float) -> float:
+        """One PID update from the prepared errors (used by the dead-zone inverse too).
+
+        ``e_p``: proportional error, ``y_p``: the signal differentiated, ``e_i``: integral error, all in
+        load-angle units [rad].
+        """
+        g = self.gains
+        if self._yf is None:
+            self._yf = y_p
+        yf_new = self._a * self._yf + (1 - self._a) * y_p
+        self._dy = (yf_new - self._yf) / self.Ts
+        self._yf = yf_new
+        u = g.kp * e_p + self._i + g.kd * (rd - self._dy)
+        if self.feedforward:
+            info = self.info
+            u += self.N * (info.J_eq * rdd + info.d_eq * rd) - info.plant.load_torque / self.N
+        u_sat = min(max(u, -self.limit), self.limit)
+        self._i += self.Ts * (g.ki * e_i + (u_sat - u) / self._Tt)
+        return u_sat
+
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
+        r, rd, rdd = ref.at(t)
+        y = y_motor / self.N if self.feedback == "motor" else float(y_load)  # type: ignore[arg-type]
+        return self.torque(t, r, rd, rdd, r - y, y, r - y)
+
+    def describe(self) -> dict[str, Any]:
+        """Gains and settings."""
+        return {"name": self.name, "kind": "pid", "Ts": self.Ts, "feedback": self.feedback,
+                "feedforward": self.feedforward, **dataclasses.asdict(self.gains)}
