@@ -237,6 +237,61 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_linearize(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .modes import linearize_modes
+    from .plant import build_plant
+
+    model = load_model(args.model)
+    modes = linearize_modes(build_plant(model))
+    sys = modes.mode(args.mode)
+    mesh = modes.mesh
+    contact = args.mode == "contact"
+    out = {
+        "model": model.name,
+        "mode": args.mode,
+        "states": list(sys.state_labels),
+        "inputs": list(sys.input_labels),
+        "outputs": list(sys.output_labels),
+        "A": sys.A.tolist(), "B": sys.B.tolist(), "C": sys.C.tolist(), "D": sys.D.tolist(),
+        "poles": [[float(p.real), float(p.imag)] for p in sys.poles()],
+        "natural_frequency_hz": mesh.natural_frequency_hz if contact else None,
+        "damping_ratio": mesh.damping_ratio if contact else None,
+        "antiresonance_hz": mesh.antiresonance_hz if contact else None,
+        "motor_angle_tf": {"num": np.asarray(modes.motor_angle.num[0][0]).tolist(),
+                           "den": np.asarray(modes.motor_angle.den[0][0]).tolist()},
+        "load_angle_tf": {"num": np.asarray(modes.load_angle.num[0][0]).tolist(),
+                          "den": np.asarray(modes.load_angle.den[0][0]).tolist()},
+    }
+    if args.bode or args.step:
+        from .plots import plot_bode, plot_step
+
+        both = {"contact": modes.contact, "separation": modes.separation, "rigid": modes.rigid}
+        if args.bode:
+            _save_figure(plot_bode(both, output="theta1", title=f"{model.name}: motor torque to motor angle"),
+                         args.bode)
+        if args.step:
+            T = np.linspace(0, 8 / max(mesh.natural_frequency_hz, 1.0), 2000)
+            _save_figure(plot_step({"contact": modes.contact}, output="s", T=T,
+                                   title=f"{model.name}: motor torque step, relative displacement"), args.step)
+    if args.json:
+        print(_dump_json(out))
+        return 0
+    print(f"{model.name}: {args.mode} model, states {', '.join(out['states'])}; inputs {', '.join(out['inputs'])}; "
+          f"outputs {', '.join(out['outputs'])}")
+    print("  poles                  " + ", ".join(f"{p.real:.5g}{p.imag:+.5g}j" for p in sys.poles()))
+    if contact:
+        print(f"  mesh mode              {mesh.natural_frequency_hz:.5g} Hz, damping ratio {mesh.damping_ratio:.4g}; "
+              f"anti-resonance {mesh.antiresonance_hz:.5g} Hz (motor torque -> motor angle)")
+    print(f"  rigid train            J_eq {modes.plant.J1 + modes.plant.J2 / modes.plant.gear_ratio ** 2:.5g} kg m^2 "
+          f"on the motor, gear ratio {modes.plant.gear_ratio:.4g}")
+    for path, what in ((args.bode, "Bode of contact, separation and rigid models"), (args.step, "step response")):
+        if path:
+            print(f"  wrote {path} ({what})")
+    return 0
+
+
 def _run_track(model_name: str, controller_name: str, plant_kind: str, ref_kind: str, duration: float | None,
                backlash: float | None, seed: int) -> tuple[Any, Any, Any]:
     """Build plant and controller and run one closed loop (shared by track and describe)."""
@@ -342,6 +397,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="FILE", help="write the figure (angles, velocities, s, force)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     _COMMANDS["simulate"] = _cmd_simulate
+
+    p = sub.add_parser("linearize", help="linear model per contact mode (python-control), Bode and step")
+    p.add_argument("model", help="catalog name or path to a TOML file")
+    p.add_argument("--mode", choices=("contact", "separation", "rigid"), default="contact",
+                   help="contact (front or back), separation or rigid (k -> inf) (default contact)")
+    p.add_argument("--json", action="store_true", help="print A, B, C, D, poles, mesh-mode figures as JSON")
+    p.add_argument("--bode", metavar="FILE", help="write the Bode diagram of all modes on common axes")
+    p.add_argument("--step", metavar="FILE", help="write the contact-mode step response (s)")
+    _COMMANDS["linearize"] = _cmd_linearize
 
     p = sub.add_parser("track", help="run a controller against the nonlinear plant on a reference")
     p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 from typing import Any
 
 import control as ct
@@ -227,28 +226,57 @@ def linearize_modes(plant: Plant) -> ContactModes:
     )
 
 
-def loop_margins(loop: Any) -> dict[str, float]:
-    """Gain and phase margins of an open loop (python-control's ``stability_margins``).
+def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
+    """Gain and phase margins of an open loop, from its frequency response on a dense grid.
 
     Parameters
     ----------
     loop : control.LTI
-        Open-loop transfer function (controller times plant, SISO).
+        Open-loop transfer function (controller times plant, SISO), continuous or discrete.
+    omega : array_like, optional
+        Frequencies [rad/s]; default 1e-2 rad/s to the Nyquist frequency (discrete) or 1e6 rad/s.
 
     Returns
     -------
     dict
-        ``gain_margin`` [1] and ``gain_margin_db``, ``phase_margin`` [deg], ``gain_crossover_hz``,
-        ``phase_crossover_hz`` (``inf``/``nan`` where a crossover does not exist).
+        ``phase_margin`` [deg] at the *last* gain crossover (where ``|L|`` falls through 1 for good),
+        ``gain_crossover_hz``; ``gain_margin`` [1] and ``gain_margin_db``: the smallest distance of
+        ``|L|`` from 1 at the phase crossovers (-180 deg) above the gain crossover (``inf`` if none),
+        ``phase_crossover_hz``; ``lower_gain_margin_db``: for conditionally stable loops (type 2: phase
+        below -180 deg at low frequency), by how much the gain may *drop* before the low-frequency
+        crossover turns unstable (``inf`` if none).
+
+    Notes
+    -----
+    python-control's ``stability_margins`` picks one crossing among several and, for discrete loops
+    with double integrators, falls back to an inaccurate method; the gear servo's loops (type 2 with a
+    mesh resonance) are exactly that case, so gearctl reads the margins off ``frequency_response``.
     """
-    with warnings.catch_warnings():
-        # python-control says when it falls back from 'poly' to 'frd' for accuracy; the result is what we want
-        warnings.filterwarnings("ignore", message="stability_margins: Falling back", category=UserWarning)
-        gm, pm, _, wpc, wgc, _ = ct.stability_margins(loop)
-    return {
-        "gain_margin": float(gm),
-        "gain_margin_db": float(20 * np.log10(gm)) if np.isfinite(gm) and gm > 0 else float("inf"),
-        "phase_margin": float(pm),
-        "gain_crossover_hz": float(wgc / (2 * math.pi)),
-        "phase_crossover_hz": float(wpc / (2 * math.pi)),
-    }
+    if omega is None:
+        wmax = math.pi / loop.dt if loop.dt else 1e6
+        omega = np.logspace(-2, np.log10(wmax * 0.999), 20000)
+    resp = ct.frequency_response(loop, omega)
+    mag = np.squeeze(resp.magnitude)
+    ph = np.degrees(np.unwrap(np.squeeze(resp.phase)))
+    # bring the phase to the branch where the high-frequency rigid part sits near -180 deg
+    above = np.nonzero((mag[:-1] >= 1.0) & (mag[1:] < 1.0))[0]
+    out = {"phase_margin": float("nan"), "gain_crossover_hz": float("nan"), "gain_margin": float("inf"),
+           "gain_margin_db": float("inf"), "phase_crossover_hz": float("nan"), "lower_gain_margin_db": float("inf")}
+    if above.size == 0:
+        return out
+    i = above[-1]
+    shift = 360.0 * np.round((ph[i] + 180.0) / 360.0 - 0.5) if ph[i] > 0 or ph[i] < -360 else 0.0
+    ph = ph - shift
+    out["phase_margin"] = float(180.0 + ph[i])
+    out["gain_crossover_hz"] = float(omega[i] / (2 * math.pi))
+    cross = np.nonzero(np.diff(np.sign(ph + 180.0)) != 0)[0]
+    hi = [j for j in cross if j > i]
+    lo = [j for j in cross if j < i]
+    if hi:
+        gm = min(1.0 / mag[j] for j in hi)
+        out["gain_margin"] = float(gm)
+        out["gain_margin_db"] = float(20 * np.log10(gm))
+        out["phase_crossover_hz"] = float(omega[min(hi, key=lambda j: 1.0 / mag[j])] / (2 * math.pi))
+    if lo:
+        out["lower_gain_margin_db"] = float(min(20 * np.log10(mag[j]) for j in lo))
+    return out

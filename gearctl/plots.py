@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from .stiffness import COMPONENTS, MeshStiffness, ToothDeflections
 
-__all__ = ["plot_stiffness", "plot_simulation", "plot_tracking", "save"]
+__all__ = ["plot_stiffness", "plot_simulation", "plot_tracking", "plot_bode", "plot_step", "save"]
 
 _LABELS = {
     "bending_cos": r"$\delta_{bp}$ bending by $F\cos\phi$",
@@ -145,6 +145,65 @@ def plot_tracking(results: dict[str, Any], *, title: str = "") -> Figure:
     for ax in axs:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc="upper right")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def plot_bode(systems: dict[str, Any], *, output: str = "theta1", input: str = "xi1",
+              omega: Any = None, title: str = "") -> Figure:
+    """Bode diagram of one channel of several python-control systems on common axes.
+
+    Parameters
+    ----------
+    systems : dict of str to control.LTI
+        Label to system (e.g. the contact and separation models); the channel is picked by signal name.
+    output, input : str
+        Signal names of the channel.
+    omega : array_like, optional
+        Frequencies [rad/s] (default: 0.1 Hz to 3x the highest pole).
+    title : str
+        Figure title.
+    """
+    import control as ct
+    import numpy as np
+
+    if omega is None:
+        wmax = max(float(np.max(np.abs(sys.poles()))) for sys in systems.values())
+        omega = np.logspace(np.log10(2 * np.pi * 0.1), np.log10(3 * max(wmax, 10.0)), 2000)
+    fig = Figure(figsize=(9, 7), layout="constrained")
+    ax_m, ax_p = fig.subplots(2, 1, sharex=True)
+    for label, sys in systems.items():
+        sub = sys[sys.output_labels.index(output), sys.input_labels.index(input)]
+        resp = ct.frequency_response(sub, omega)
+        mag, phase = np.squeeze(resp.magnitude), np.squeeze(resp.phase)
+        ax_m.semilogx(omega / (2 * np.pi), 20 * np.log10(mag), label=label)
+        ax_p.semilogx(omega / (2 * np.pi), np.degrees(np.unwrap(phase)), label=label)
+    ax_m.set(ylabel="magnitude [dB]", title=f"{input} -> {output}")
+    ax_p.set(ylabel="phase [deg]", xlabel="frequency [Hz]")
+    for ax in (ax_m, ax_p):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def plot_step(systems: dict[str, Any], *, output: str = "theta1", input: str = "xi1", T: Any = None,
+              title: str = "") -> Figure:
+    """Step responses of one channel of several python-control systems on common axes."""
+    import control as ct
+    import numpy as np
+
+    fig = Figure(figsize=(9, 5), layout="constrained")
+    ax = fig.subplots()
+    for label, sys in systems.items():
+        sub = sys[sys.output_labels.index(output), sys.input_labels.index(input)]
+        resp = ct.step_response(sub, T=T)
+        ax.plot(resp.time * 1e3, np.squeeze(resp.outputs), label=label)
+    ax.set(xlabel="t [ms]", ylabel=output, title=f"Step of {input} -> {output}")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
     if title:
         fig.suptitle(title)
     return fig
