@@ -5,14 +5,15 @@ Seen from the motor, the backlash is a dead zone of width ``2 b`` along the line
 units) so that the intended flank is closed and the load follows as if there were no gap. ``sigma`` is a
 smooth sign (``tanh``) of either
 
-- the torque the mesh must transmit to the load, ``J2 r'' + d2 r' - load_torque`` (the default: on an
+- the torque the mesh must transmit to the load, ``J2 r'' + d2 r' + T_c2 sign(r') - load_torque``
+  (the default: on an
   inertia-dominated load the decelerating half of every cycle is carried by the back flank although
   the motion is still forward), or
 - the reference velocity ``r'`` (the textbook rule, which is wrong over half of each cycle for an inertial
   load).
 
-The transition width keeps a reference at rest (``sigma`` near zero: the motor parks mid-gap) and noise
-from chattering between the flanks.
+The transition width keeps noise from chattering between the flanks; while the reference is at rest the
+last flank is held (a load stopped by friction rests on the flank that drove it).
 """
 
 from __future__ import annotations
@@ -69,21 +70,32 @@ class DeadzoneInverse(Controller):
         p = pid.info.plant
         self._offset = backlash / p.rb2  # half the lost motion, load angle [rad]
         self._J2, self._d2, self._tl = p.J2, p.d2, p.load_torque
+        self._tc2 = p.tc2
         self.reset()
 
     def reset(self) -> None:
-        """Reset the wrapped PID."""
+        """Reset the wrapped PID and the held flank."""
         self.pid.reset()
+        self._sigma = 0.0
         self.solve_times, self.fallbacks = [], []
 
     def flank(self, t: float, ref: Reference) -> float:
-        """Smooth sign in [-1, 1] of the flank that must carry the load (+1 front, -1 back)."""
+        """Smooth sign in [-1, 1] of the flank that must carry the load (+1 front, -1 back).
+
+        While the reference is at rest (``r' = r'' = 0``) the last value is held: a load that friction
+        stopped on the driving flank stays there, so the offset must too.
+        """
         r, rd, rdd = ref.at(t)
-        if self.rule == "torque":
-            drive = self._J2 * rdd + self._d2 * rd - self._tl  # the known load, not the disturbance
+        if rd == 0.0 and rdd == 0.0:
+            return self._sigma
+        if self.rule == "torque":  # the model's known load and friction, not the (unknown) disturbance
+            drive = self._J2 * rdd + self._d2 * rd - self._tl
+            if self._tc2 > 0.0 and rd != 0.0:  # full Coulomb friction while the load moves
+                drive += math.copysign(self._tc2, rd)
         else:
             drive = rd
-        return math.tanh(drive / self.width)
+        self._sigma = math.tanh(drive / self.width)
+        return self._sigma
 
     def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
         r, rd, rdd = ref.at(t)
