@@ -273,7 +273,8 @@ int gc_advance_pwl(const gc_params *p, gc_state *st, double u1, double u2, doubl
         /* events: each g_e is positive inside the mode */
         double cg[2][4], g0[2];
         int target[2];
-        int ne = event_functions(p, mode, cg, g0, target);
+        /* no gap and the linear law: one linear system on both flanks, nothing to locate */
+        int ne = (p->b == 0.0 && p->law == 0) ? 0 : event_functions(p, mode, cg, g0, target);
         double best = -1.0;
         int which = -1;
         matvec4(A, x0, dx0);
@@ -311,6 +312,7 @@ int gc_advance_pwl(const gc_params *p, gc_state *st, double u1, double u2, doubl
         if (which < 0) {
             memcpy(st->x, x1, sizeof x1);
             st->t = lands ? t_end : st->t + h;
+            if (ne == 0 && p->b == 0.0) st->mode = s_of(p, x1) >= 0.0 ? 1 : -1; /* the label only */
         } else {
             if (nt == 0) nt = taylor(A, p->rho[dyn], x0, a, h, D);
             taylor_eval(D, nt, best, st->x);

@@ -10,6 +10,7 @@ import argparse
 import csv
 import json
 import math
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -353,6 +354,114 @@ def _cmd_track(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_precision(args: argparse.Namespace) -> int:
+    from .catalog import load_controller
+    from .plant import build_plant
+    from .precision import precision_test
+
+    model = load_model(args.model)
+    nominal = build_plant(model, backlash=args.backlash)
+    plant = build_plant(model, args.plant, backlash=args.backlash)
+    ctrl = load_controller(args.controller, nominal)
+    res = precision_test(plant, ctrl, targets=args.targets, cycles=args.cycles, travel=args.travel,
+                         dwell=args.dwell, sensors=model.sensors, seed=args.seed)
+    st = res.stats
+    out = {
+        "model": model.name, "controller": ctrl.describe(), "plant": args.plant, "backlash": plant.backlash,
+        "lost_motion": 2 * plant.backlash / plant.rb2,
+        "targets": res.targets.tolist(), "cycles": args.cycles,
+        "reversal_value": st["reversal_value"], "repeatability": st["repeatability"],
+        "repeatability_up": st["repeatability_up"], "repeatability_down": st["repeatability_down"],
+        "accuracy": st["accuracy"], "mean_bidirectional_deviation": st["mean_bidirectional_deviation"],
+        "systematic_deviation": st["systematic_deviation"], "mean_reversal": st["mean_reversal"],
+        "per_target": [
+            {"target": float(P), "mean_up": float(st["mean_up"][i]), "mean_down": float(st["mean_down"][i]),
+             "s_up": float(st["s_up"][i]), "s_down": float(st["s_down"][i]), "reversal": float(st["reversal"][i]),
+             "deviations_up": res.deviations_up[i].tolist(), "deviations_down": res.deviations_down[i].tolist()}
+            for i, P in enumerate(res.targets)],
+        "impacts": len(res.run.impacts),
+    }
+    if args.plot:
+        from .plots import plot_precision
+
+        _save_figure(plot_precision(res), args.plot)
+    if args.json:
+        print(_dump_json(out))
+        return 0
+    print(f"{model.name}: {ctrl.name} on the {args.plant} plant, ISO 230-2 linear cycle, {args.targets} targets "
+          f"over {args.travel:g} rad, {args.cycles} cycles")
+    print(f"  reversal value B       {st['reversal_value'] * 1e6:.4g} urad (lost motion 2b/r_b2 = "
+          f"{out['lost_motion'] * 1e6:.4g} urad)")
+    print(f"  repeatability R        {st['repeatability'] * 1e6:.4g} urad (R+ {st['repeatability_up'] * 1e6:.3g}, "
+          f"R- {st['repeatability_down'] * 1e6:.3g})")
+    print(f"  accuracy A             {st['accuracy'] * 1e6:.4g} urad")
+    print(f"  mean bidirectional M   {st['mean_bidirectional_deviation'] * 1e6:.4g} urad")
+    print("  target [rad]   mean+ [urad]  mean- [urad]  B_i [urad]")
+    for row in out["per_target"]:
+        print(f"  {row['target']:11.4f}  {row['mean_up'] * 1e6:12.2f}  {row['mean_down'] * 1e6:12.2f}  "
+              f"{row['reversal'] * 1e6:10.2f}")
+    if args.plot:
+        print(f"  wrote {args.plot}")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import BenchSpec, bench_table, error_traces, run_bench
+
+    plants = tuple(p.strip() for p in args.plants.split(",") if p.strip())
+    refs = tuple(r.strip() for r in args.references.split(",") if r.strip())
+    spec = BenchSpec(models=tuple(args.models) or ("shing1993_servo",), controllers=tuple(args.controllers or ()),
+                     plants=plants, references=refs, duration=args.duration, seed=args.seed)
+    n = len(spec.runs())
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n, desc="gearctl bench", unit="run", file=sys.stderr, leave=False, disable=None)
+
+    def progress(done: int, total: int) -> None:
+        if bar is not None:
+            bar.update(1)
+
+    import time
+
+    t0 = time.perf_counter()
+    result = run_bench(spec, jobs=args.jobs, progress=progress)
+    wall = time.perf_counter() - t0
+    if bar is not None:
+        bar.close()
+    result["wall_time"] = wall
+    result["jobs"] = args.jobs or (os.cpu_count() or 1)
+    text = bench_table(result)
+    print(text, end="")
+    print(f"{n} runs in {wall:.1f} s on {result['jobs']} process(es)")
+    if args.json:
+        try:
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.json).write_text(_dump_json(result))
+        except OSError as exc:
+            raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
+        print(f"wrote {args.json}")
+    if args.out:
+        from .plots import plot_bench_bars, plot_bench_errors
+
+        out = Path(args.out)
+        traces = error_traces(result)
+        for ref in spec.references:
+            _save_figure(plot_bench_errors(traces, reference=ref), str(out / f"errors_{ref}.png"))
+        _save_figure(plot_bench_bars(result), str(out / "rms_by_controller.png"))
+        md = ["# gearctl bench", "", f"{n} runs, {wall:.1f} s on {result['jobs']} process(es); models "
+              f"{', '.join(spec.models)}; plants {', '.join(spec.plants)} and the backlash-free limit.", "",
+              bench_table(result, markdown=True), "![RMS error by controller and plant](rms_by_controller.png)", ""]
+        md += [f"![errors, {ref}](errors_{ref}.png)" for ref in spec.references]
+        try:
+            (out / "report.md").write_text("\n".join(md) + "\n")
+        except OSError as exc:
+            raise InputError(f"cannot write {out / 'report.md'}: {exc.strerror}") from None
+        print(f"wrote {out}/report.md and plots")
+    return 0
+
+
 # --- parser --------------------------------------------------------------------------------------------
 
 _COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {}
@@ -421,6 +530,34 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", metavar="FILE", help="write the run per sample")
     p.add_argument("--plot", metavar="FILE", help="write reference/load angle, error, torque and gap plot")
     _COMMANDS["track"] = _cmd_track
+
+    p = sub.add_parser("precision", help="ISO 230-2 positioning test: reversal value, repeatability, accuracy")
+    p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
+    p.add_argument("controller", nargs="?", default="deadzone_inverse", help="controller (default deadzone_inverse)")
+    p.add_argument("--targets", type=_positive_int, default=5, help="target positions (default 5)")
+    p.add_argument("--cycles", type=_positive_int, default=5, help="cycles (default 5, as ISO 230-2)")
+    p.add_argument("--travel", type=_positive_float, default=0.5, help="span of the targets [rad] (default 0.5)")
+    p.add_argument("--dwell", type=_positive_float, default=0.3, help="rest before each measurement [s] (default 0.3)")
+    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved", help="plant")
+    p.add_argument("--backlash", type=_nonnegative_float, help="override the model's backlash [m]")
+    p.add_argument("--seed", type=int, default=0, help="seed of sensor noise and target offsets")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", metavar="FILE", help="write the deviations per target and direction")
+    _COMMANDS["precision"] = _cmd_precision
+
+    p = sub.add_parser("bench", help="the tracking benchmark: every controller on every plant (the main job)")
+    p.add_argument("models", nargs="*", help="models (default shing1993_servo)")
+    p.add_argument("--controllers", nargs="+", metavar="FILE", help="controllers (default: every catalog entry)")
+    p.add_argument("--plants", default="improved,yang-sun,tvms",
+                   help="comma-separated plants; the backlash-free plant is always added (default improved,yang-sun,tvms)")
+    p.add_argument("--references", default="sine,move,step", help="comma-separated references (default sine,move,step)")
+    p.add_argument("--duration", type=_positive_float, help="simulated time of every run [s] (default per reference)")
+    p.add_argument("--jobs", type=_positive_int, help="worker processes (default: all cores)")
+    p.add_argument("--seed", type=int, default=0, help="sensor-noise seed (default 0)")
+    p.add_argument("--json", metavar="FILE", help="write every figure as JSON")
+    p.add_argument("--out", metavar="DIR", help="write plots and a Markdown report")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _COMMANDS["bench"] = _cmd_bench
 
     return ap
 

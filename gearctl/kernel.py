@@ -555,7 +555,8 @@ def _py_advance_pwl(kn: Kernel, u1: float, u2: float, T: float) -> int:
         dx0 = [u + w for u, w in zip(_mv(A, x0), a, strict=True)]
         dx1 = [u + w for u, w in zip(_mv(A, x1), a, strict=True)]
         best, which, target = -1.0, -1, 0
-        for cg, g0, tgt in _event_functions(kn, mode):
+        no_events = p.backlash == 0.0 and kn._prm.law == 0  # one linear system on both flanks
+        for cg, g0, tgt in ([] if no_events else _event_functions(kn, mode)):
             ga = g0 + sum(cg[i] * x0[i] for i in range(4))
             gb = g0 + sum(cg[i] * x1[i] for i in range(4))
             da = sum(cg[i] * dx0[i] for i in range(4))
@@ -577,6 +578,8 @@ def _py_advance_pwl(kn: Kernel, u1: float, u2: float, T: float) -> int:
         if which < 0:
             x = x1
             t = t_end if lands else t + h
+            if no_events:
+                mode = 1 if p.rb1 * x[0] - p.rb2 * x[1] >= 0.0 else -1
         else:
             if D is None:
                 D = _taylor(A, kn._rho[dyn], x0, a, h)

@@ -16,7 +16,10 @@ from matplotlib.figure import Figure
 
 from .stiffness import COMPONENTS, MeshStiffness, ToothDeflections
 
-__all__ = ["plot_stiffness", "plot_simulation", "plot_tracking", "plot_bode", "plot_step", "save"]
+__all__ = [
+    "plot_stiffness", "plot_simulation", "plot_tracking", "plot_bode", "plot_step", "plot_bench_errors",
+    "plot_bench_bars", "plot_precision", "save",
+]
 
 _LABELS = {
     "bending_cos": r"$\delta_{bp}$ bending by $F\cos\phi$",
@@ -206,4 +209,84 @@ def plot_step(systems: dict[str, Any], *, output: str = "theta1", input: str = "
     ax.legend(fontsize=8)
     if title:
         fig.suptitle(title)
+    return fig
+
+
+def plot_bench_errors(traces: dict[tuple[str, str], dict[str, Any]], *, reference: str) -> Figure:
+    """Tracking error of every controller on one reference, one panel per controller, plants on common axes.
+
+    Parameters
+    ----------
+    traces : dict
+        From :func:`gearctl.bench.error_traces`: ``(controller, reference) -> {plant: (t, error)}``.
+    reference : str
+        The reference to draw.
+    """
+    ctrls = [c for (c, r) in traces if r == reference]
+    fig = Figure(figsize=(10, 2.6 * max(len(ctrls), 1)), layout="constrained")
+    axs = fig.subplots(max(len(ctrls), 1), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, c in zip(axs, ctrls, strict=False):
+        for plant, (t, e) in traces[(c, reference)].items():
+            ax.plot(t, e * 1e3, label=plant, lw=1.0)
+        ax.set(ylabel="error [mrad]", title=f"{c}: load-angle error, {reference}")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right")
+    axs[-1].set_xlabel("t [s]")
+    return fig
+
+
+def plot_bench_bars(result: dict[str, Any]) -> Figure:
+    """RMS load-angle error by controller and plant, one panel per reference (log scale)."""
+    import numpy as np
+
+    runs = [r for r in result["runs"] if r["design"] == "improved" and r.get("ok")]
+    refs = list(dict.fromkeys(r["reference"] for r in runs))
+    ctrls = list(dict.fromkeys(r["controller"] for r in runs))
+    plants = list(dict.fromkeys(r["plant"] for r in runs))
+    cell = {(r["controller"], r["reference"], r["plant"]): r["rms_error"] for r in runs}
+    fig = Figure(figsize=(4.2 * max(len(refs), 1), 4.5), layout="constrained")
+    axs = fig.subplots(1, max(len(refs), 1), squeeze=False)[0]
+    width = 0.8 / max(len(plants), 1)
+    x = np.arange(len(ctrls))
+    for ax, ref in zip(axs, refs, strict=False):
+        for k, p in enumerate(plants):
+            vals = [cell.get((c, ref, p), np.nan) * 1e6 for c in ctrls]
+            ax.bar(x + (k - (len(plants) - 1) / 2) * width, vals, width, label=p)
+        ax.set_xticks(x, ctrls, rotation=20, ha="right")
+        ax.set(yscale="log", ylabel="RMS error [urad]", title=ref)
+        ax.grid(True, axis="y", alpha=0.3, which="both")
+    axs[0].legend(fontsize=8)
+    return fig
+
+
+def plot_precision(result: Any, *, title: str = "") -> Figure:
+    """ISO 230-2 plot: deviations per target and direction, means and ± 2 s bands.
+
+    Parameters
+    ----------
+    result : PrecisionResult
+        From :func:`gearctl.precision.precision_test`.
+    title : str
+        Figure title.
+    """
+    import numpy as np
+
+    st = result.stats
+    P = result.targets
+    fig = Figure(figsize=(9, 5.5), layout="constrained")
+    ax = fig.subplots()
+    n = result.deviations_up.shape[1]
+    for j in range(n):
+        ax.plot(P, result.deviations_up[:, j] * 1e6, "^", color="C0", alpha=0.5, label="approach +" if j == 0 else None)
+        ax.plot(P, result.deviations_down[:, j] * 1e6, "v", color="C3", alpha=0.5, label="approach -" if j == 0 else None)
+    for mean, s, color, lab in ((st["mean_up"], st["s_up"], "C0", "+"), (st["mean_down"], st["s_down"], "C3", "-")):
+        ax.plot(P, np.asarray(mean) * 1e6, "-", color=color, label=f"mean {lab}")
+        ax.fill_between(P, (np.asarray(mean) - 2 * np.asarray(s)) * 1e6, (np.asarray(mean) + 2 * np.asarray(s)) * 1e6,
+                        color=color, alpha=0.15)
+    ax.plot(P, np.asarray(st["mean_bidirectional"]) * 1e6, "k--", label="mean bidirectional")
+    ax.set(xlabel="target position [rad]", ylabel="deviation [urad]",
+           title=title or f"ISO 230-2: B = {st['reversal_value'] * 1e6:.1f} urad, R = {st['repeatability'] * 1e6:.1f} urad, "
+                          f"A = {st['accuracy'] * 1e6:.1f} urad")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
     return fig

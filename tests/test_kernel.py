@@ -1,0 +1,358 @@
+"""The simulation kernel (gearctl/kernel.py and gearctl/_kernel.c): one algorithm, two paths.
+
+Oracles:
+
+1. independent computations: the contact-mode matrices written out from eqs 1-5 (TR 93-28 section 2);
+   the backlash-free plant against ``scipy.linalg.expm`` of the contact matrix; the compiled path
+   against the pure-Python mirror (``Kernel(..., compiled=False)``) on every plant kind;
+2. closed forms of the Zeno rule: a bounce cascade under a small steady torque loses a factor
+   ``e = exp(-zeta pi / sqrt(1 - zeta^2))`` of its impact speed per impact (the restitution of the
+   linear law, eqs 3 and 10), so it needs about ``log(v0 / ZENO_VELOCITY) / log(1 / e)`` impacts before
+   the impact that is made plastic;
+3. invariants: the trajectory does not depend on how the run is cut into ``advance`` intervals.
+
+Compiled checks call :func:`require_compiled`, which skips them where no C compiler is available.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+from numpy.testing import assert_allclose
+
+from gearctl import ContactLaw, GearModel, InputError, Plant, build_plant, load_model
+from gearctl.kernel import ZENO_VELOCITY, EventKind, Kernel, compiled_available, contact_matrices
+from gearctl.simulate import Event, SimulationResult, simulate
+
+KERNELS = [pytest.param(True, id="compiled"), pytest.param(False, id="python")]
+
+
+def require_compiled(compiled: bool) -> None:
+    """Skip a compiled-path check where the C kernel cannot be built."""
+    if compiled and not compiled_available():
+        pytest.skip("compiled kernel not available (no C compiler, or GEARCTL_NO_COMPILE set)")
+
+
+@pytest.fixture(scope="module")
+def improved(shing: GearModel) -> Plant:
+    """The report's pair, improved plant (computed k, eq 38 damping, linear law)."""
+    return build_plant(shing)
+
+
+@pytest.fixture(scope="module")
+def servo() -> Plant:
+    """The report's pair with motor and load inertia and viscous friction (shing1993_servo)."""
+    return build_plant(load_model("shing1993_servo"))
+
+
+def free_x0(plant: Plant) -> list[float]:
+    """The report's free-vibration start (section 5.1.1): neutral positions, omega1 = 50 rad/s."""
+    return [0.0, 0.0, 50.0, 0.0]
+
+
+def zeta_of(plant: Plant) -> float:
+    """Damping ratio of the mesh mode, ``c / (2 sqrt(k m_eq))`` (eq 38, consistent form)."""
+    return plant.c / (2.0 * math.sqrt(plant.k * plant.m_eq))
+
+
+def restitution(plant: Plant) -> float:
+    """Restitution of the linear law with no static load: ``exp(-zeta pi / sqrt(1 - zeta^2))``."""
+    z = zeta_of(plant)
+    return math.exp(-z * math.pi / math.sqrt(1.0 - z * z))
+
+
+# --- contact matrices from the report's equations -------------------------------------------------------
+
+
+def test_contact_matrices_are_eqs_1_to_12(servo: Plant) -> None:
+    # Written out from eqs 1-5 (front contact; eqs 8-12 give the same linear part), plus the viscous
+    # friction d1 omega1, d2 omega2 of the servo: F = k (rb1 th1 - rb2 th2 - b) + c (rb1 w1 - rb2 w2);
+    # J1 w1' = xi1 - rb1 F - d1 w1; J2 w2' = xi2 + rb2 F - d2 w2.
+    p = servo
+    assert p.d1 > 0 and p.d2 > 0
+    J1, J2, r1, r2, k, c = p.J1, p.J2, p.rb1, p.rb2, p.k, p.c
+    A_free = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [0, 0, -p.d1 / J1, 0], [0, 0, 0, -p.d2 / J2]])
+    A_contact = A_free + np.array([
+        [0, 0, 0, 0],
+        [0, 0, 0, 0],
+        [-k * r1 * r1 / J1, k * r1 * r2 / J1, -c * r1 * r1 / J1, c * r1 * r2 / J1],
+        [k * r1 * r2 / J2, -k * r2 * r2 / J2, c * r1 * r2 / J2, -c * r2 * r2 / J2],
+    ])
+    B = np.array([[0, 0], [0, 0], [1 / J1, 0], [0, 1 / J2]])
+    Ac, Af, Bk = contact_matrices(p)
+    # same formulas, different association order: rtol 1e-14
+    assert_allclose(Ac, A_contact, rtol=1e-14, atol=0)
+    assert_allclose(Af, A_free, rtol=1e-14, atol=0)
+    assert_allclose(Bk, B, rtol=1e-14, atol=0)
+
+
+# --- compiled vs Python ---------------------------------------------------------------------------------
+
+
+def _plants(shing: GearModel) -> dict[str, Plant]:
+    base = build_plant(shing)
+    servo_model = load_model("shing1993_servo")
+    servo = build_plant(servo_model)
+    return {
+        "improved-linear": base,
+        "improved-no_pull": dataclasses.replace(base, contact_law=ContactLaw.NO_PULL),
+        "yang-sun": build_plant(shing, "yang-sun"),
+        "tvms": build_plant(shing, "tvms"),
+        "servo-viscous": servo,
+        # Coulomb friction turns the improved plant nonlinear: the dopri5 path
+        "servo-coulomb": dataclasses.replace(servo, tc1=0.01, tc2=0.02),
+    }
+
+
+PLANT_NAMES = ["improved-linear", "improved-no_pull", "yang-sun", "tvms", "servo-viscous", "servo-coulomb"]
+
+
+@pytest.mark.parametrize("name", PLANT_NAMES)
+@pytest.mark.parametrize("torque", [(0.0, 0.0), (1.0, -1.0)], ids=["free", "load"])
+def test_compiled_matches_python(shing: GearModel, name: str, torque: tuple[float, float]) -> None:
+    require_compiled(True)
+    p = _plants(shing)[name]
+    runs = [simulate(p, free_x0(p), 5e-3, torque=torque, compiled=c) for c in (True, False)]
+    a, b = runs
+    assert a.solver.endswith("(compiled)") and b.solver.endswith("(python)")
+    assert a.solver.split()[0] == b.solver.split()[0]
+    assert len(a.impacts) >= 5  # the comparison covers several contacts
+    # one algorithm written twice: s within 1e-9 b (we see <= 1e-12 b)
+    assert_allclose(a.s, b.s, rtol=0, atol=1e-9 * p.backlash)
+    # the rates agree to the same relative accuracy (1e-9 of the initial 50 rad/s)
+    assert_allclose(a.x[2:], b.x[2:], rtol=0, atol=1e-9 * 50.0)
+    assert_allclose(a.force, b.force, rtol=0, atol=1e-9 * p.k * p.backlash)
+    assert np.array_equal(a.mode, b.mode)
+    # same events in the same order; times within 1e-15 s (we see ~1e-16 s)
+    assert [(e.kind, e.side) for e in a.events] == [(e.kind, e.side) for e in b.events]
+    assert_allclose([e.t for e in a.events], [e.t for e in b.events], rtol=0, atol=1e-15)
+    # velocities at the events: 1e-9 of the first impact speed
+    assert_allclose([e.velocity for e in a.events], [e.velocity for e in b.events], rtol=0,
+                    atol=1e-9 * abs(a.events[0].velocity))
+    assert_allclose(a.max_penetration, b.max_penetration, rtol=1e-9)
+
+
+# --- independence from the output grid ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["improved", "yang-sun"])
+def test_trajectory_independent_of_output_interval(shing: GearModel, kind: str) -> None:
+    p = build_plant(shing, kind)
+    fine = simulate(p, free_x0(p), 2e-3, dt=1e-6)
+    coarse = simulate(p, free_x0(p), 2e-3, dt=1e-4)
+    assert_allclose(coarse.t, fine.t[::100], rtol=1e-12, atol=0)
+    # events are located, not stepped over: the coarse grid sees the same trajectory.
+    # exact solver: s within 1e-9 b (we see 2e-13 b); dopri5 at rtol 1e-9: 1e-6 b
+    tol = 1e-9 if kind == "improved" else 1e-6
+    assert_allclose(coarse.s, fine.s[::100], rtol=0, atol=tol * p.backlash)
+    assert [(e.kind, e.side) for e in coarse.events] == [(e.kind, e.side) for e in fine.events]
+    assert_allclose([e.t for e in coarse.events], [e.t for e in fine.events], rtol=0,
+                    atol=1e-12 if kind == "improved" else 1e-9)
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+def test_advance_in_pieces_equals_one_call(improved: Plant, compiled: bool) -> None:
+    require_compiled(compiled)
+    p = improved
+    one = Kernel(p, np.array(free_x0(p)), dt=1e-4, compiled=compiled)
+    assert one.advance(0.3, -0.2, 1e-3) == 0
+    many = Kernel(p, np.array(free_x0(p)), dt=1e-4, compiled=compiled)
+    for _ in range(10):
+        assert many.advance(0.3, -0.2, 1e-4) == 0
+    assert one.path == many.path == ("compiled" if compiled else "python")
+    # time: ten additions of 1e-4 vs one of 1e-3, rtol 1e-14
+    assert_allclose(many.t, one.t, rtol=1e-14)
+    s1 = p.relative_displacement(one.x)
+    s2 = p.relative_displacement(many.x)
+    # exact solution either way: 1e-9 b
+    assert_allclose(s2, s1, rtol=0, atol=1e-9 * p.backlash)
+    assert [e[1:3] for e in many.events] == [e[1:3] for e in one.events]
+    assert_allclose([e[0] for e in many.events], [e[0] for e in one.events], rtol=0, atol=1e-15)
+
+
+# --- backlash-free plant: linear contact everywhere -----------------------------------------------------
+
+
+def _affine_expm(A: np.ndarray, a: np.ndarray, x0: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """States of ``x' = A x + a`` at times ``t`` via the augmented matrix exponential (scipy)."""
+    M = np.zeros((5, 5))
+    M[:4, :4] = A
+    M[:4, 4] = a
+    z0 = np.append(x0, 1.0)
+    return np.stack([(scipy.linalg.expm(M * ti) @ z0)[:4] for ti in t], axis=1)
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+@pytest.mark.parametrize("which", ["bare", "servo"])
+@pytest.mark.parametrize("torque", [(0.0, 0.0), (0.05, -0.1)], ids=["free", "torque"])
+def test_zero_backlash_is_linear_contact(shing: GearModel, servo: Plant, compiled: bool, which: str,
+                                         torque: tuple[float, float]) -> None:
+    require_compiled(compiled)
+    p = build_plant(shing, backlash=0.0) if which == "bare" else dataclasses.replace(servo, backlash=0.0)
+    assert p.backlash == 0.0
+    x0 = np.array(free_x0(p))
+    res = simulate(p, x0, 2e-3, dt=1e-5, torque=torque, compiled=compiled)
+    # with no gap there is nothing to impact: no events at all, never in separation
+    assert res.impact_counts() == {"front": 0, "back": 0}
+    assert res.events == []
+    assert set(np.unique(res.mode).tolist()) <= {-1, 1}
+    # s changes sign many times (the mesh vibrates through zero), so both flank laws are used
+    assert np.any(res.s > 0) and np.any(res.s < 0)
+    Ac, _, B = contact_matrices(p)
+    X = _affine_expm(Ac, B @ np.array(torque), x0, res.t)
+    # x' = A_contact x + B u everywhere (the +-k b term vanishes with b = 0): rates to 1e-9 relative
+    # of their range, s to 1e-9 of its amplitude
+    scale = np.max(np.abs(X), axis=1, keepdims=True)
+    assert_allclose(res.x, X, rtol=0, atol=1e-9 * float(np.max(scale)))
+    s_ref = p.rb1 * X[0] - p.rb2 * X[1]
+    assert_allclose(res.s, s_ref, rtol=0, atol=1e-9 * np.max(np.abs(s_ref)))
+
+
+# --- the Zeno rule ---------------------------------------------------------------------------------------
+
+
+def _zeno_start(plant: Plant, v0: float, gap: float = 1e-6) -> list[float]:
+    """In the gap a hair before front contact, ``s = b (1 - gap)``, closing at v0 along the line of action."""
+    return [plant.backlash * (1.0 - gap) / plant.rb1, 0.0, v0 / plant.rb1, 0.0]
+
+
+# A small steady torque on gear 1 pushes the flanks into front contact. Its static deflection is tiny,
+# so after each impact the flanks part again at e times the impact speed and fly back under the
+# torque: a geometric cascade of impacts (e = 0.854 at zeta = 0.05), endless in exact arithmetic.
+# The relative acceleration is a = rb1 xi1 / J1 ~ 1e-3 m/s^2, and the static deflection in velocity
+# units a / omega ~ 2e-8 m/s is far below ZENO_VELOCITY = 1e-6 m/s, so the cascade reaches the Zeno
+# rule before the static load could stop it.
+ZENO_XI1 = 1e-6  # N m
+ZENO_V0 = 1e-5  # m/s
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+@pytest.mark.parametrize("law", [ContactLaw.LINEAR, ContactLaw.NO_PULL])
+def test_zeno_cascade_ends_in_plastic_contact(improved: Plant, compiled: bool, law: ContactLaw,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    require_compiled(compiled)
+    import gearctl.simulate as sim
+
+    # The cascade needs ~30 events; cap the kernel at 1000 per interval (default 200000) so that an
+    # unresolved cascade fails in a second instead of a minute on the Python path.
+    monkeypatch.setattr(sim, "Kernel", lambda *a, **kw: Kernel(*a, max_events=1000, **kw))
+    p = dataclasses.replace(improved, contact_law=law)
+    a = p.rb1 * ZENO_XI1 / p.J1
+    assert a / p.natural_frequency < 0.05 * ZENO_VELOCITY  # the premise above
+    res = simulate(p, _zeno_start(p, ZENO_V0), 0.3, torque=(ZENO_XI1, 0.0), dt=1e-4, compiled=compiled)
+    assert res.success and res.t[-1] == pytest.approx(0.3, rel=1e-12)
+    kinds = [e.kind for e in res.events]
+    assert kinds.count("plastic") == 1, kinds[-8:]
+    i_pl = kinds.index("plastic")
+    plastic = res.events[i_pl]
+    assert plastic.side == "front"
+    assert abs(plastic.velocity) < ZENO_VELOCITY
+    # persistent contact: nothing after the plastic impact, front contact to the end
+    assert res.events[i_pl + 1:] == []
+    after = res.t > plastic.t
+    assert np.all(res.mode[after] == 1)
+    # the plastic impact removed the relative velocity; the flanks then stay at the static deflection
+    v = p.rb1 * res.x[2] - p.rb2 * res.x[3]
+    # 1e-3 of ZENO_VELOCITY: only the static-deflection transient a / omega remains
+    assert np.max(np.abs(v[after])) < 1e-3 * ZENO_VELOCITY + 2 * a / p.natural_frequency
+    # every earlier impact was an ordinary one, each slower than the last, and all above the Zeno speed
+    impacts = res.impacts
+    assert all(e.kind == "impact" and e.side == "front" for e in impacts[:-1])
+    speeds = np.array([abs(e.velocity) for e in impacts])
+    assert np.all(np.diff(speeds) < 0)
+    assert np.all(speeds[:-1] >= ZENO_VELOCITY)
+    # count: speeds v_n = v_1 e^n until the first below ZENO_VELOCITY, so n_impacts <=
+    # log(v_1 / Z) / log(1/e) + 2 (the first and the plastic one). The no_pull law's lift dissipates
+    # less than the linear law's pull (measured ratio 0.858 vs e = 0.854): slack 3 covers it.
+    e = restitution(p)
+    estimate = math.log(speeds[0] / ZENO_VELOCITY) / math.log(1.0 / e)
+    assert 0.8 * estimate <= len(impacts) <= estimate + 3
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+@pytest.mark.parametrize("law", [ContactLaw.LINEAR, ContactLaw.NO_PULL])
+def test_plastic_impact_is_a_single_event(improved: Plant, compiled: bool, law: ContactLaw) -> None:
+    # The last step of every Zeno cascade, isolated: flanks closing slower than ZENO_VELOCITY under a
+    # steady torque into contact. The rule makes the impact perfectly plastic (relative velocity
+    # removed by an impulse); the torque then holds the flanks in contact. Expected events: exactly one
+    # ('plastic', front) and front contact to the end. Seeded sweep over closing speeds, because what
+    # happens right after the impulse depends on the last bit of the rounded relative velocity.
+    require_compiled(compiled)
+    p = dataclasses.replace(improved, contact_law=law)
+    rng = np.random.default_rng(20240611)
+    failures = []
+    for v in rng.uniform(0.01, 0.9, 60) * ZENO_VELOCITY:
+        # s = b (1 - 1e-9): contact within the first microsecond
+        kn = Kernel(p, np.array(_zeno_start(p, v, gap=1e-9)), dt=1e-5, compiled=compiled, max_events=50)
+        status = kn.advance(ZENO_XI1, 0.0, 1e-5)
+        kinds = [EventKind.NAMES[k] for _, k, _, _ in kn.events]
+        if status != 0 or kinds != ["plastic"] or kn.mode != 1:
+            failures.append((float(v), status, kinds[:6], kn.mode))
+    assert not failures, f"{len(failures)} of 60 closing speeds: (v, status, events, mode) e.g. {failures[:3]}"
+
+
+# --- failure handling ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+def test_kernel_gives_up_on_too_many_events(improved: Plant, compiled: bool) -> None:
+    require_compiled(compiled)
+    p = improved
+    kn = Kernel(p, np.array(_zeno_start(p, 1e-4)), dt=0.3, compiled=compiled, max_events=5)
+    status = kn.advance(ZENO_XI1, 0.0, 0.3)
+    assert status == 3
+    assert "too many events" in Kernel.status_message(status)
+    assert kn.t < 0.3  # it stopped early
+    assert len(kn.events) >= 5
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+def test_simulate_raises_on_too_many_events(improved: Plant, compiled: bool,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    require_compiled(compiled)
+    import gearctl.simulate as sim
+
+    # simulate() has no max_events argument: give its Kernel a tiny one
+    monkeypatch.setattr(sim, "Kernel", lambda *a, **kw: Kernel(*a, max_events=5, **kw))
+    p = improved
+    with pytest.raises(sim.SimulationError, match="too many events") as info:
+        sim.simulate(p, _zeno_start(p, 1e-4), 0.3, torque=(ZENO_XI1, 0.0), dt=0.3, compiled=compiled)
+    res = info.value.result
+    assert isinstance(res, SimulationResult)
+    assert not res.success
+    assert "too many events" in res.message
+    assert all(isinstance(e, Event) for e in res.events) and len(res.events) >= 5
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+@pytest.mark.parametrize("x0", [[0.0, 0.0, 50.0], [0.0, 0.0, math.nan, 0.0], [0.0, math.inf, 0.0, 0.0],
+                                [[0.0, 0.0, 50.0, 0.0]]], ids=["length3", "nan", "inf", "2d"])
+def test_kernel_rejects_bad_initial_state(improved: Plant, compiled: bool, x0: list) -> None:
+    require_compiled(compiled)
+    with pytest.raises(InputError, match="initial state"):
+        Kernel(improved, np.array(x0, dtype=float), dt=1e-6, compiled=compiled)
+
+
+def test_kernel_classify_and_set_state(improved: Plant) -> None:
+    p = improved
+    kn = Kernel(p, np.array(free_x0(p)), dt=1e-6, compiled=False)
+    assert kn.mode == 0 and kn.t == 0.0 and kn.max_penetration == 0.0
+    b = p.backlash
+    front = np.array([2 * b / p.rb1, 0.0, 0.0, 0.0])  # s = 2 b: front contact, compressed
+    back = -front
+    assert kn.classify(front) == 1 and kn.classify(back) == -1
+    kn.set_state(front)
+    assert kn.mode == 1
+    assert_allclose(kn.x, front, rtol=0, atol=0)
+    # no_pull: overlapping but parting faster than k delta / c carries no load (mode +-2)
+    np_kn = Kernel(dataclasses.replace(p, contact_law=ContactLaw.NO_PULL), np.array(free_x0(p)), dt=1e-6,
+                   compiled=False)
+    delta = 1e-9
+    v = -2 * p.k * delta / p.c  # F = k delta + c v = -k delta < 0
+    parting = np.array([(b + delta) / p.rb1, 0.0, v / p.rb1, 0.0])
+    assert np_kn.classify(parting) == 2
+    assert np_kn.classify(-parting) == -2
