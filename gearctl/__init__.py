@@ -16,7 +16,15 @@ params      :class:`MeshDynamics`, :class:`Servo`, :class:`Sensors`, :class:`Con
 plant       :class:`Plant`, :func:`build_plant`, :class:`Mode`, :class:`PlantKind`
 catalog     :func:`load_model`, :func:`model_names`, :class:`GearModel`
 summary     :func:`model_summary`
+simulate    :func:`simulate`, :func:`report_case` (open loop, events located exactly)
+modes       :func:`linearize_modes`, :func:`contact_mode_model`, :func:`loop_margins` (python-control)
+design      :class:`PID`, :func:`design_pid`, :class:`DeadzoneInverse`, MPC (``gearctl.design.mpc``)
+closedloop  :func:`simulate_closed_loop`; references :func:`reference`; metrics :func:`tracking_metrics`
+precision   :func:`precision_test` (ISO 230-2); bench :func:`run_bench`
 errors      :class:`GearctlError`, :class:`InputError`, :class:`SimulationError`
+
+Modules that need python-control (which loads matplotlib) are imported on first use, so
+``import gearctl`` stays light.
 """
 
 from .catalog import GearModel, load_model, model_names
@@ -39,7 +47,26 @@ from .summary import model_summary
 
 __version__ = "0.1.0"
 
+_LAZY = {
+    "simulate": "gearctl.simulate", "report_case": "gearctl.simulate",
+    "linearize_modes": "gearctl.modes", "contact_mode_model": "gearctl.modes", "separation_model": "gearctl.modes",
+    "rigid_model": "gearctl.modes", "loop_margins": "gearctl.modes",
+    "simulate_closed_loop": "gearctl.closedloop", "reference": "gearctl.references",
+    "tracking_metrics": "gearctl.metrics", "precision_test": "gearctl.precision", "run_bench": "gearctl.bench",
+    "load_controller": "gearctl.catalog", "plant_nlsys": "gearctl.plant",
+}
+
+
+def __getattr__(name: str) -> object:
+    """Import the heavier parts of the API on first use."""
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'gearctl' has no attribute {name!r}")
+
 __all__ = [
+    *_LAZY,
     "ContactLaw",
     "GearModel",
     "GearPair",

@@ -462,6 +462,40 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_perf(args: argparse.Namespace) -> int:
+    from .catalog import controller_names
+    from .perf import bench_wall_time, mpc_timing, sim_speed
+
+    out: dict[str, Any] = {}
+    scen = {name: sim_speed(name) for name in ("free", "pd")}
+    keys = ("gearctl_sim_per_wall", "python_control_sim_per_wall", "ratio", "gearctl_error", "python_control_error")
+    # the contract keys at the top of "sim" are the harder case, the 1 kHz closed loop; both scenarios below
+    out["sim"] = {**{k: scen["pd"][k] for k in keys}, "free": scen["free"], "pd": scen["pd"]}
+    out["mpc"] = mpc_timing() if "mpc" in controller_names() else None
+    out["bench"] = None if args.no_bench else bench_wall_time(jobs=args.jobs)
+    if args.json:
+        print(_dump_json(out))
+        return 0
+    for name, r in scen.items():
+        label = {"free": "free vibration (shing1993)", "pd": "1 kHz PD loop on a sine (shing1993_servo)"}[name]
+        print(f"{label}:")
+        print(f"  gearctl                      {r['gearctl_sim_per_wall']:10.4g} sim-s/wall-s, error {r['gearctl_error']:.1e} b")
+        print(f"  python-control (default tol) {r['python_control_sim_per_wall']:10.4g} sim-s/wall-s, error "
+              f"{r['python_control_error']:.1e} b -> {r['ratio']:.0f}x")
+        print(f"  python-control (rtol 1e-10)  {r['python_control_tight_sim_per_wall']:10.4g} sim-s/wall-s, error "
+              f"{r['python_control_tight_error']:.1e} b -> {r['ratio_equal_accuracy']:.0f}x at equal accuracy")
+    m = out["mpc"]
+    if m is not None:
+        print(f"MPC solve per step ({m['steps']} steps, Ts {m['Ts'] * 1e6:.0f} us): median {m['median'] * 1e6:.0f} us, "
+              f"p99 {m['p99'] * 1e6:.0f} us, max {m['max'] * 1e6:.0f} us; whole step p99 {m['step_p99'] * 1e6:.0f} us")
+        print("  within budget: " + ", ".join(f"{k} {v * 100:.1f} %" for k, v in m["budgets"].items()))
+    b = out["bench"]
+    if b is not None:
+        print(f"default bench: {b['runs']} runs, {b['simulated_time']:.0f} simulated s in {b['wall_time']:.1f} s wall "
+              f"on {b['jobs']} process(es)")
+    return 0
+
+
 # --- parser --------------------------------------------------------------------------------------------
 
 _COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {}
@@ -558,6 +592,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="write plots and a Markdown report")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     _COMMANDS["bench"] = _cmd_bench
+
+    p = sub.add_parser("perf", help="speed: simulator vs python-control, MPC solve times, bench wall time")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--no-bench", action="store_true", help="skip timing the default bench")
+    p.add_argument("--jobs", type=_positive_int, help="worker processes for the bench timing")
+    _COMMANDS["perf"] = _cmd_perf
 
     return ap
 

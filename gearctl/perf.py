@@ -12,6 +12,7 @@ Error is the largest ``|s - s_ref|`` over the outputs, as a fraction of the back
 from __future__ import annotations
 
 import math
+import os
 import time
 import warnings
 from collections.abc import Callable
@@ -25,7 +26,7 @@ from .plant import Plant, build_plant, plant_nlsys
 from .reference import reference_solution
 from .simulate import simulate
 
-__all__ = ["sim_speed", "pd_gains"]
+__all__ = ["sim_speed", "pd_gains", "mpc_timing", "bench_wall_time"]
 
 
 def pd_gains(plant: Plant, bandwidth_hz: float = 20.0) -> tuple[float, float]:
@@ -167,3 +168,57 @@ def sim_speed(scenario: str = "free", *, duration: float | None = None,
         "python_control_error": err(xpc),
         "python_control_tight_error": err(xpt),
     }
+
+
+def mpc_timing(*, duration: float = 3.0, controller: str = "mpc") -> dict[str, Any]:
+    """Solve time per step of the catalog MPC on the default benchmark's sine (shing1993_servo, improved).
+
+    Returns
+    -------
+    dict
+        ``median``, ``p99``, ``max`` [s] of the solver alone, ``overhead_median`` [s] (the rest of the
+        controller step: observer, data copies, Python), ``step_p99`` [s] (whole controller step),
+        ``budgets`` {``1kHz``, ``4kHz``, ``8kHz``: fraction of steps whose solve fits}, ``Ts`` [s],
+        ``fallbacks``, ``rms_error`` [rad].
+    """
+    from .catalog import load_controller
+    from .closedloop import simulate_closed_loop
+    from .metrics import tracking_metrics
+    from .references import reference
+
+    model = load_model("shing1993_servo")
+    plant = build_plant(model)
+    ctrl = load_controller(controller, plant)
+    step_times: list[float] = []
+    inner = ctrl.step
+
+    def timed_step(*args: Any) -> float:
+        t0 = time.perf_counter()
+        u = inner(*args)
+        step_times.append(time.perf_counter() - t0)
+        return u
+
+    ctrl.step = timed_step  # type: ignore[method-assign]
+    res = simulate_closed_loop(plant, ctrl, reference("sine"), duration, sensors=model.sensors)
+    st = np.asarray(res.solve_times)
+    steps = np.asarray(step_times)
+    m = tracking_metrics(res)
+    return {
+        "median": float(np.median(st)), "p99": float(np.percentile(st, 99)), "max": float(np.max(st)),
+        "overhead_median": float(np.median(steps[: st.size] - st)) if st.size == steps.size else None,
+        "step_p99": float(np.percentile(steps, 99)),
+        "budgets": {name: float(np.mean(st <= b)) for name, b in (("1kHz", 1e-3), ("4kHz", 250e-6), ("8kHz", 125e-6))},
+        "Ts": ctrl.Ts, "fallbacks": len(res.fallbacks), "rms_error": m["rms_error"], "steps": int(st.size),
+    }
+
+
+def bench_wall_time(*, jobs: int | None = None) -> dict[str, Any]:
+    """Wall time of the default ``gearctl bench`` (all controllers, plants and references)."""
+    from .bench import BenchSpec, run_bench
+
+    spec = BenchSpec()
+    t0 = time.perf_counter()
+    result = run_bench(spec, jobs=jobs)
+    wall = time.perf_counter() - t0
+    sim = sum(r.get("duration", 0.0) for r in result["runs"])
+    return {"wall_time": wall, "runs": len(result["runs"]), "simulated_time": sim, "jobs": jobs or os.cpu_count()}

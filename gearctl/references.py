@@ -97,8 +97,47 @@ class Reference:
             return a * sn, a * w * cs, -a * w * w * sn
         if self.kind == "step":
             return (self.amplitude if t >= self.start else 0.0), 0.0, 0.0
-        r, rd, rdd = self.at(np.array([t]))
-        return float(r[0]), float(rd[0]), float(rdd[0])
+        tau = t - self.start
+        sgn = math.copysign(1.0, self.amplitude)
+        if tau < 0:
+            return 0.0, 0.0, 0.0
+        if self.kind == "ramp":
+            T = abs(self.amplitude) / self.rate
+            return (sgn * self.rate * min(tau, T), sgn * self.rate if tau < T else 0.0, 0.0)
+        ta, tc, v, T = self._move_times()
+        if tau >= T:
+            return self.amplitude, 0.0, 0.0
+        D, a = abs(self.amplitude), self.accel
+        if self.profile == "trapezoid":
+            if tau < ta:
+                return sgn * 0.5 * a * tau**2, sgn * a * tau, sgn * a
+            if tau < ta + tc:
+                return sgn * (0.5 * a * ta**2 + v * (tau - ta)), sgn * v, 0.0
+            td = T - tau
+            return sgn * (D - 0.5 * a * td**2), sgn * a * td, -sgn * a
+        w = 2 * math.pi / ta
+
+        def ramp(u: float) -> tuple[float, float, float]:
+            return ((v / ta) * (u * u / 2 + (math.cos(w * u) - 1) / w**2), (v / ta) * (u - math.sin(w * u) / w),
+                    (v / ta) * (1 - math.cos(w * u)))
+
+        if tau <= ta:
+            p, dp, ddp = ramp(tau)
+            return sgn * p, sgn * dp, sgn * ddp
+        if tau <= ta + tc:
+            return sgn * (v * ta / 2 + v * (tau - ta)), sgn * v, 0.0
+        p, dp, ddp = ramp(T - tau)
+        return sgn * (D - p), sgn * dp, -sgn * ddp
+
+    def _move_times(self) -> tuple[float, float, float, float]:
+        """Ramp time, cruise time, cruise velocity and duration of the move."""
+        D, a, v = abs(self.amplitude), self.accel, self.rate
+        ta = v / a
+        if a * ta**2 > D:  # triangular: never reaches the cruise velocity
+            ta = math.sqrt(D / a)
+            v = a * ta
+        tc = (D - a * ta**2) / v if v > 0 else 0.0
+        return ta, tc, v, 2 * ta + tc
 
     def _move(self, tau: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
         D, sgn = abs(self.amplitude), math.copysign(1.0, self.amplitude)

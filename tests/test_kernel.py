@@ -65,6 +65,16 @@ def restitution(plant: Plant) -> float:
     return math.exp(-z * math.pi / math.sqrt(1.0 - z * z))
 
 
+def capped_kernel(cap: int) -> type[Kernel]:
+    """A :class:`Kernel` whose ``max_events`` defaults to ``cap`` (simulate() does not pass one)."""
+
+    @dataclasses.dataclass
+    class CappedKernel(Kernel):
+        max_events: int = cap
+
+    return CappedKernel
+
+
 # --- contact matrices from the report's equations -------------------------------------------------------
 
 
@@ -239,7 +249,7 @@ def test_zeno_cascade_ends_in_plastic_contact(improved: Plant, compiled: bool, l
 
     # The cascade needs ~30 events; cap the kernel at 1000 per interval (default 200000) so that an
     # unresolved cascade fails in a second instead of a minute on the Python path.
-    monkeypatch.setattr(sim, "Kernel", lambda *a, **kw: Kernel(*a, max_events=1000, **kw))
+    monkeypatch.setattr(sim, "Kernel", capped_kernel(1000))
     p = dataclasses.replace(improved, contact_law=law)
     a = p.rb1 * ZENO_XI1 / p.J1
     assert a / p.natural_frequency < 0.05 * ZENO_VELOCITY  # the premise above
@@ -292,7 +302,9 @@ def test_plastic_impact_is_a_single_event(improved: Plant, compiled: bool, law: 
         kinds = [EventKind.NAMES[k] for _, k, _, _ in kn.events]
         if status != 0 or kinds != ["plastic"] or kn.mode != 1:
             failures.append((float(v), status, kinds[:6], kn.mode))
-    assert not failures, f"{len(failures)} of 60 closing speeds: (v, status, events, mode) e.g. {failures[:3]}"
+    hung = [f for f in failures if f[1] != 0]
+    assert not failures, (f"{len(failures)} of 60 closing speeds give extra events, {len(hung)} of them never "
+                          f"get out (status 3); (v, status, events, mode): {(failures[:2] + hung[:1])}")
 
 
 # --- failure handling ------------------------------------------------------------------------------------
@@ -302,8 +314,9 @@ def test_plastic_impact_is_a_single_event(improved: Plant, compiled: bool, law: 
 def test_kernel_gives_up_on_too_many_events(improved: Plant, compiled: bool) -> None:
     require_compiled(compiled)
     p = improved
+    # a Zeno cascade of ~60 events in 0.12 s (10 times the torque of the test above)
     kn = Kernel(p, np.array(_zeno_start(p, 1e-4)), dt=0.3, compiled=compiled, max_events=5)
-    status = kn.advance(ZENO_XI1, 0.0, 0.3)
+    status = kn.advance(10 * ZENO_XI1, 0.0, 0.3)
     assert status == 3
     assert "too many events" in Kernel.status_message(status)
     assert kn.t < 0.3  # it stopped early
@@ -317,10 +330,10 @@ def test_simulate_raises_on_too_many_events(improved: Plant, compiled: bool,
     import gearctl.simulate as sim
 
     # simulate() has no max_events argument: give its Kernel a tiny one
-    monkeypatch.setattr(sim, "Kernel", lambda *a, **kw: Kernel(*a, max_events=5, **kw))
+    monkeypatch.setattr(sim, "Kernel", capped_kernel(5))
     p = improved
     with pytest.raises(sim.SimulationError, match="too many events") as info:
-        sim.simulate(p, _zeno_start(p, 1e-4), 0.3, torque=(ZENO_XI1, 0.0), dt=0.3, compiled=compiled)
+        sim.simulate(p, _zeno_start(p, 1e-4), 0.3, torque=(10 * ZENO_XI1, 0.0), dt=0.3, compiled=compiled)
     res = info.value.result
     assert isinstance(res, SimulationResult)
     assert not res.success
