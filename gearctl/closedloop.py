@@ -174,14 +174,7 @@ def simulate_closed_loop(
     kn = Kernel(plant, x0, dt=Ts, compiled=compiled)
     controller.reset()
     t = np.arange(n + 1) * Ts
-    xs = np.empty((4, n + 1))
-    xs[:, 0] = x0
-    mode = np.zeros(n + 1, dtype=int)
-    mode[0] = int(np.sign(kn.mode))
-    u = np.zeros(n + 1)
-    cmd = np.zeros(n + 1)
-    ym = np.full(n + 1, np.nan)
-    yl = np.full(n + 1, np.nan)
+    tl_list = t.tolist()
     r = ref.at(t)[0]
     lim = plant.torque_limit
     tl = plant.load_torque
@@ -189,36 +182,52 @@ def simulate_closed_loop(
     tick = max(1, n // 100)
     status, last, message = 0, n, "ok"
     st = kn._st
+    advance, step, read_m, read_l = kn.advance, controller.step, enc_m.read, enc_l.read
+    disturbance = ref.load_disturbance
+    # per-sample records as Python lists (cheaper than numpy element writes); arrays at the end
+    xs_l: list[list[float]] = [list(x0)]
+    mode_l = [int(np.sign(kn.mode))]
+    u_l: list[float] = []
+    cmd_l: list[float] = []
+    ym_l: list[float] = []
+    yl_l: list[float] = []
+    nan = math.nan
     wall0 = time.perf_counter()
     for i in range(n):
-        x = st.x
-        ym[i] = enc_m.read(x[0], rng)
-        if use_load:
-            yl[i] = enc_l.read(x[1], rng)
-        c = controller.step(t[i], ym[i], yl[i] if use_load else None, ref)
+        x = xs_l[-1]
+        ti = tl_list[i]
+        y1 = read_m(x[0], rng)
+        y2 = read_l(x[1], rng) if use_load else nan
+        c = step(ti, y1, y2 if use_load else None, ref)
         if not math.isfinite(c):
             c = 0.0
-            controller.fallbacks.append({"t": float(t[i]), "reason": "non-finite command, zero torque"})
-        cmd[i] = c
+            controller.fallbacks.append({"t": ti, "reason": "non-finite command, zero torque"})
         ui = c if -lim <= c <= lim else math.copysign(lim, c)
-        u[i] = ui
-        status = kn.advance(ui, tl + ref.load_disturbance(t[i]), Ts)
-        xs[:, i + 1] = st.x
-        mode[i + 1] = 1 if st.mode > 0 else (-1 if st.mode < 0 else 0)
+        ym_l.append(y1)
+        yl_l.append(y2)
+        cmd_l.append(c)
+        u_l.append(ui)
+        status = advance(ui, tl + disturbance(ti), Ts)
+        xn = st.x[:]
+        xs_l.append(xn)
+        mo = st.mode
+        mode_l.append(1 if mo > 0 else (-1 if mo < 0 else 0))
         if status != 0:
             last, message = i + 1, Kernel.status_message(status)
             break
-        if not (abs(xs[2, i + 1]) < DIVERGENCE_LIMIT and abs(xs[3, i + 1]) < DIVERGENCE_LIMIT):
+        if not (abs(xn[2]) < DIVERGENCE_LIMIT and abs(xn[3]) < DIVERGENCE_LIMIT):
             last, message = i + 1, f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s at t = {t[i + 1]:.4g} s"
             break
         if progress is not None and i % tick == 0:
             progress(i / n)
+    xs = np.array(xs_l).T
+    mode = np.array(mode_l)
+    u = np.array([*u_l, u_l[-1]])
+    cmd = np.array([*cmd_l, cmd_l[-1]])
+    ym = np.array([*ym_l, enc_m.read(xs[0, -1], rng)])
+    yl = np.array([*yl_l, enc_l.read(xs[1, -1], rng) if use_load else nan])
     wall = time.perf_counter() - wall0
     sl = slice(0, last + 1)
-    ym[last] = enc_m.read(xs[0, last], rng)
-    if use_load:
-        yl[last] = enc_l.read(xs[1, last], rng)
-    u[last], cmd[last] = u[last - 1], cmd[last - 1]
     events = [Event(float(te), EventKind.NAMES[int(k)], "front" if sd > 0 else "back", float(v))
               for te, k, sd, v in kn.events]
     res = ClosedLoopResult(

@@ -1,0 +1,944 @@
+"""Backlash-aware position MPC: a mode-switched condensed QP on a gap model, solved by CasADi's conic.
+
+Per sample the controller
+
+1. updates a mode-switched steady-state Kalman filter (motor and load encoders) on the *gap model*
+   below, which estimates the motor-side centre angle and speed, the gap ``s`` and its rate, and a
+   load-torque disturbance (integral action);
+2. decides, from the reference preview, which flank must carry the load over the horizon (the sign of
+   ``J2 r'' + d2 r' - load_torque - d_hat``, with hysteresis ``smoothing``) and, when the flank changes,
+   where in the horizon the motor crosses the gap: that fixes the *mode sequence* (contact on the old
+   flank, separation, contact on the new flank);
+3. solves ONE small dense QP in the torque sequence for that mode sequence: tracking of the predicted
+   load angle, torque about the rigid-train feedforward, torque rate, and at the planned landing the
+   landing position and the relative velocity (soft landing, a penalty or a hard bound), with the
+   torque limit as box bounds, warm-started from the shifted previous plan;
+4. checks the solution (solver flag, KKT residual, bounds) and the solve time; on a failure or an
+   overrun it applies the previous plan's next input, saturated, and records the event in
+   :attr:`fallbacks`.
+
+The gap model
+-------------
+Coordinates ``z = [phi, omega, s, v]``: ``phi = (J1 theta1 + (J2/N) theta2) / J_eq`` is the motor-side
+angle of the centre of inertia, ``omega`` its rate (the train's angular momentum over ``J_eq``, which
+an impact does not change), ``s = r_b1 theta1 - r_b2 theta2`` the relative displacement along the
+line of action (report eqs 4, 11) and ``v`` its rate (eqs 5, 12). Then
+``theta1 = phi + kappa1 s`` and ``theta2 = phi / N - kappa2 s`` with ``kappa1 = J2 / (N r_b2 J_eq)``,
+``kappa2 = J1 / (r_b2 J_eq)``.
+
+- Separation (eqs 6-7): two free inertias with their viscous friction, discretised exactly (ZOH).
+- Contact (eqs 1-3, 8-10) in the quasi-static limit of the mesh: the rigid train
+  ``J_eq phi'' = xi1 + xi2 / N - d_eq phi'`` with ``s`` held and ``v = 0``.
+- Landing: a plastic impact in the reduced model (``v -> 0``, ``s -> sigma b``, ``phi, omega``
+  unchanged: momentum is conserved).
+
+The prediction is affine in the torque sequence once the mode sequence is fixed, so each pattern
+(separation from step ``a`` to landing at step ``e``) has a constant Hessian; all patterns are
+condensed once in the constructor, and a step only forms the gradient ``g = G_pattern p`` from the
+parameter vector ``p`` (state estimate, disturbance, reference preview, feedforward, last torque).
+
+Notes
+-----
+*Mode-switched model rather than a smooth contact law.* The mesh mode (2.8 kHz on the benchmark
+servo, lightly damped) lies above the 1 kHz sample rate: a smooth or stiff contact law in the
+prediction would have to be integrated well below the sample period and solved as an NLP (IPOPT or
+fatrop: milliseconds per solve), while the torque the loop can shape at 1 kHz does not reach the mesh
+mode anyway. With the mesh quasi-static the plant is piecewise linear in ``z`` and only the timing of
+a flank change is combinatorial; that timing follows from the reference (the dead-zone inverse's rule,
+applied on the preview), so one convex QP per sample remains. The price: the plan cannot shape the
+bounces after an impact, only the relative velocity at which the flanks meet.
+
+*Crossing timing.* A crossing lasts ``n_c`` samples, the time to cover the lost motion ``2 b`` with a
+quarter of the torque limit accelerating and decelerating the motor alone, and is centred on the
+zero crossing of the transmitted torque (where the load needs least torque, so coasting costs least).
+The hysteresis ``smoothing`` only confirms a flank change; the crossing is timed at the zero crossing.
+
+*Solver path.* The QP is box-constrained (one extra row with the landing-velocity bound), dense and
+small (``horizon`` variables). Called from Python, any CasADi Function costs 25-40 us of call overhead
+on the 2-core benchmark machine before the solver runs, and daqp through ``casadi.conic`` took
+65-130 us median, up to 250 us at the 99th percentile. So for ``daqp`` and ``qrqp`` the conic (with a
+KKT check appended) is generated as C with CasADi's code generator, compiled once with the system C
+compiler into a per-user cache (as :mod:`gearctl.kernel` does) and called through :mod:`ctypes` with
+preallocated buffers: about 5-15 us per solve. Without a C compiler (or with ``GEARCTL_NO_COMPILE=1``)
+the same conic is called through CasADi. ``osqp`` and ``proxqp`` always go through CasADi.
+
+*Checking a solve.* CasADi's generated daqp code returns success on an infeasible QP (the setup
+failure is ignored), so every solution is also checked: primal feasibility and the stationarity
+residual ``H x + g + lam_x + A' lam_a`` relative to the data, against a tolerance per solver.
+
+*Warm starts.* The shifted previous plan and bound multipliers are passed as ``x0`` and ``lam_x0`` to
+every solver. qrqp, osqp and proxqp use them; DAQP's CasADi interface always starts from the
+unconstrained minimiser, which for this QP (torque limit rarely active) is already the solution.
+
+*A solver plugin that is not installed* is an :class:`InputError` when the controller is built (not a
+silent switch to another solver, which would make the solve-time figures describe a different
+controller). qpOASES is installed in the wheel but prints a banner from C on construction, so it is not
+offered; hpipm needs a structured (OCP) problem and is not offered either.
+
+References
+----------
+T. K. Shing, L. W. Tsai, P. S. Krishnaprasad, ISR TR 93-28 (1993), section 2, eqs 1-12 (the plant).
+M. Nordin, P.-O. Gutman, "Controlling mechanical systems with backlash - a survey", Automatica 38
+(2002) 1633-1649. P. Rostalski, T. Besselmann, M. Baric, F. Van Belzen, M. Morari, "A hybrid approach
+to modelling, control and state estimation of mechanical systems with backlash", Int. J. Control 80
+(2007) 1729-1740. D. Arnstrom, A. Bemporad, D. Axehill, "A dual active-set solver for embedded
+quadratic programming using recursive LDL' updates", IEEE TAC 67 (2022) (DAQP).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import hashlib
+import math
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import NDArray
+
+from ..errors import InputError, SolverError
+from ..references import Reference
+from .base import Controller, LoopInfo
+from .registry import number
+
+__all__ = ["MPC", "MPCSettings", "build_mpc", "SOLVERS", "installed_solvers"]
+
+#: QP solvers (CasADi conic plugins) the MPC offers; ``daqp`` and ``qrqp`` are compiled.
+SOLVERS = ("daqp", "qrqp", "osqp", "proxqp")
+_COMPILABLE = ("daqp", "qrqp")
+# quiet options per plugin, and the relative KKT tolerance a solution of that solver must meet
+_PLUGIN_OPTIONS: dict[str, dict[str, Any]] = {
+    "daqp": {},
+    "qrqp": {"print_iter": False, "print_header": False, "print_info": False},
+    "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8, "polishing": True},
+             "warm_start_primal": True, "warm_start_dual": True},
+    "proxqp": {"proxqp": {"eps_abs": 1e-9}, "warm_start_primal": True, "warm_start_dual": True},
+}
+_KKT_TOL = {"daqp": 1e-6, "qrqp": 1e-6, "osqp": 1e-4, "proxqp": 1e-4}
+SOFT_LANDING = ("penalty", "bound", "off")
+FEEDBACK = ("load", "motor")
+
+
+# --- settings --------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class MPCSettings:
+    """Settings of the backlash-aware MPC (the ``kind = "mpc"`` controller file).
+
+    Attributes
+    ----------
+    horizon : int
+        Prediction and control horizon [samples].
+    solver : str
+        CasADi conic plugin, one of :data:`SOLVERS`.
+    feedback : str
+        ``"load"``: motor and load encoders (the gap is measured); ``"motor"``: motor encoder only (the
+        load and the gap are predicted open loop in separation).
+    tracking : float
+        Weight of the load-angle error at every predicted sample [1/rad^2].
+    torque : float
+        Weight of the torque's deviation from the rigid-train feedforward [1/(N m)^2].
+    torque_rate : float
+        Weight of the torque change per sample [1/(N m)^2].
+    relative_velocity : float
+        Weight of the relative velocity along the line of action at a planned landing [s^2/m^2].
+    terminal : float
+        Extra weight at the last sample, as a multiple of ``tracking``, on the load-angle error and on
+        the load-speed error times half the horizon time.
+    soft_landing : str
+        ``"penalty"`` (``relative_velocity`` weight), ``"bound"`` (penalty and
+        ``|v| <= landing_velocity`` as a hard constraint) or ``"off"``.
+    landing_velocity : float
+        Bound on the relative velocity at a planned landing [m/s] (``soft_landing = "bound"``).
+    max_solve_time : float
+        A solve slower than this counts as an overrun and falls back [s].
+    smoothing : float
+        Hysteresis of the flank decision [N m]: a flank change is planned only once the transmitted
+        torque in the preview passes this far beyond zero.
+    process_noise : float
+        Observer: std of the unmodelled torque on each shaft per sample, and of the load-torque
+        disturbance's change per sample [N m].
+    measurement_noise : float
+        Observer: std of each encoder's error [rad].
+    backlash : float
+        Backlash estimate ``b`` [m].
+    """
+
+    horizon: int = 20
+    solver: str = "daqp"
+    feedback: str = "load"
+    tracking: float = 1e8
+    torque: float = 1e-2
+    torque_rate: float = 10.0
+    relative_velocity: float = 1e4
+    terminal: float = 10.0
+    soft_landing: str = "penalty"
+    landing_velocity: float = 1e-3
+    max_solve_time: float = 1e-3
+    smoothing: float = 2e-3
+    process_noise: float = 1e-3
+    measurement_noise: float = 2e-6
+    backlash: float = 5e-5
+
+    def __post_init__(self) -> None:
+        def bad(field: str, rule: str) -> InputError:
+            return InputError(f"{field} = {getattr(self, field)!r} is out of range: expected {rule}", field=field)
+
+        if isinstance(self.horizon, bool) or not isinstance(self.horizon, int) or not 1 <= self.horizon <= 200:
+            raise bad("horizon", "an integer with 1 <= value <= 200 [samples]")
+        if self.solver not in SOLVERS:
+            raise InputError(f"solver = {self.solver!r} is not a QP solver: expected one of "
+                             f"{', '.join(repr(s) for s in SOLVERS)}", field="solver")
+        if self.feedback not in FEEDBACK:
+            raise InputError(f"feedback = {self.feedback!r}: expected one of "
+                             f"{', '.join(repr(s) for s in FEEDBACK)}", field="feedback")
+        if self.soft_landing not in SOFT_LANDING:
+            raise InputError(f"soft_landing = {self.soft_landing!r}: expected one of "
+                             f"{', '.join(repr(s) for s in SOFT_LANDING)}", field="soft_landing")
+        for f in ("torque", "torque_rate", "relative_velocity", "terminal", "smoothing"):
+            v = getattr(self, f)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise bad(f, "a finite number >= 0")
+        for f in ("tracking", "landing_velocity", "max_solve_time", "process_noise", "measurement_noise"):
+            v = getattr(self, f)
+            if not (math.isfinite(v) and v > 0.0):
+                raise bad(f, "a finite number > 0")
+        if self.torque == 0.0 and self.torque_rate == 0.0:
+            raise InputError("torque = 0 and torque_rate = 0: at least one torque weight must be > 0 "
+                             "(the QP needs a positive definite Hessian)", field="torque")
+        if not (0.0 < self.backlash < 0.01):
+            raise bad("backlash", "a number with 0 < value < 0.01 [m] (a backlash-free train needs no MPC "
+                      "of this kind)")
+
+
+# --- reading a controller file ---------------------------------------------------------------------------
+
+
+def installed_solvers() -> tuple[str, ...]:
+    """The entries of :data:`SOLVERS` whose CasADi plugin loads in this installation."""
+    return tuple(s for s in SOLVERS if _plugin_loads(s))
+
+
+_PLUGIN_OK: dict[str, bool] = {}
+
+
+def _plugin_loads(plugin: str) -> bool:
+    if plugin not in _PLUGIN_OK:
+        import casadi as ca
+
+        try:
+            ca.conic("probe", plugin, {"h": ca.Sparsity.dense(1, 1), "a": ca.Sparsity(0, 1)},
+                     dict(_PLUGIN_OPTIONS.get(plugin, {})))
+            _PLUGIN_OK[plugin] = True
+        except RuntimeError:
+            _PLUGIN_OK[plugin] = False
+    return _PLUGIN_OK[plugin]
+
+
+def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, name: str,
+              backlash: float | None = None) -> MPC:
+    """Build the MPC of a controller file (called by :func:`gearctl.design.registry.build_controller`).
+
+    Parameters
+    ----------
+    path : Path
+        The file, for messages.
+    spec : dict
+        The parsed TOML (keys already checked against ``CONTROLLER_KEYS["mpc"]``).
+    info : LoopInfo
+        Design-time plant knowledge.
+    Ts : float
+        Sample period [s].
+    name : str
+        Label.
+    backlash : float, optional
+        Backlash estimate overriding the file's ``backlash`` and the model's [m].
+
+    Returns
+    -------
+    MPC
+
+    Raises
+    ------
+    InputError
+        For a value out of range (naming ``file: key``), an unknown or not installed solver, or a
+        ``[design]`` table (the MPC is tuned by its ``[weights]``).
+    """
+    if "design" in spec:
+        raise InputError(f"{path}: [design] is not used by kind 'mpc': tune the MPC with [weights]",
+                         field="design")
+
+    def choice(key: str, default: Any, allowed: tuple[Any, ...]) -> Any:
+        v = spec.get(key, default)
+        if v not in allowed or isinstance(v, bool) != isinstance(default, bool):
+            raise InputError(f"{path}: {key} = {v!r} is not allowed: expected one of "
+                             f"{', '.join(repr(a) for a in allowed)}", field=key)
+        return v
+
+    d = MPCSettings()
+    horizon = number(path, spec, "horizon", d.horizon, 1, 200, unit="[samples]")
+    if horizon != int(horizon):
+        raise InputError(f"{path}: horizon = {spec['horizon']!r} is not a whole number of samples: expected an "
+                         f"integer in [1, 200]", field="horizon")
+    solver = spec.get("solver", d.solver)
+    if solver not in SOLVERS:
+        raise InputError(f"{path}: solver = {solver!r} is not a QP solver: expected one of "
+                         f"{', '.join(repr(s) for s in SOLVERS)}", field="solver")
+    if not _plugin_loads(solver):
+        raise InputError(f"{path}: solver = {solver!r} is not installed in this CasADi: installed are "
+                         f"{', '.join(repr(s) for s in installed_solvers())}", field="solver")
+    soft = spec.get("soft_landing", d.soft_landing)
+    if soft is True:
+        soft = "penalty"
+    elif soft is False:
+        soft = "off"
+    if soft not in SOFT_LANDING:
+        raise InputError(f"{path}: soft_landing = {spec['soft_landing']!r} is not allowed: expected one of "
+                         f"{', '.join(repr(s) for s in SOFT_LANDING)} (or true/false)", field="soft_landing")
+    plant = info.plant
+    if backlash is not None:
+        b = backlash
+    else:
+        b = number(path, spec, "backlash", plant.backlash, 0.0, 0.01, unit="[m]", lo_open=True)
+    if not (0.0 < b < 0.01):
+        raise InputError(f"{path}: backlash = {b!r} is out of range: expected 0 < value < 0.01 [m]",
+                         field="backlash")
+    settings = MPCSettings(
+        horizon=int(horizon),
+        solver=solver,
+        feedback=choice("feedback", d.feedback, FEEDBACK),
+        tracking=number(path, spec, "tracking", d.tracking, 0.0, 1e15, section="weights", unit="[1/rad^2]",
+                        lo_open=True),
+        torque=number(path, spec, "torque", d.torque, 0.0, 1e15, section="weights", unit="[1/(N m)^2]"),
+        torque_rate=number(path, spec, "torque_rate", d.torque_rate, 0.0, 1e15, section="weights",
+                           unit="[1/(N m)^2]"),
+        relative_velocity=number(path, spec, "relative_velocity", d.relative_velocity, 0.0, 1e15,
+                                 section="weights", unit="[s^2/m^2]"),
+        terminal=number(path, spec, "terminal", d.terminal, 0.0, 1e6, section="weights"),
+        soft_landing=soft,
+        landing_velocity=number(path, spec, "landing_velocity", d.landing_velocity, 0.0, 1.0, unit="[m/s]",
+                                lo_open=True),
+        max_solve_time=number(path, spec, "max_solve_time", Ts, 0.0, 1.0, unit="[s]", lo_open=True),
+        smoothing=number(path, spec, "smoothing", d.smoothing, 0.0, 1e3, unit="[N m]"),
+        process_noise=number(path, spec, "process_noise", d.process_noise, 0.0, 1e3, section="observer",
+                             unit="[N m]", lo_open=True),
+        measurement_noise=number(path, spec, "measurement_noise", d.measurement_noise, 0.0, 1.0,
+                                 section="observer", unit="[rad]", lo_open=True),
+        backlash=b,
+    )
+    try:
+        return MPC(info, settings, Ts=Ts, name=name)
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}", field=exc.field) from None
+
+
+# --- the gap model ---------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class _GapModel:
+    """Discrete gap-model matrices at ``Ts`` (see the module docstring)."""
+
+    A_sep: NDArray[np.float64]  # (4, 4) separation, z-coordinates
+    B_sep: NDArray[np.float64]  # (4, 2) inputs [xi1, xi2]
+    A_con: NDArray[np.float64]  # contact (quasi-static mesh): rigid train, s held, v = 0
+    B_con: NDArray[np.float64]
+    T: NDArray[np.float64]  # z = T x, x = [theta1, theta2, omega1, omega2]
+    Ad_x: NDArray[np.float64]  # separation in x-coordinates (for the observer design)
+    Bd_x: NDArray[np.float64]
+    kappa1: float
+    kappa2: float
+    N: float
+
+
+def _zoh(A: NDArray[np.float64], B: NDArray[np.float64], Ts: float) -> tuple[NDArray, NDArray]:
+    n, m = B.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n], M[:n, n:] = A, B
+    E = scipy.linalg.expm(M * Ts)
+    return E[:n, :n], E[:n, n:]
+
+
+def _gap_model(info: LoopInfo, Ts: float) -> _GapModel:
+    p = info.plant
+    J1, J2, N, Jeq = p.J1, p.J2, info.N, info.J_eq
+    A = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [0, 0, -p.d1 / J1, 0], [0, 0, 0, -p.d2 / J2]], dtype=float)
+    B = np.array([[0, 0], [0, 0], [1 / J1, 0], [0, 1 / J2]], dtype=float)
+    Ad, Bd = _zoh(A, B, Ts)  # eqs 6-7
+    a1, a2 = J1 / Jeq, J2 / (N * Jeq)
+    T = np.array([[a1, a2, 0, 0], [0, 0, a1, a2], [p.rb1, -p.rb2, 0, 0], [0, 0, p.rb1, -p.rb2]])
+    A_sep, B_sep = T @ Ad @ np.linalg.inv(T), T @ Bd
+    Ac = np.array([[0.0, 1.0], [0.0, -info.d_eq / Jeq]])
+    Bc = np.array([[0.0, 0.0], [1 / Jeq, 1 / (N * Jeq)]])
+    Adc, Bdc = _zoh(Ac, Bc, Ts)  # rigid train: eqs 1-3 with k -> inf
+    A_con = np.zeros((4, 4))
+    A_con[:2, :2] = Adc
+    A_con[2, 2] = 1.0  # s held, v = 0
+    B_con = np.zeros((4, 2))
+    B_con[:2] = Bdc
+    return _GapModel(A_sep=A_sep, B_sep=B_sep, A_con=A_con, B_con=B_con, T=T, Ad_x=Ad, Bd_x=Bd,
+                     kappa1=J2 / (N * p.rb2 * Jeq), kappa2=J1 / (p.rb2 * Jeq), N=N)
+
+
+def _kalman_gain(A: NDArray, G: NDArray, Qw: NDArray, C: NDArray, R: NDArray) -> NDArray:
+    """Steady-state gain of the filtered (measurement-updated) Kalman filter."""
+    Q = G @ Qw @ G.T
+    P = scipy.linalg.solve_discrete_are(A.T, C.T, Q, R)
+    return P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+
+
+# --- the QP solver ---------------------------------------------------------------------------------------
+
+
+def _cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "gearctl"
+
+
+def _c_compiler() -> str | None:
+    cc = os.environ.get("CC") or (sysconfig.get_config_var("CC") or "cc").split()[0]
+    for cand in (cc, "cc", "gcc", "clang"):
+        if shutil.which(cand):
+            return cand
+    return None
+
+
+class _QP:
+    """One dense QP ``min 1/2 x'Hx + g'x, lbx <= x <= ubx, lba <= A x <= uba`` per call, built once.
+
+    The CasADi Function ``qp(h, g, lbx, ubx, x0, lam_x0[, a, lba, uba]) -> (x, lam_x, kkt)`` wraps the
+    conic and appends a check (``kkt``: the larger of the primal infeasibility and the relative
+    stationarity residual). It is compiled and called through ctypes where possible.
+    """
+
+    def __init__(self, n: int, m: int, plugin: str, *, compiled: bool | None = None) -> None:
+        import casadi as ca
+
+        self.n, self.m, self.plugin = n, m, plugin
+        opts = {**_PLUGIN_OPTIONS[plugin], "error_on_fail": True}
+        self._conic = ca.conic("mpc_conic", plugin, {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m, n)},
+                               opts)
+        h, g = ca.MX.sym("h", n, n), ca.MX.sym("g", n)
+        lbx, ubx, x0, l0 = (ca.MX.sym(s, n) for s in ("lbx", "ubx", "x0", "lam_x0"))
+        ins, names = [h, g, lbx, ubx, x0, l0], ["h", "g", "lbx", "ubx", "x0", "lam_x0"]
+        kw: dict[str, Any] = {"h": h, "g": g, "lbx": lbx, "ubx": ubx, "x0": x0, "lam_x0": l0}
+        if m:
+            a, lba, uba = ca.MX.sym("a", m, n), ca.MX.sym("lba", m), ca.MX.sym("uba", m)
+            ins += [a, lba, uba]
+            names += ["a", "lba", "uba"]
+            kw.update(a=a, lba=lba, uba=uba)
+        sol = self._conic(**kw)
+        x, lam_x = sol["x"], sol["lam_x"]
+        stat = ca.mtimes(h, x) + g + lam_x
+        pinf = ca.fmax(ca.mmax(ca.fmax(lbx - x, x - ubx)), 0)
+        if m:
+            ax = ca.mtimes(a, x)
+            stat += ca.mtimes(a.T, sol["lam_a"])
+            pinf = ca.fmax(pinf, ca.mmax(ca.fmax(lba - ax, ax - uba)))
+        scale = 1 + ca.norm_inf(g) + ca.norm_inf(ca.mtimes(h, x))
+        kkt = ca.fmax(ca.norm_inf(stat) / scale, pinf)
+        fname = f"gearctl_mpc_{plugin}_{n}_{m}"
+        self.function = ca.Function(fname, ins, [x, lam_x, kkt], names, ["x", "lam_x", "kkt"])
+        # buffers the caller fills in place
+        self.h = np.zeros((n, n))
+        self.g = np.zeros(n)
+        self.lbx, self.ubx = np.zeros(n), np.zeros(n)
+        self.x0, self.lam_x0 = np.zeros(n), np.zeros(n)
+        self.a = np.zeros((m, n))
+        self.lba, self.uba = np.zeros(m), np.zeros(m)
+        self.x, self.lam_x, self.kkt = np.zeros(n), np.zeros(n), np.zeros(1)
+        self.tol = _KKT_TOL[plugin]
+        self.compiled = False
+        self.note = ""
+        want = compiled if compiled is not None else not os.environ.get("GEARCTL_NO_COMPILE")
+        if want and plugin in _COMPILABLE:
+            try:
+                self._load(self._build(fname))
+                self.compiled = True
+            except (OSError, subprocess.SubprocessError, RuntimeError, AttributeError) as exc:
+                if compiled:
+                    raise SolverError(f"could not compile the {plugin} QP: {exc}") from exc
+                self.note = f"compiled path unavailable ({type(exc).__name__}); calling CasADi"
+        elif want and plugin not in _COMPILABLE:
+            self.note = f"{plugin} is called through CasADi (no code generation)"
+        self.h_ptr = 0  # data address of the current Hessian (compiled path)
+
+    # -- compiled path --
+    def _build(self, fname: str) -> Path:
+        import casadi as ca
+
+        cc = _c_compiler()
+        if cc is None:
+            raise OSError("no C compiler")
+        casadi_dir = Path(ca.__file__).parent
+        with tempfile.TemporaryDirectory() as tmp:
+            cwd = os.getcwd()
+            try:
+                os.chdir(tmp)  # CasADi writes the generated file into the working directory
+                gen = ca.CodeGenerator(f"{fname}.c", {"with_header": False})
+                gen.add(self.function)
+                gen.generate()
+            finally:
+                os.chdir(cwd)
+            src = (Path(tmp) / f"{fname}.c").read_bytes()
+        flags = ["-O2", "-shared", "-fPIC", f"-I{casadi_dir / 'include'}"]
+        libs = ["-lm"]
+        if self.plugin == "daqp":
+            libs = [f"-L{casadi_dir}", "-ldaqp", f"-Wl,-rpath,{casadi_dir}", "-lm"]
+        tag = hashlib.sha256(src + " ".join([cc, *flags, *libs, sys.version]).encode()).hexdigest()[:16]
+        target = _cache_dir() / f"mpc-{fname}-{tag}.so"
+        if not target.exists():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+                c_file, out = Path(tmp) / f"{fname}.c", Path(tmp) / target.name
+                c_file.write_bytes(src)
+                subprocess.run([cc, *flags, "-o", str(out), str(c_file), *libs], check=True, capture_output=True,
+                               timeout=120)
+                os.replace(out, target)  # atomic: parallel processes may race here
+        return target
+
+    def _load(self, target: Path) -> None:
+        lib = ctypes.CDLL(str(target))
+        fname = self.function.name()
+        sizes = [ctypes.c_longlong() for _ in range(4)]
+        getattr(lib, f"{fname}_work")(*[ctypes.byref(s) for s in sizes])
+        n_arg, n_res, n_iw, n_w = (s.value for s in sizes)
+        getattr(lib, f"{fname}_incref")()
+        self._mem = getattr(lib, f"{fname}_checkout")()
+        ins = [self.h, self.g, self.lbx, self.ubx, self.x0, self.lam_x0]
+        if self.m:
+            ins += [self.a, self.lba, self.uba]
+        # the Hessian and constraint rows are column-major in CasADi: H is symmetric and A is passed
+        # transposed (self.a is filled with A's transpose in C order, i.e. A in Fortran order)
+        self._arg = (ctypes.c_void_p * n_arg)(*[x.ctypes.data for x in ins])
+        self._res = (ctypes.c_void_p * n_res)(self.x.ctypes.data, self.lam_x.ctypes.data, self.kkt.ctypes.data)
+        self._iw = (ctypes.c_longlong * max(n_iw, 1))()
+        self._w = (ctypes.c_double * max(n_w, 1))()
+        fn = getattr(lib, fname)
+        fn.restype = ctypes.c_int
+        fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
+        self._fn, self._lib = fn, lib
+
+    def set_hessian(self, H: NDArray[np.float64]) -> None:
+        """Use ``H`` (a C-contiguous symmetric array kept alive by the caller) for the next solves."""
+        if self.compiled:
+            self._arg[0] = H.ctypes.data
+        self.h = H
+
+    def solve(self) -> str:
+        """Solve with the current buffers; the solution lands in ``x``, ``lam_x``. Returns ``"ok"`` or why not."""
+        if self.compiled:
+            flag = self._fn(self._arg, self._res, self._iw, self._w, self._mem)
+            if flag:
+                return f"{self.plugin} returned flag {flag}"
+        else:
+            args = [self.h, self.g, self.lbx, self.ubx, self.x0, self.lam_x0]
+            if self.m:
+                args += [self.a, self.lba, self.uba]
+            try:
+                out = self.function.call(args)
+            except RuntimeError as exc:
+                return f"{self.plugin} failed: {str(exc).splitlines()[-1][:160]}"
+            self.x[:] = np.asarray(out[0]).ravel()
+            self.lam_x[:] = np.asarray(out[1]).ravel()
+            self.kkt[0] = float(out[2])
+        k = self.kkt[0]
+        if not k <= self.tol:  # also catches NaN
+            return f"{self.plugin} solution fails the KKT check ({k:.2g} > {self.tol:g})"
+        return "ok"
+
+
+# --- the controller --------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(slots=True)
+class _Pattern:
+    """Condensed QP data of one mode sequence."""
+
+    H: NDArray[np.float64]  # (n, n) C-contiguous
+    G: NDArray[np.float64]  # (n, n_p): g = G p
+    av_u: NDArray[np.float64]  # landing relative velocity = av_u u + av_p p (zeros: no landing in horizon)
+    av_p: NDArray[np.float64]
+    step0_separated: bool
+
+
+class MPC(Controller):
+    """Backlash-aware position MPC (mode-switched condensed QP, soft landing, Kalman observer).
+
+    Parameters
+    ----------
+    info : LoopInfo
+        Design-time plant knowledge (inertias, friction, base radii, torque limit, load torque).
+    settings : MPCSettings
+        Horizon, solver, weights, observer noise, backlash estimate.
+    Ts : float
+        Sample period [s].
+    name : str
+        Label.
+    compiled : bool, optional
+        Force (True) or forbid (False) the compiled QP; default: compiled where a C compiler exists.
+    inject_failures : set of int, optional
+        Sample indices (counted from :meth:`reset`) at which the solve is reported failed, to exercise
+        the fallback.
+
+    Attributes
+    ----------
+    solve_times : list of float
+        Wall time of each QP solve [s].
+    step_times : list of float
+        Wall time of each :meth:`step`, observer and bookkeeping included [s].
+    statuses : list of str
+        Solver status of each step (``"ok"`` or the reason it was rejected).
+    fallbacks : list of dict
+        ``{"t", "reason"}`` for each step that applied the previous plan's next input.
+
+    Notes
+    -----
+    See the module docstring for the model, the choice of a mode-switched QP and the solver path.
+    """
+
+    def __init__(self, info: LoopInfo, settings: MPCSettings | None = None, *, Ts: float = 1e-3,
+                 name: str = "mpc", compiled: bool | None = None, inject_failures: set[int] | None = None) -> None:
+        super().__init__()
+        st = settings if settings is not None else MPCSettings(backlash=info.plant.backlash)
+        if not (Ts > 0 and math.isfinite(Ts)):
+            raise InputError(f"Ts = {Ts!r} is out of range: expected a number > 0 [s]", field="sample_time")
+        if not math.isfinite(info.torque_limit) and st.torque == 0.0:
+            raise InputError("torque = 0 needs a finite torque limit", field="torque")
+        self.info, self.settings, self.Ts, self.name = info, st, Ts, name
+        self.uses_load_encoder = st.feedback == "load"
+        self.inject_failures = set(inject_failures or ())
+        p = info.plant
+        self.N = n = st.horizon
+        self._b = st.backlash
+        self._tol = 0.02 * st.backlash  # contact when |s| >= b - tol (encoder resolution ~1 % of b)
+        self._umax = min(info.torque_limit, 1e6)
+        self._tau_load = p.load_torque
+        self._ratio = info.N
+        self.model = m = _gap_model(info, Ts)
+        # crossing: cover 2b with a quarter of the torque limit on the motor alone, accelerate + decelerate
+        a_rel = p.rb1 * 0.25 * min(info.torque_limit, 10.0 * info.J_eq * 1e3) / p.J1
+        self.n_cross = max(2, math.ceil(2.0 * math.sqrt(2 * self._b / a_rel) / Ts))
+        self.n_lead = self.n_cross // 2
+        self._a_rel = a_rel
+        # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
+        self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
+        self.n_p = 8 + 2 * n
+        self._build_patterns()
+        self._build_observer()
+        self._qp = _QP(n, 1 if st.soft_landing == "bound" else 0, st.solver, compiled=compiled)
+        self._qp.lbx[:] = -self._umax
+        self._qp.ubx[:] = self._umax
+        self.statuses: list[str] = []
+        self.step_times: list[float] = []
+        self.reset()
+
+    # -- offline: condensing ------------------------------------------------------------------------------
+    def _condense(self, a: int, e: int) -> _Pattern:
+        """Condensed QP for separation over steps ``a <= k < e`` (landing at state ``e``; ``e > N``: none)."""
+        st, m, n = self.settings, self.model, self.N
+        nxi = 6 + n  # coefficients over xi = [z0 (4), tau, p_new, u_0..u_{N-1}]
+        Z = np.zeros((4, nxi))
+        Z[:, :4] = np.eye(4)
+        states, land = [], None
+        for k in range(n):
+            sep = a <= k < e
+            A, B = (m.A_sep, m.B_sep) if sep else (m.A_con, m.B_con)
+            Z = A @ Z
+            Z[:, 4] += B[:, 1]
+            Z[:, 6 + k] += B[:, 0]
+            if k + 1 == e:  # plastic landing: s -> p_new, v -> 0 (momentum kept)
+                land = Z.copy()
+                Z[2:] = 0.0
+                Z[2, 5] = 1.0
+            states.append(Z)
+        cy = np.array([1 / m.N, 0.0, -m.kappa2, 0.0])  # theta2
+        cv = np.array([0.0, 1 / m.N, 0.0, -m.kappa2])  # omega2
+        rows_u, rows_p, w = [], [], []
+
+        def add(cx: NDArray, weight: float, p_extra: dict[int, float] | None = None,
+                u_extra: dict[int, float] | None = None) -> None:
+            ru, rp = cx[6:].copy(), np.zeros(self.n_p)
+            rp[:6] = cx[:6]
+            for i, v in (p_extra or {}).items():
+                rp[i] += v
+            for i, v in (u_extra or {}).items():
+                ru[i] += v
+            rows_u.append(ru)
+            rows_p.append(rp)
+            w.append(weight)
+
+        zero = np.zeros(nxi)
+        for k in range(n):  # tracking r_{k+1}
+            add(cy @ states[k], st.tracking, {self._ip_r + k: -1.0})
+        th = 0.5 * n * self.Ts
+        add(cy @ states[-1], st.tracking * st.terminal, {self._ip_r + n - 1: -1.0})
+        add(th * (cv @ states[-1]), st.tracking * st.terminal, {self._ip_rd: -th})
+        for k in range(n):
+            add(zero, st.torque, {self._ip_ff + k: -1.0}, {k: 1.0})
+            add(zero, st.torque_rate, {self._ip_u: -1.0} if k == 0 else None,
+                {k: 1.0} if k == 0 else {k: 1.0, k - 1: -1.0})
+        av_u, av_p = np.zeros(n), np.zeros(self.n_p)
+        if land is not None:
+            # landing position: 10x the tracking weight on the load angle it maps to
+            add(land[2], 10.0 * st.tracking * m.kappa2**2, {5: -1.0})
+            if st.soft_landing != "off":
+                add(land[3], st.relative_velocity)
+            av_u, av_p[:6] = land[3, 6:].copy(), land[3, :6]
+        Au, Ap, W = np.array(rows_u), np.array(rows_p), np.array(w)
+        H = 2.0 * (Au.T * W) @ Au
+        H = 0.5 * (H + H.T)
+        H += 1e-9 * np.trace(H) / n * np.eye(n)  # strictly convex even with all weight on rates
+        G = 2.0 * (Au.T * W) @ Ap
+        return _Pattern(H=np.ascontiguousarray(H), G=np.ascontiguousarray(G), av_u=av_u, av_p=av_p,
+                        step0_separated=a == 0 and e >= 1)
+
+    def _build_patterns(self) -> None:
+        n, nc = self.N, self.n_cross
+        self._patterns: dict[tuple[int, int], _Pattern] = {(n, n + 1): self._condense(n, n + 1)}
+        for a in range(n):
+            for e in range(a + 1, a + nc + 1):
+                key = (a, min(e, n + 1))
+                if key not in self._patterns:
+                    self._patterns[key] = self._condense(a, key[1])
+        self._all_contact = (n, n + 1)
+
+    # -- offline: observer --------------------------------------------------------------------------------
+    def _build_observer(self) -> None:
+        """Per-mode steady-state Kalman gains, folded into one matrix per mode.
+
+        ``z+ = K_mode @ [z (5), u, 1, y1, y2]`` does predict (with the mode of the last sample) and
+        correct (with the encoders) at once; ``z = [phi, omega, s, v, d]``.
+        """
+        st, m = self.settings, self.model
+        sp, sd, sm = st.process_noise, st.process_noise, st.measurement_noise
+        k1, k2, N = m.kappa1, m.kappa2, m.N
+        load = st.feedback == "load"
+        # measurement y = Cz z (+ nothing): theta1 = phi + kappa1 s, theta2 = phi / N - kappa2 s
+        Cz = np.array([[1.0, 0, k1, 0, 0], [1 / N, 0, -k2, 0, 0]])
+        if not load:
+            Cz = Cz[:1]
+        ny = Cz.shape[0]
+        self._ny = ny
+        T5 = np.eye(5)
+        T5[:4, :4] = m.T
+        # separation: design in x = [theta1, theta2, omega1, omega2, d] (the shafts are uncoupled)
+        Ax = np.eye(5)
+        Ax[:4, :4] = m.Ad_x
+        Ax[:4, 4] = m.Bd_x[:, 1]
+        Gx = np.zeros((5, 3))
+        Gx[:4, 0], Gx[:4, 1], Gx[4, 2] = m.Bd_x[:, 0], m.Bd_x[:, 1], 1.0
+        Qw = np.diag([sp**2, sp**2, sd**2])
+        Lx = np.zeros((5, ny))
+        if load:
+            Cx = np.array([[1.0, 0, 0, 0, 0], [0, 1.0, 0, 0, 0]])
+            Lx[:] = _kalman_gain(Ax, Gx, Qw, Cx, sm**2 * np.eye(2))
+        else:  # motor encoder only: the free load is not observable, it is predicted open loop
+            idx = [0, 2]
+            Lx[idx, :] = _kalman_gain(Ax[np.ix_(idx, idx)], Gx[idx][:, :1], Qw[:1, :1],
+                                      np.array([[1.0, 0.0]]), sm**2 * np.eye(1))
+        L_sep = T5 @ Lx
+        # contact: design in [phi, omega, s, d] (v = 0); motor only: [phi, omega, d] (s is pinned)
+        Az = np.eye(5)
+        Az[:4, :4] = m.A_con
+        Az[:4, 4] = m.B_con[:, 1]
+        Az[3, 3] = 0.0
+        Gz = np.zeros((5, 4))
+        Gz[:4, 0], Gz[:4, 1], Gz[2, 2], Gz[4, 3] = m.B_con[:, 0], m.B_con[:, 1], 1.0, 1.0
+        Qc = np.diag([sp**2, sp**2, (0.01 * self._b) ** 2, sd**2])
+        idx = [0, 1, 2, 4] if load else [0, 1, 4]
+        L_con = np.zeros((5, ny))
+        L_con[idx, :] = _kalman_gain(Az[np.ix_(idx, idx)], Gz[idx][:, [0, 1, 2, 3] if load else [0, 1, 3]],
+                                     Qc if load else Qc[np.ix_([0, 1, 3], [0, 1, 3])], Cz[:, idx],
+                                     sm**2 * np.eye(ny))
+        self._K = {}
+        for sep, (A4, B4, L) in {True: (m.A_sep, m.B_sep, L_sep), False: (m.A_con, m.B_con, L_con)}.items():
+            A5 = np.eye(5)
+            A5[:4, :4] = A4
+            A5[:4, 4] = B4[:, 1]
+            b5 = np.zeros(5)
+            b5[:4] = B4[:, 0]
+            c5 = np.zeros(5)
+            c5[:4] = B4[:, 1] * self._tau_load
+            IKC = np.eye(5) - L @ Cz
+            self._K[sep] = np.ascontiguousarray(np.hstack([IKC @ A5, (IKC @ b5)[:, None], (IKC @ c5)[:, None], L]))
+        self._Cz = Cz
+
+    # -- online --------------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the estimate, the plan, the flank schedule and the recorded statistics."""
+        n = self.N
+        self.solve_times, self.fallbacks, self.statuses, self.step_times = [], [], [], []
+        self._z = None  # observer state [phi, omega, s, v, d]
+        self._ov = np.zeros(5 + 2 + self._ny)  # observer input [z, u, 1, y]
+        self._ov[6] = 1.0
+        self._sep0 = False  # mode of the last sample in the plan (separated?)
+        self._u = 0.0
+        self._plan = np.zeros(n)
+        self._lam = np.zeros(n)
+        self._flank = 0  # target flank: +1 front, -1 back, 0 undecided
+        self._land: int | None = None
+        self._k = 0
+        self._p = np.zeros(self.n_p)
+        self._ref: Reference | None = None
+        self._blk_t0 = 0.0
+        self._blk_len = 0
+
+    def _preview(self, t: float, ref: Reference) -> int:
+        """Index of ``t`` in the cached reference block (recomputed every few hundred samples)."""
+        n = self.N
+        if ref is self._ref:
+            k = round((t - self._blk_t0) / self.Ts)
+            if 0 <= k <= self._blk_len - n - 2 and abs(self._blk_t0 + k * self.Ts - t) <= 1e-9 * max(1.0, abs(t)):
+                return k
+        self._ref, self._blk_t0 = ref, t
+        self._blk_len = 512 + n + 2
+        tt = t + self.Ts * np.arange(self._blk_len)
+        r, rd, rdd = (np.asarray(v, dtype=float) for v in ref.at(tt))
+        info, p = self.info, self.info.plant
+        self._R, self._Rd = r, rd
+        self._FF = self._ratio * (info.J_eq * rdd + info.d_eq * rd)  # rigid-train torque, without the load
+        self._DRV = p.J2 * rdd + p.d2 * rd  # torque the mesh must give the load, without the load torque
+        return 0
+
+    def _observe(self, y_motor: float, y_load: float | None) -> None:
+        ov = self._ov
+        if self._z is None:  # first sample: at rest, the gap from the encoders
+            m = self.model
+            z = np.zeros(5)
+            if y_load is not None:
+                x = np.array([y_motor, y_load, 0.0, 0.0])
+                z[:4] = m.T @ x
+            else:
+                s0 = 0.0
+                z[0], z[2] = y_motor - m.kappa1 * s0, s0
+            self._z = z
+        else:
+            ov[:5] = self._z
+            ov[5] = self._u
+            ov[7] = y_motor
+            if self._ny == 2:
+                ov[8] = y_load
+            self._z = self._K[self._sep0] @ ov
+        z, b = self._z, self._b
+        if abs(z[2]) >= b - self._tol:  # contact: the reduced model's plastic impact
+            z[3] = 0.0
+            if self._ny == 1:  # motor only: the gap is pinned, not measured
+                z[2] = math.copysign(b, z[2])
+
+    def _steps_to_land(self, s: float) -> int:
+        dist = max(self._b - self._flank * s, 0.0)
+        return min(self.n_cross, max(1, math.ceil(self.n_cross * math.sqrt(dist / (2 * self._b)))))
+
+    def _schedule(self, i: int, tau: float) -> tuple[tuple[int, int], float]:
+        """Mode pattern ``(a, e)`` for this sample and the flank after the (next) landing."""
+        n, b, s = self.N, self._b, float(self._z[2])
+        side = 1 if s >= b - self._tol else (-1 if s <= -(b - self._tol) else 0)
+        drive = self._DRV[i:i + n + 1] - tau  # torque the mesh must carry at k = 0..N
+        if self._flank == 0:  # start: the first flank the preview asks for (front if none)
+            big = np.flatnonzero(np.abs(drive) > self.settings.smoothing)
+            self._flank = int(np.sign(drive[big[0]])) if big.size else (side or 1)
+        sig = self._flank
+        if self._land is not None:  # crossing in progress
+            if side == sig:
+                self._land = None
+            else:
+                e = self._land if self._land >= 1 else self._steps_to_land(s)
+                return (0, min(e, n + 1)), sig * b
+        if side != sig:  # floating (start-up, a bounce) or on the wrong flank: land on the target flank
+            self._land = e = self.n_cross if side == -sig else self._steps_to_land(s)
+            return (0, min(e, n + 1)), sig * b
+        conf = np.flatnonzero(sig * drive < -self.settings.smoothing)
+        if conf.size == 0:
+            return self._all_contact, sig * b
+        c = int(conf[0])
+        same = np.flatnonzero(sig * drive[:c] >= 0.0)
+        k0 = int(same[-1]) + 1 if same.size else 0  # the zero crossing of the transmitted torque
+        a = k0 - self.n_lead
+        if a <= 0:  # start crossing now
+            self._flank = sig = -sig
+            self._land = self.n_cross
+            return (0, min(self.n_cross, n + 1)), sig * b
+        return (a, min(a + self.n_cross, n + 1)), -sig * b
+
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
+        """Motor torque for sample time ``t`` [N m] (see :class:`~gearctl.design.base.Controller`)."""
+        t_step = time.perf_counter()
+        n = self.N
+        i = self._preview(t, ref)
+        self._observe(y_motor, y_load)
+        z = self._z
+        tau = self._tau_load + float(z[4])
+        key, p_new = self._schedule(i, tau)
+        pat = self._patterns[key]
+        # parameters and gradient
+        p = self._p
+        p[:4] = z[:4]
+        p[4] = tau
+        p[5] = p_new
+        p[self._ip_r:self._ip_r + n] = self._R[i + 1:i + n + 1]
+        p[self._ip_rd] = self._Rd[i + n]
+        np.subtract(self._FF[i:i + n], tau / self._ratio, out=p[self._ip_ff:self._ip_ff + n])
+        p[self._ip_u] = self._u
+        qp = self._qp
+        np.dot(pat.G, p, out=qp.g)
+        if qp.m:
+            c = float(pat.av_p @ p)
+            v = self.settings.landing_velocity if pat.av_u.any() else 1e20
+            qp.a[0] = pat.av_u
+            qp.lba[0], qp.uba[0] = -v - c, v - c
+        qp.set_hessian(pat.H)
+        # warm start: the previous plan, shifted
+        qp.x0[:-1] = self._plan[1:]
+        qp.x0[-1] = self._plan[-1]
+        qp.lam_x0[:-1] = self._lam[1:]
+        qp.lam_x0[-1] = 0.0
+        t0 = time.perf_counter()
+        status = qp.solve()
+        dt = time.perf_counter() - t0
+        self.solve_times.append(dt)
+        if self._k in self.inject_failures:
+            status = "injected failure"
+        self.statuses.append(status)
+        reason = None
+        if status != "ok":
+            reason = f"solve failed: {status}"
+        elif dt > self.settings.max_solve_time:
+            reason = f"solve overran: {dt * 1e6:.0f} us > max_solve_time {self.settings.max_solve_time * 1e6:.0f} us"
+        if reason is None:
+            self._plan[:] = qp.x
+            self._lam[:] = qp.lam_x
+            u = float(qp.x[0])
+        else:  # the previous plan's next input, saturated; the late plan (if any) warm-starts the next one
+            u = min(max(float(qp.x0[0]), -self._umax), self._umax)
+            self.fallbacks.append({"t": float(t), "reason": reason})
+            if status == "ok":
+                self._plan[:] = qp.x
+                self._lam[:] = qp.lam_x
+            else:
+                self._plan[:] = qp.x0
+                self._lam[:] = 0.0
+            self._plan[0] = u
+        self._sep0 = pat.step0_separated
+        self._u = u
+        self._k += 1
+        if self._land is not None:
+            self._land -= 1
+        self.step_times.append(time.perf_counter() - t_step)
+        return u
+
+    def describe(self) -> dict[str, Any]:
+        """Settings for reports: horizon, solver and how it is called, weights, crossing length."""
+        d = dataclasses.asdict(self.settings)
+        return {"name": self.name, "kind": "mpc", "Ts": self.Ts, **d, "compiled": self._qp.compiled,
+                "solver_note": self._qp.note, "crossing_samples": self.n_cross, "patterns": len(self._patterns)}
