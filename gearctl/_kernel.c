@@ -25,6 +25,7 @@
 #define ST_NAN 2
 #define ST_EVENTS 3
 #define ST_STEP 4
+#define ST_BUFFER 5 /* the event buffer is full: the state stops at the last event; call again */
 
 typedef struct {
     double J1, J2, rb1, rb2, b, k, c, d1, d2, tc1, tc2, ws;
@@ -281,14 +282,18 @@ int gc_advance_pwl(const gc_params *p, gc_state *st, double u1, double u2, doubl
         matvec4(A, x1, dx1);
         for (i = 0; i < 4; i++) { dx0[i] += a[i]; dx1[i] += a[i]; }
         for (int e = 0; e < ne; e++) {
-            double ga = g0[e], gb = g0[e], da = 0.0, db = 0.0;
+            double ga = g0[e], gb = g0[e], da = 0.0, db = 0.0, dscale = 0.0;
             for (i = 0; i < 4; i++) {
                 ga += cg[e][i] * x0[i];
                 gb += cg[e][i] * x1[i];
                 da += cg[e][i] * dx0[i];
                 db += cg[e][i] * dx1[i];
+                dscale += fabs(cg[e][i] * dx0[i]);
             }
             if (ga < 0.0) ga = 0.0; /* rounding just after a switch onto this boundary */
+            /* a rate that is zero up to cancellation (e.g. the residue of a plastic impulse) is zero:
+               then the curvature over the step (db) decides whether the flanks leave the boundary */
+            if (ga == 0.0 && fabs(da) <= 1e-12 * dscale) da = 0.0;
             if (!(gb <= 0.0 || (da < 0.0 && db > 0.0) || (ga == 0.0 && da <= 0.0))) continue;
             double tau;
             if (ga == 0.0 && (da < 0.0 || (da == 0.0 && db < 0.0))) {
@@ -303,7 +308,9 @@ int gc_advance_pwl(const gc_params *p, gc_state *st, double u1, double u2, doubl
                 q[0] = ga;
                 tau = first_root(q, nt, h, gb, da, db);
             }
-            if (tau >= 0.0 && (which < 0 || tau < best)) {
+            /* strictly earlier only: on a tie (both functions vanish together, e.g. no_pull with c = 0)
+               the geometric boundary, evaluated first, wins */
+            if (tau >= 0.0 && (which < 0 || tau < best - 1e-12 * h)) {
                 best = tau;
                 which = e;
             }
@@ -320,6 +327,7 @@ int gc_advance_pwl(const gc_params *p, gc_state *st, double u1, double u2, doubl
             if (st->t > t_end) st->t = t_end;
             st->mode = transition(p, st, ev, cap, mode, target[which], st->x, st->t);
             if (st->n_events > p->max_events || ++guard > 4 * p->max_events) return ST_EVENTS;
+            if (st->n_events >= cap && st->t < t_end) return ST_BUFFER;
         }
         if (loaded(mode)) { /* penetration peaks where v = 0 inside a contact step: Hermite estimate */
             double pen = fabs(s_of(p, st->x)) - p->b;
@@ -523,6 +531,7 @@ int gc_advance_ode(const gc_params *p, gc_state *st, double u1, double u2, doubl
             st->mode = nm;
             have_k1 = 0;
             if (st->n_events > p->max_events) return ST_EVENTS;
+            if (st->n_events >= cap && st->t < t_end) return ST_BUFFER;
         } else {
             memcpy(st->x, y1, sizeof y1);
             memcpy(k1, k7, sizeof k7);
@@ -555,6 +564,7 @@ int gc_run(const gc_params *p, gc_state *st, double u1, double u2, double dt, lo
                      ? gc_advance_pwl(p, st, u1, u2, dt, ev + (total < cap ? total : cap), cap > total ? cap - total : 0)
                      : gc_advance_ode(p, st, u1, u2, dt, ev + (total < cap ? total : cap), cap > total ? cap - total : 0);
         total += st->n_events;
+        if (status == ST_BUFFER) break; /* interval i unfinished: Python drains and resumes */
         memcpy(out_x + 4 * i, st->x, sizeof(double) * 4);
         out_mode[i] = st->mode;
         out_dys[i] = st->d_ys;

@@ -30,7 +30,8 @@ import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
 from .catalog import GearModel, load_controller, load_model
-from .closedloop import simulate_closed_loop
+from .closedloop import ClosedLoopResult, simulate_closed_loop
+from .design.base import Controller
 from .design.pid import PID, PIDGains
 from .errors import InputError
 from .modes import contact_mode_model
@@ -47,6 +48,7 @@ __all__ = [
     "restitution_coefficient",
     "impact_gain",
     "predict_limit_cycle",
+    "run_limit_cycle",
     "simulate_limit_cycle",
     "describe",
 ]
@@ -74,9 +76,10 @@ def dead_zone_factor(A: ArrayLike, b: float) -> Any:
 
     Notes
     -----
-    Near the flank, ``A = b (1 + delta)``, ``eta = (4 / (3 pi)) phi^3 + O(phi^5)`` with
-    ``cos phi = b / A``, i.e. ``eta ~ 1.2 delta^(3/2)``. The series is used below ``phi = 1e-3`` where
-    the closed form loses digits to cancellation.
+    With ``cos phi = b / A``: ``eta = (2 phi - sin 2 phi) / pi``, evaluated with
+    ``phi = atan2(sqrt((A - b)(A + b)), b)`` (no cancellation in ``A - b``) and, below ``phi = 0.01``
+    where ``2 phi - sin 2 phi`` cancels, its Taylor series ``x^3/6 (1 - x^2/20 + x^4/840)``, ``x = 2 phi``.
+    Near the flank, ``A = b (1 + delta)``: ``eta ~ (4 / (3 pi)) (2 delta)^(3/2) = 1.2 delta^(3/2)``.
 
     Examples
     --------
@@ -86,12 +89,11 @@ def dead_zone_factor(A: ArrayLike, b: float) -> Any:
     0.0
     """
     A = np.asarray(A, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(A > b, b / np.where(A > 0, A, 1.0), 1.0)
-        phi = np.arccos(np.clip(r, -1.0, 1.0))
-        exact = 1.0 - (2.0 / np.pi) * (np.arcsin(r) + r * np.sqrt(np.maximum(1.0 - r * r, 0.0)))
-        series = (4.0 / (3.0 * np.pi)) * phi**3 * (1.0 - 0.4 * phi**2)
-    eta = np.where(A > b, np.where(phi < 1e-3, series, exact), 0.0)
+    phi = np.arctan2(np.sqrt(np.maximum((A - b) * (A + b), 0.0)), b)
+    x = 2.0 * phi
+    closed = (x - np.sin(x)) / np.pi
+    series = x**3 / 6.0 * (1.0 - x**2 / 20.0 * (1.0 - x**2 / 42.0)) / np.pi
+    eta = np.where(A > b, np.where(phi < 1e-2, series, closed), 0.0)
     return float(eta) if eta.ndim == 0 else eta
 
 
@@ -113,9 +115,11 @@ class MeshBacklash(ct.DescribingFunctionNonlinearity):
     Notes
     -----
     For ``s = A sin(omega t)`` the first harmonic of ``F`` is ``(k + j omega c) eta(A) s``: the spring
-    gives ``k eta`` (the dead-zone result) and the gated damper ``j omega c eta`` with the *same* factor,
-    because ``int cos^2`` over the contact arcs equals ``int sin^2`` minus the gap's share in the same
-    proportion (``tests/test_describe.py`` checks both by quadrature). python-control's interface has
+    gives ``k eta`` (the dead-zone result) and the gated damper ``j omega c eta`` with the *same* factor:
+    over the contact arcs ``theta0 < omega t < pi - theta0`` (and their mirror), ``sin theta0 = b / A``,
+    ``(2/pi) int (sin t - sin theta0) sin t dt`` and ``(2/pi) int cos^2 t dt`` both equal
+    ``1 - (2/pi)(theta0 + sin theta0 cos theta0) = eta`` (``tests/test_describe.py`` checks both by
+    quadrature). python-control's interface has
     ``N(A)`` without frequency, so :meth:`describing_function` is the static spring ``k eta(A)`` and
     :meth:`__call__` the static dead-zone spring; the damper enters the harmonic balance as the factor
     ``(1 + j omega c / k)`` on the linear part (:func:`loop_frequency_response` with
@@ -257,7 +261,7 @@ def sampled_pid(gains: PIDGains, Ts: float) -> ct.TransferFunction:
     is minus that of the error. Anti-windup is inactive below the torque limit.
     """
     kp, kiT, kdT, a = _pid_coefficients(gains, Ts)
-    z = ct.tf("z", dt=Ts)
+    z = ct.tf([1.0, 0.0], [1.0], Ts)
     return kp + kiT / (z - 1) + kdT * (z - 1) / (z - a)
 
 
@@ -370,9 +374,9 @@ def loop_around_backlash(plant: Plant, gains_or_controller: PID | PIDGains, *, T
     hold are written with ``z = e^{s Ts}`` replaced by its ``(n, n)`` Padé approximant, so ``C(z)`` and
     ``(1 - z^{-1}) / (s Ts)`` become rational in ``s``: the transfer function converges to the exact
     sampled-data fundamental response below the Nyquist frequency as ``n`` grows (``n = 6``: relative
-    error below 1e-6 up to a third of the Nyquist frequency and below 1e-3 up to 0.9 of it, checked in
-    the tests). The predictions use the exact response; this transfer function is for python-control's
-    tools (``describing_function_response``, Nyquist plots, margins).
+    error about 1e-9 up to 0.9 of the Nyquist frequency for ``pid_load`` on ``shing1993_servo``, checked
+    in the tests). The predictions use the exact response; this transfer function is for
+    python-control's tools (``describing_function_response``, Nyquist plots, margins).
     """
     _check_plant(plant)
     gains, Ts, feedback = _pid_parts(gains_or_controller, Ts, feedback)
@@ -625,10 +629,11 @@ def predict_limit_cycle(plant: Plant, controller: PID | PIDGains, *, method: str
     balance is solved here with brentq on the exact sampled response because ``H`` is ~1e-6 m/N, below
     the fixed 1e-8 threshold of its segment-intersection test unless rescaled.
 
-    ``c omega / k`` is small (about 1e-2 at a few hundred Hz), but in a load-feedback loop above its
-    bandwidth ``H`` is nearly the free-mass compliance ``-1 / (m_eq omega^2)`` and ``Im H / Re H`` is of
-    the same small order, so the damper moves the phase balance (the frequency) by tens of percent while
-    changing ``|N|`` by less than 1e-4: it is kept.
+    ``c omega / k`` is small (5.5e-3 at the cycle of ``pid_load`` on ``shing1993_servo``), but above the
+    loop's bandwidth ``H`` is nearly the free-mass compliance ``-1 / (m_eq omega^2)`` and ``Im H / Re H``
+    is of the same small order, so the damper shifts the phase balance while changing ``|N|`` by less
+    than 1e-4: the frequency moves by 3 % there (156 -> 151 Hz) and by a factor 2 for the same kind of
+    design sampled at 10 kHz. It is kept.
 
     Stability: the loop with the element replaced by the spring ``k eta(A)`` (and damper ``c eta(A)``) is
     checked just below and above the solution's amplitude (exact ZOH discretisation for ``Ts > 0``); the
@@ -708,8 +713,83 @@ def predict_limit_cycle(plant: Plant, controller: PID | PIDGains, *, method: str
 # --- simulation -------------------------------------------------------------------------------------------
 
 
-def simulate_limit_cycle(plant: Plant, controller: Any, *, duration: float = 2.0, x0: ArrayLike | None = None,
-                         window: float = 0.5, sensors: Sensors | None = None) -> dict[str, Any]:
+class _Oversampled(Controller):
+    """A controller run at its own period inside a loop sampled ``factor`` times faster: the plant state
+    is recorded at ``Ts / factor`` while the command is updated every ``factor`` samples and held, so the
+    loop is the same sampled-data system."""
+
+    def __init__(self, inner: Controller, factor: int) -> None:
+        super().__init__()
+        self.inner, self.factor = inner, factor
+        self.name, self.Ts = inner.name, inner.Ts / factor
+        self.uses_load_encoder = inner.uses_load_encoder
+        self._i, self._u = 0, 0.0
+
+    def reset(self) -> None:
+        self.inner.reset()
+        self._i, self._u = 0, 0.0
+        self.solve_times, self.fallbacks = [], []
+
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
+        if self._i % self.factor == 0:
+            self._u = self.inner.step(t, y_motor, y_load, ref)
+        self._i += 1
+        return self._u
+
+    def describe(self) -> dict[str, Any]:
+        return self.inner.describe()
+
+
+def run_limit_cycle(plant: Plant, controller: Controller, *, duration: float = 2.0, x0: ArrayLike | None = None,
+                    sensors: Sensors | None = None, oversample: int | None = None) -> ClosedLoopResult:
+    """The closed-loop run behind :func:`simulate_limit_cycle`, recorded finely enough to see the collisions.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    controller : Controller
+        Any gearctl controller (reset before the run), at its own sample period.
+    duration : float
+        Simulated time [s].
+    x0 : array_like, optional
+        Initial state ``[theta1, theta2, omega1, omega2]``. Default: the load turned by half the gap,
+        ``theta2 = -b / (2 r_b2)`` (flanks apart, at rest; the controller sees that error).
+    sensors : Sensors, optional
+        Encoders (default: ideal, as the describing function assumes).
+    oversample : int, optional
+        Plant samples per controller sample. Default: enough for eight samples per collision
+        (half a mesh period).
+
+    Returns
+    -------
+    ClosedLoopResult
+        From :func:`~gearctl.closedloop.simulate_closed_loop`, at ``Ts / oversample``; the controller
+        still updates every ``Ts`` and its command is held (the same sampled-data loop).
+
+    Raises
+    ------
+    InputError
+        For a bad ``oversample`` or ``duration``.
+    SimulationError
+        If the loop diverges.
+    """
+    if oversample is None:
+        contact = math.pi / plant.natural_frequency
+        oversample = max(1, math.ceil(controller.Ts / (contact / 8)))
+    if not (isinstance(oversample, int) and 1 <= oversample <= 10_000):
+        raise InputError(f"oversample = {oversample!r} is out of range: expected an integer in 1..10000",
+                         field="oversample")
+    if x0 is None:
+        x0 = np.array([0.0, -0.5 * plant.backlash / plant.rb2, 0.0, 0.0])
+    loop = _Oversampled(controller, oversample) if oversample > 1 else controller
+    return simulate_closed_loop(plant, loop, Reference(kind="step", amplitude=0.0), duration, sensors=sensors,
+                                x0=np.asarray(x0, dtype=float))
+
+
+def simulate_limit_cycle(plant: Plant, controller: Controller, *, duration: float = 2.0,
+                         x0: ArrayLike | None = None, window: float = 0.5, sensors: Sensors | None = None,
+                         oversample: int | None = None) -> dict[str, Any]:
     """Run the closed loop at zero reference from a small disturbance and measure the cycle it settles to.
 
     Parameters
@@ -721,12 +801,13 @@ def simulate_limit_cycle(plant: Plant, controller: Any, *, duration: float = 2.0
     duration : float
         Simulated time [s].
     x0 : array_like, optional
-        Initial state ``[theta1, theta2, omega1, omega2]``. Default: the load turned by half the gap,
-        ``theta2 = -b / (2 r_b2)`` (flanks apart, at rest: the controller sees an error of that size).
+        Initial state; default as :func:`run_limit_cycle` (the load turned by half the gap).
     window : float
         Fraction of the run, at its end, over which the cycle is measured (0 < window <= 1).
     sensors : Sensors, optional
         Encoders (default: ideal, as the describing function assumes).
+    oversample : int, optional
+        Plant samples per controller sample (see :func:`run_limit_cycle`).
 
     Returns
     -------
@@ -741,16 +822,13 @@ def simulate_limit_cycle(plant: Plant, controller: Any, *, duration: float = 2.0
     Raises
     ------
     InputError
-        For a ``duration`` or ``window`` out of range.
+        For a ``duration``, ``window`` or ``oversample`` out of range.
     SimulationError
         If the loop diverges (from :func:`~gearctl.closedloop.simulate_closed_loop`).
     """
     if not (0.0 < window <= 1.0):
         raise InputError(f"window = {window!r} is out of range: expected 0 < window <= 1", field="window")
-    if x0 is None:
-        x0 = np.array([0.0, -0.5 * plant.backlash / plant.rb2, 0.0, 0.0])
-    res = simulate_closed_loop(plant, controller, Reference(kind="step", amplitude=0.0), duration,
-                               sensors=sensors, x0=np.asarray(x0, dtype=float))
+    res = run_limit_cycle(plant, controller, duration=duration, x0=x0, sensors=sensors, oversample=oversample)
     t0 = res.t[-1] * (1.0 - window)
     m = res.t >= t0
     t, s, th2, u = res.t[m], res.s[m], res.x[1, m], res.torque[m]

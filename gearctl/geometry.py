@@ -101,7 +101,7 @@ class GearPair:
                 f"dedendum_coefficient = {self.dedendum_coefficient:g} {rule}", field="dedendum_coefficient", rule=rule
             )
         g = _raw_geometry(self)
-        for j, (reach, name) in enumerate(((g["AD"], "teeth1"), (g["l"] - g["AC"], "teeth2")), start=1):
+        for j, reach in enumerate((g["AD"], g["l"] - g["AC"]), start=1):
             if reach > g["l"] * (1 + 1e-12):
                 rule = (
                     f"makes the addendum of gear {j} reach past the mating gear's base circle (interference: "
@@ -165,10 +165,10 @@ def _raw_geometry(pair: GearPair) -> dict[str, float]:
     rp1, rp2 = m * pair.teeth1 / 2, m * pair.teeth2 / 2
     rb1, rb2 = rp1 * math.cos(phi), rp2 * math.cos(phi)
     ra1, ra2 = rp1 + pair.addendum_coefficient * m, rp2 + pair.addendum_coefficient * m
-    l = (rb1 + rb2) * math.tan(phi)  # AB
+    ab = (rb1 + rb2) * math.tan(phi)  # AB = l
     return {
-        "l": l,
-        "AC": l - math.sqrt(ra2**2 - rb2**2),
+        "l": ab,
+        "AC": ab - math.sqrt(ra2**2 - rb2**2),
         "AD": math.sqrt(ra1**2 - rb1**2),
         "pb": math.pi * m * math.cos(phi),
     }
@@ -217,7 +217,7 @@ def pair_geometry(pair: GearPair) -> Geometry:
     rb = tuple(r * math.cos(phi) for r in rp)
     ra = tuple(r + pair.addendum_coefficient * m for r in rp)
     rd = tuple(r - pair.dedendum_coefficient * m for r in rp)
-    pb, l, AC, AD = raw["pb"], raw["l"], raw["AC"], raw["AD"]
+    pb, ab, AC, AD = raw["pb"], raw["l"], raw["AC"], raw["AD"]
     tp = math.pi * m / 2
     tb = tuple(rb[j] * (tp / rp[j] + 2 * involute(phi)) for j in range(2))  # eq 27
     beta = tuple(math.acos(rb[j] / ra[j]) for j in range(2))
@@ -242,7 +242,7 @@ def pair_geometry(pair: GearPair) -> Geometry:
         addendum_radius=ra,
         dedendum_radius=rd,
         base_pitch=pb,
-        AB=l,
+        AB=ab,
         AC=AC,
         AD=AD,
         AE=AD - pb,

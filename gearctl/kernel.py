@@ -57,7 +57,8 @@ class EventKind:
 
 
 _STATUS = {0: "ok", 2: "state became NaN or infinite", 3: "too many events (unresolved Zeno cascade)",
-           4: "step size underflow"}
+           4: "step size underflow", 5: "event buffer full"}
+_BUFFER_FULL = 5
 
 _EVENT_DTYPE = np.dtype([("t", "f8"), ("v", "f8"), ("kind", "i8"), ("side", "i8")])
 
@@ -256,7 +257,8 @@ class Kernel:
         if x0.shape != (4,) or not np.all(np.isfinite(x0)):
             from .errors import InputError
 
-            raise InputError(f"initial state = {x0.tolist()!r} must be 4 finite numbers [rad, rad, rad/s, rad/s]")
+            raise InputError(f"x0 = {x0.tolist()!r} is not an initial state: expected 4 finite numbers "
+                             f"[rad, rad, rad/s, rad/s]", field="x0")
         st.x[:] = x0.tolist()
         st.t = self.t0
         st.h_ode = 0.0
@@ -329,19 +331,22 @@ class Kernel:
         0 is success; events are appended to :attr:`events` as ``(t, kind, side, v)``.
         """
         if self._fn is not None:
-            status = self._fn(self._pp, self._sp, u1, u2, T, self._evp, self._cap)
-            n = self._st.n_events
-            if n:
-                if n > self._cap:  # the buffer was too small for this call: grow it (events beyond are counted)
-                    self._overflow = getattr(self, "_overflow", 0) + n - self._cap
-                    n = self._cap
-                ev = self._ev[:n]
-                self.events.extend(zip(ev["t"].tolist(), ev["kind"].tolist(), ev["side"].tolist(),
-                                       ev["v"].tolist(), strict=True))
-            return status
+            t_end = self._st.t + T
+            while True:
+                status = self._fn(self._pp, self._sp, u1, u2, t_end - self._st.t, self._evp, self._cap)
+                n = min(self._st.n_events, self._cap)
+                if n:
+                    self._drain(n)
+                if status != _BUFFER_FULL:
+                    return status
         if self.exact:
             return _py_advance_pwl(self, u1, u2, T)
         return _py_advance_ode(self, u1, u2, T)
+
+    def _drain(self, n: int) -> None:
+        ev = self._ev[:n]
+        self.events.extend(zip(ev["t"].tolist(), ev["kind"].tolist(), ev["side"].tolist(), ev["v"].tolist(),
+                               strict=True))
 
     def run(self, u1: float, u2: float, dt: float, n: int) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
         """Advance ``n`` intervals of ``dt`` with constant torques; return ``(status, x, mode, d_ys)``.
@@ -362,17 +367,22 @@ class Kernel:
         modes = np.empty(n, dtype=np.intc)
         dys = np.empty(n)
         done = ctypes.c_long(0)
-        cap = max(self._cap, 64 * n)
-        if cap > self._ev.size:
-            self._ev = np.zeros(cap, dtype=_EVENT_DTYPE)
-            self._evp = self._ev.ctypes.data
-        status = self._lib.gc_run(self._pp, self._sp, u1, u2, dt, n, out.ctypes.data, modes.ctypes.data,
-                                  dys.ctypes.data, self._evp, self._ev.size, ctypes.byref(done))
-        m = done.value
-        ne = min(self._st.n_events, self._ev.size)
-        ev = self._ev[:ne]
-        self.events.extend(zip(ev["t"].tolist(), ev["kind"].tolist(), ev["side"].tolist(), ev["v"].tolist(),
-                               strict=True))
+        m, t0 = 0, self._st.t
+        status = 0
+        while m < n:
+            status = self._lib.gc_run(self._pp, self._sp, u1, u2, dt, n - m, out[m:].ctypes.data,
+                                      modes[m:].ctypes.data, dys[m:].ctypes.data, self._evp, self._cap,
+                                      ctypes.byref(done))
+            self._drain(min(self._st.n_events, self._cap))
+            m += done.value
+            if status != _BUFFER_FULL:
+                break
+            # the buffer filled inside interval m: finish it event by event, then go on
+            status = self.advance(u1, u2, t0 + (m + 1) * dt - self._st.t)
+            out[m], modes[m], dys[m] = self._st.x[:], self._st.mode, self._st.d_ys
+            m += 1
+            if status != 0:
+                break
         return status, out[:m].T.copy(), modes[:m].astype(int), dys[:m]
 
     @staticmethod
@@ -562,6 +572,8 @@ def _py_advance_pwl(kn: Kernel, u1: float, u2: float, T: float) -> int:
             da = sum(cg[i] * dx0[i] for i in range(4))
             db = sum(cg[i] * dx1[i] for i in range(4))
             ga = max(ga, 0.0)
+            if ga == 0.0 and abs(da) <= 1e-12 * sum(abs(cg[i] * dx0[i]) for i in range(4)):
+                da = 0.0  # zero up to cancellation (see _kernel.c)
             if not (gb <= 0.0 or (da < 0.0 and db > 0.0) or (ga == 0.0 and da <= 0.0)):
                 continue
             if ga == 0.0 and (da < 0.0 or (da == 0.0 and db < 0.0)):
@@ -572,7 +584,7 @@ def _py_advance_pwl(kn: Kernel, u1: float, u2: float, T: float) -> int:
                 q = [sum(cg[i] * Dn[i] for i in range(4)) for Dn in D]
                 q[0] = ga
                 tau = _first_root(q, h, gb, da, db)
-            if tau >= 0.0 and (which < 0 or tau < best):
+            if tau >= 0.0 and (which < 0 or tau < best - 1e-12 * h):
                 best, which, target = tau, 1, tgt
         steps += 1
         if which < 0:

@@ -23,7 +23,13 @@ from numpy.typing import NDArray
 from .errors import InputError
 from .geometry import pair_geometry
 from .params import ContactLaw
-from .stiffness import damping_coefficient, equivalent_mass, mesh_stiffness, mesh_stiffness_at, yang_sun_stiffness
+from .stiffness import (
+    damping_coefficient,
+    equivalent_mass,
+    mesh_stiffness,
+    mesh_stiffness_at,
+    yang_sun_stiffness,
+)
 
 if TYPE_CHECKING:
     from .catalog import GearModel

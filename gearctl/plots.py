@@ -7,11 +7,9 @@ nothing is shown or written unless the caller saves the figure (:func:`save`).
 from __future__ import annotations
 
 from pathlib import Path
-
-
-import numpy as np
 from typing import Any
 
+import numpy as np
 from matplotlib.figure import Figure
 
 from .stiffness import COMPONENTS, MeshStiffness, ToothDeflections

@@ -129,7 +129,7 @@ def reference_solution(
                 else:
                     side = 0 if p.backlash > 0 else -side
                 t, x = te, np.array(xe, dtype=float)
-                # step off the switching surface so the next segment's event does not fire at once
+                # the next segment watches the crossing in the other direction only, so it does not fire at once
                 guard += 1
                 if guard > 100000:
                     raise RuntimeError("reference solution: event cascade")

@@ -77,7 +77,9 @@ class SimulationResult:
     events : list of Event
         Every impact, separation (and, for ``no_pull``, lift/reload) in time order.
     max_penetration : float
-        Largest ``|s| - b`` over the run [m], located between output points too.
+        Largest ``|s| - b`` over the run [m], between output points too: the peak inside each contact
+        sub-step is estimated with a cubic Hermite model of ``s`` (relative error about 1e-4 at 100 µs
+        outputs, 1e-8 at 1 µs).
     success : bool
         Whether the run reached its end.
     message : str
@@ -246,7 +248,7 @@ def _result(plant: Plant, kn: Kernel, t: NDArray, x: NDArray, u: NDArray, mode: 
             status: int) -> SimulationResult:
     diverged = status == 0 and not np.all(np.abs(x[2:, -1]) < DIVERGENCE_LIMIT)
     ok = status == 0 and not diverged
-    message = "ok" if ok else ("diverged: |omega| > %.0e rad/s" % DIVERGENCE_LIMIT if diverged
+    message = "ok" if ok else (f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s" if diverged
                                else Kernel.status_message(status))
     events = [Event(float(te), EventKind.NAMES[int(k)], "front" if sd > 0 else "back", float(v))
               for te, k, sd, v in kn.events]

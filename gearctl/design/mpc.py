@@ -180,7 +180,7 @@ class MPCSettings:
     tracking: float = 1e8
     torque: float = 1e-2
     torque_rate: float = 10.0
-    relative_velocity: float = 1e4
+    relative_velocity: float = 1e7
     terminal: float = 10.0
     soft_landing: str = "penalty"
     landing_velocity: float = 1e-3
@@ -416,9 +416,10 @@ def _c_compiler() -> str | None:
 class _QP:
     """One dense QP ``min 1/2 x'Hx + g'x, lbx <= x <= ubx, lba <= A x <= uba`` per call, built once.
 
-    The CasADi Function ``qp(h, g, lbx, ubx, x0, lam_x0[, a, lba, uba]) -> (x, lam_x, kkt)`` wraps the
-    conic and appends a check (``kkt``: the larger of the primal infeasibility and the relative
-    stationarity residual). It is compiled and called through ctypes where possible.
+    The CasADi Function ``qp(h, g, lbx, ubx, x0, lam_x0, a, lba, uba) -> (x, lam_x, lam_a, cost, kkt)``
+    wraps the conic and appends a check (``kkt``: the larger of the primal infeasibility and the
+    stationarity residual relative to the data). It is compiled and called through ctypes where
+    possible; the caller fills the input buffers in place and points ``h`` and ``a`` at arrays it keeps.
     """
 
     def __init__(self, n: int, m: int, plugin: str, *, compiled: bool | None = None) -> None:
@@ -426,37 +427,28 @@ class _QP:
 
         self.n, self.m, self.plugin = n, m, plugin
         opts = {**_PLUGIN_OPTIONS[plugin], "error_on_fail": True}
-        self._conic = ca.conic("mpc_conic", plugin, {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m, n)},
-                               opts)
-        h, g = ca.MX.sym("h", n, n), ca.MX.sym("g", n)
+        conic = ca.conic("mpc_conic", plugin, {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m, n)}, opts)
+        h, g, a = ca.MX.sym("h", n, n), ca.MX.sym("g", n), ca.MX.sym("a", m, n)
         lbx, ubx, x0, l0 = (ca.MX.sym(s, n) for s in ("lbx", "ubx", "x0", "lam_x0"))
-        ins, names = [h, g, lbx, ubx, x0, l0], ["h", "g", "lbx", "ubx", "x0", "lam_x0"]
-        kw: dict[str, Any] = {"h": h, "g": g, "lbx": lbx, "ubx": ubx, "x0": x0, "lam_x0": l0}
-        if m:
-            a, lba, uba = ca.MX.sym("a", m, n), ca.MX.sym("lba", m), ca.MX.sym("uba", m)
-            ins += [a, lba, uba]
-            names += ["a", "lba", "uba"]
-            kw.update(a=a, lba=lba, uba=uba)
-        sol = self._conic(**kw)
-        x, lam_x = sol["x"], sol["lam_x"]
-        stat = ca.mtimes(h, x) + g + lam_x
-        pinf = ca.fmax(ca.mmax(ca.fmax(lbx - x, x - ubx)), 0)
-        if m:
-            ax = ca.mtimes(a, x)
-            stat += ca.mtimes(a.T, sol["lam_a"])
-            pinf = ca.fmax(pinf, ca.mmax(ca.fmax(lba - ax, ax - uba)))
-        scale = 1 + ca.norm_inf(g) + ca.norm_inf(ca.mtimes(h, x))
-        kkt = ca.fmax(ca.norm_inf(stat) / scale, pinf)
+        lba, uba = ca.MX.sym("lba", m), ca.MX.sym("uba", m)
+        sol = conic(h=h, g=g, a=a, lba=lba, uba=uba, lbx=lbx, ubx=ubx, x0=x0, lam_x0=l0)
+        x, lam_x, lam_a = sol["x"], sol["lam_x"], sol["lam_a"]
+        hx, ax = ca.mtimes(h, x), ca.mtimes(a, x)
+        stat = hx + g + lam_x + ca.mtimes(a.T, lam_a)  # stationarity of the Lagrangian
+        pinf = ca.fmax(ca.fmax(ca.mmax(ca.fmax(lbx - x, x - ubx)), ca.mmax(ca.fmax(lba - ax, ax - uba))), 0)
+        kkt = ca.fmax(ca.norm_inf(stat) / (1 + ca.norm_inf(g) + ca.norm_inf(hx)), pinf)
         fname = f"gearctl_mpc_{plugin}_{n}_{m}"
-        self.function = ca.Function(fname, ins, [x, lam_x, kkt], names, ["x", "lam_x", "kkt"])
-        # buffers the caller fills in place
+        self.function = ca.Function(fname, [h, g, lbx, ubx, x0, l0, a, lba, uba],
+                                    [x, lam_x, lam_a, sol["cost"], kkt],
+                                    ["h", "g", "lbx", "ubx", "x0", "lam_x0", "a", "lba", "uba"],
+                                    ["x", "lam_x", "lam_a", "cost", "kkt"])
+        # buffers the caller fills in place (h and a are replaced by the caller's arrays)
         self.h = np.zeros((n, n))
-        self.g = np.zeros(n)
-        self.lbx, self.ubx = np.zeros(n), np.zeros(n)
-        self.x0, self.lam_x0 = np.zeros(n), np.zeros(n)
-        self.a = np.zeros((m, n))
+        self.a = np.zeros((m, n), order="F")  # CasADi stores dense matrices column-major
+        self.g, self.lbx, self.ubx, self.x0, self.lam_x0 = (np.zeros(n) for _ in range(5))
         self.lba, self.uba = np.zeros(m), np.zeros(m)
-        self.x, self.lam_x, self.kkt = np.zeros(n), np.zeros(n), np.zeros(1)
+        self.x, self.lam_x, self.lam_a = np.zeros(n), np.zeros(n), np.zeros(m)
+        self.cost, self.kkt = np.zeros(1), np.zeros(1)
         self.tol = _KKT_TOL[plugin]
         self.compiled = False
         self.note = ""
@@ -468,18 +460,17 @@ class _QP:
             except (OSError, subprocess.SubprocessError, RuntimeError, AttributeError) as exc:
                 if compiled:
                     raise SolverError(f"could not compile the {plugin} QP: {exc}") from exc
-                self.note = f"compiled path unavailable ({type(exc).__name__}); calling CasADi"
-        elif want and plugin not in _COMPILABLE:
+                self.note = f"compiled path unavailable ({type(exc).__name__}: {exc}); calling CasADi"
+        elif plugin not in _COMPILABLE:
             self.note = f"{plugin} is called through CasADi (no code generation)"
-        self.h_ptr = 0  # data address of the current Hessian (compiled path)
 
-    # -- compiled path --
     def _build(self, fname: str) -> Path:
+        """Generate C for :attr:`function`, compile it once per source into the user cache."""
         import casadi as ca
 
         cc = _c_compiler()
         if cc is None:
-            raise OSError("no C compiler")
+            raise OSError("no C compiler found")
         casadi_dir = Path(ca.__file__).parent
         with tempfile.TemporaryDirectory() as tmp:
             cwd = os.getcwd()
@@ -493,10 +484,10 @@ class _QP:
             src = (Path(tmp) / f"{fname}.c").read_bytes()
         flags = ["-O2", "-shared", "-fPIC", f"-I{casadi_dir / 'include'}"]
         libs = ["-lm"]
-        if self.plugin == "daqp":
+        if self.plugin == "daqp":  # the wheel ships libdaqp.so next to CasADi's own libraries
             libs = [f"-L{casadi_dir}", "-ldaqp", f"-Wl,-rpath,{casadi_dir}", "-lm"]
         tag = hashlib.sha256(src + " ".join([cc, *flags, *libs, sys.version]).encode()).hexdigest()[:16]
-        target = _cache_dir() / f"mpc-{fname}-{tag}.so"
+        target = _cache_dir() / f"{fname}-{tag}.so"
         if not target.exists():
             target.parent.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
@@ -515,13 +506,10 @@ class _QP:
         n_arg, n_res, n_iw, n_w = (s.value for s in sizes)
         getattr(lib, f"{fname}_incref")()
         self._mem = getattr(lib, f"{fname}_checkout")()
-        ins = [self.h, self.g, self.lbx, self.ubx, self.x0, self.lam_x0]
-        if self.m:
-            ins += [self.a, self.lba, self.uba]
-        # the Hessian and constraint rows are column-major in CasADi: H is symmetric and A is passed
-        # transposed (self.a is filled with A's transpose in C order, i.e. A in Fortran order)
+        ins = [self.h, self.g, self.lbx, self.ubx, self.x0, self.lam_x0, self.a, self.lba, self.uba]
+        outs = [self.x, self.lam_x, self.lam_a, self.cost, self.kkt]
         self._arg = (ctypes.c_void_p * n_arg)(*[x.ctypes.data for x in ins])
-        self._res = (ctypes.c_void_p * n_res)(self.x.ctypes.data, self.lam_x.ctypes.data, self.kkt.ctypes.data)
+        self._res = (ctypes.c_void_p * n_res)(*[x.ctypes.data for x in outs])
         self._iw = (ctypes.c_longlong * max(n_iw, 1))()
         self._w = (ctypes.c_double * max(n_w, 1))()
         fn = getattr(lib, fname)
@@ -529,29 +517,30 @@ class _QP:
         fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
         self._fn, self._lib = fn, lib
 
-    def set_hessian(self, H: NDArray[np.float64]) -> None:
-        """Use ``H`` (a C-contiguous symmetric array kept alive by the caller) for the next solves."""
+    def set_matrices(self, H: NDArray[np.float64], A: NDArray[np.float64]) -> None:
+        """Use ``H`` (symmetric) and ``A`` (Fortran order), kept alive by the caller, for the next solves."""
         if self.compiled:
             self._arg[0] = H.ctypes.data
-        self.h = H
+            self._arg[6] = A.ctypes.data
+        self.h, self.a = H, A
 
     def solve(self) -> str:
-        """Solve with the current buffers; the solution lands in ``x``, ``lam_x``. Returns ``"ok"`` or why not."""
+        """Solve with the current buffers; the solution lands in ``x``, ``lam_x``, ``lam_a``, ``cost``.
+
+        Returns ``"ok"`` or why the solution is rejected.
+        """
         if self.compiled:
             flag = self._fn(self._arg, self._res, self._iw, self._w, self._mem)
             if flag:
                 return f"{self.plugin} returned flag {flag}"
         else:
-            args = [self.h, self.g, self.lbx, self.ubx, self.x0, self.lam_x0]
-            if self.m:
-                args += [self.a, self.lba, self.uba]
             try:
-                out = self.function.call(args)
+                out = self.function.call([self.h, self.g, self.lbx, self.ubx, self.x0, self.lam_x0, self.a,
+                                          self.lba, self.uba])
             except RuntimeError as exc:
-                return f"{self.plugin} failed: {str(exc).splitlines()[-1][:160]}"
-            self.x[:] = np.asarray(out[0]).ravel()
-            self.lam_x[:] = np.asarray(out[1]).ravel()
-            self.kkt[0] = float(out[2])
+                return f"{self.plugin} failed: {str(exc).strip().splitlines()[-1][:160]}"
+            for buf, val in zip((self.x, self.lam_x, self.lam_a, self.cost, self.kkt), out, strict=True):
+                buf[:] = np.asarray(val).ravel()
         k = self.kkt[0]
         if not k <= self.tol:  # also catches NaN
             return f"{self.plugin} solution fails the KKT check ({k:.2g} > {self.tol:g})"
@@ -560,15 +549,25 @@ class _QP:
 
 # --- the controller --------------------------------------------------------------------------------------
 
+_INF = 1e20  # "no bound" for constraint rows (finite: some plugins reject inf)
+
 
 @dataclasses.dataclass(slots=True)
 class _Pattern:
-    """Condensed QP data of one mode sequence."""
+    """Condensed QP data of one mode sequence (separation from sample ``a``, landing at ``e``).
 
-    H: NDArray[np.float64]  # (n, n) C-contiguous
-    G: NDArray[np.float64]  # (n, n_p): g = G p
-    av_u: NDArray[np.float64]  # landing relative velocity = av_u u + av_p p (zeros: no landing in horizon)
-    av_p: NDArray[np.float64]
+    ``g = G p``, constant cost ``p' K p``. Constraint rows: ``N`` mesh-torque rows (per sign of the flank
+    before the crossing: ``A[sig]``, ``lba = -Bf[sig] p``), the landing position (equality) and the
+    landing relative velocity (bound).
+    """
+
+    H: NDArray[np.float64]
+    G: NDArray[np.float64]
+    K: NDArray[np.float64]
+    A: dict[int, NDArray[np.float64]]
+    Bf: dict[int, NDArray[np.float64]]
+    land_s: tuple[NDArray[np.float64], NDArray[np.float64]] | None  # (u-row, p-row) of s at landing
+    land_v: tuple[NDArray[np.float64], NDArray[np.float64]] | None
     step0_separated: bool
 
 
@@ -579,8 +578,9 @@ class MPC(Controller):
     ----------
     info : LoopInfo
         Design-time plant knowledge (inertias, friction, base radii, torque limit, load torque).
-    settings : MPCSettings
-        Horizon, solver, weights, observer noise, backlash estimate.
+    settings : MPCSettings, optional
+        Horizon, solver, weights, observer noise, backlash estimate (default: :class:`MPCSettings` with
+        the plant's backlash).
     Ts : float
         Sample period [s].
     name : str
@@ -594,13 +594,22 @@ class MPC(Controller):
     Attributes
     ----------
     solve_times : list of float
-        Wall time of each QP solve [s].
+        Wall time of the QP solves of each step [s] (one entry per step).
     step_times : list of float
         Wall time of each :meth:`step`, observer and bookkeeping included [s].
     statuses : list of str
-        Solver status of each step (``"ok"`` or the reason it was rejected).
+        Solver status of each step (``"ok"`` or why the solution was rejected).
     fallbacks : list of dict
         ``{"t", "reason"}`` for each step that applied the previous plan's next input.
+    n_cross : int
+        Samples a planned crossing of the gap lasts.
+
+    Raises
+    ------
+    InputError
+        For a sample time that is not positive.
+    SolverError
+        With ``compiled=True`` where the QP cannot be compiled.
 
     Notes
     -----
@@ -613,8 +622,6 @@ class MPC(Controller):
         st = settings if settings is not None else MPCSettings(backlash=info.plant.backlash)
         if not (Ts > 0 and math.isfinite(Ts)):
             raise InputError(f"Ts = {Ts!r} is out of range: expected a number > 0 [s]", field="sample_time")
-        if not math.isfinite(info.torque_limit) and st.torque == 0.0:
-            raise InputError("torque = 0 needs a finite torque limit", field="torque")
         self.info, self.settings, self.Ts, self.name = info, st, Ts, name
         self.uses_load_encoder = st.feedback == "load"
         self.inject_failures = set(inject_failures or ())
@@ -625,51 +632,63 @@ class MPC(Controller):
         self._umax = min(info.torque_limit, 1e6)
         self._tau_load = p.load_torque
         self._ratio = info.N
-        self.model = m = _gap_model(info, Ts)
-        # crossing: cover 2b with a quarter of the torque limit on the motor alone, accelerate + decelerate
-        a_rel = p.rb1 * 0.25 * min(info.torque_limit, 10.0 * info.J_eq * 1e3) / p.J1
-        self.n_cross = max(2, math.ceil(2.0 * math.sqrt(2 * self._b / a_rel) / Ts))
+        self.model = _gap_model(info, Ts)
+        # crossing: the lost motion 2b, a quarter of the torque limit accelerating then decelerating the
+        # motor alone
+        self._a_max = p.rb1 * self._umax / p.J1  # relative acceleration at full torque [m/s^2]
+        self.n_cross = max(2, math.ceil(2.0 * math.sqrt(2 * self._b / (0.25 * self._a_max)) / Ts))
         self.n_lead = self.n_cross // 2
-        self._a_rel = a_rel
         # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
         self.n_p = 8 + 2 * n
         self._build_patterns()
         self._build_observer()
-        self._qp = _QP(n, 1 if st.soft_landing == "bound" else 0, st.solver, compiled=compiled)
+        self._qp = _QP(n, n + 2, st.solver, compiled=compiled)
         self._qp.lbx[:] = -self._umax
         self._qp.ubx[:] = self._umax
+        self._qp.uba[:n] = _INF
         self.statuses: list[str] = []
         self.step_times: list[float] = []
         self.reset()
 
     # -- offline: condensing ------------------------------------------------------------------------------
     def _condense(self, a: int, e: int) -> _Pattern:
-        """Condensed QP for separation over steps ``a <= k < e`` (landing at state ``e``; ``e > N``: none)."""
-        st, m, n = self.settings, self.model, self.N
+        """Condensed QP for separation over samples ``a <= k < e`` (landing at state ``e``; ``e > N``: none)."""
+        st, m, n, pl = self.settings, self.model, self.N, self.info.plant
         nxi = 6 + n  # coefficients over xi = [z0 (4), tau, p_new, u_0..u_{N-1}]
         Z = np.zeros((4, nxi))
         Z[:, :4] = np.eye(4)
         states, land = [], None
+        Fxi = np.zeros((n, nxi))
         for k in range(n):
             sep = a <= k < e
             A, B = (m.A_sep, m.B_sep) if sep else (m.A_con, m.B_con)
+            Zprev = Z
             Z = A @ Z
             Z[:, 4] += B[:, 1]
             Z[:, 6 + k] += B[:, 0]
-            if k + 1 == e:  # plastic landing: s -> p_new, v -> 0 (momentum kept)
+            if k + 1 == e:  # plastic landing: s -> p_new, v -> 0; momentum and load angle kept
                 land = Z.copy()
+                Z[0] -= m.N * m.kappa2 * Z[2]  # theta2 = phi / N - kappa2 s is continuous
+                Z[0, 5] += m.N * m.kappa2
                 Z[2:] = 0.0
                 Z[2, 5] = 1.0
+            elif not sep:  # torque the mesh gives the load over sample k: J2 theta2'' + d2 omega2 - tau (eq 2)
+                Fxi[k] = pl.J2 / (m.N * self.Ts) * (Z[1] - Zprev[1]) + pl.d2 / (2 * m.N) * (Z[1] + Zprev[1])
+                Fxi[k, 4] -= 1.0
             states.append(Z)
         cy = np.array([1 / m.N, 0.0, -m.kappa2, 0.0])  # theta2
         cv = np.array([0.0, 1 / m.N, 0.0, -m.kappa2])  # omega2
         rows_u, rows_p, w = [], [], []
 
+        def split(cx: NDArray) -> tuple[NDArray, NDArray]:
+            rp = np.zeros(self.n_p)
+            rp[:6] = cx[:6]
+            return cx[6:].copy(), rp
+
         def add(cx: NDArray, weight: float, p_extra: dict[int, float] | None = None,
                 u_extra: dict[int, float] | None = None) -> None:
-            ru, rp = cx[6:].copy(), np.zeros(self.n_p)
-            rp[:6] = cx[:6]
+            ru, rp = split(cx)
             for i, v in (p_extra or {}).items():
                 rp[i] += v
             for i, v in (u_extra or {}).items():
@@ -679,7 +698,7 @@ class MPC(Controller):
             w.append(weight)
 
         zero = np.zeros(nxi)
-        for k in range(n):  # tracking r_{k+1}
+        for k in range(n):  # load angle against r_{k+1}
             add(cy @ states[k], st.tracking, {self._ip_r + k: -1.0})
         th = 0.5 * n * self.Ts
         add(cy @ states[-1], st.tracking * st.terminal, {self._ip_r + n - 1: -1.0})
@@ -688,30 +707,43 @@ class MPC(Controller):
             add(zero, st.torque, {self._ip_ff + k: -1.0}, {k: 1.0})
             add(zero, st.torque_rate, {self._ip_u: -1.0} if k == 0 else None,
                 {k: 1.0} if k == 0 else {k: 1.0, k - 1: -1.0})
-        av_u, av_p = np.zeros(n), np.zeros(self.n_p)
+        land_s = land_v = None
         if land is not None:
-            # landing position: 10x the tracking weight on the load angle it maps to
-            add(land[2], 10.0 * st.tracking * m.kappa2**2, {5: -1.0})
             if st.soft_landing != "off":
                 add(land[3], st.relative_velocity)
-            av_u, av_p[:6] = land[3, 6:].copy(), land[3, :6]
+            land_s, land_v = split(land[2]), split(land[3])
         Au, Ap, W = np.array(rows_u), np.array(rows_p), np.array(w)
         H = 2.0 * (Au.T * W) @ Au
         H = 0.5 * (H + H.T)
-        H += 1e-9 * np.trace(H) / n * np.eye(n)  # strictly convex even with all weight on rates
+        H += 1e-9 * np.trace(H) / n * np.eye(n)  # strictly convex whatever the weights
         G = 2.0 * (Au.T * W) @ Ap
-        return _Pattern(H=np.ascontiguousarray(H), G=np.ascontiguousarray(G), av_u=av_u, av_p=av_p,
-                        step0_separated=a == 0 and e >= 1)
+        K = (Ap.T * W) @ Ap
+        A_f, B_f = {}, {}
+        for sig in (1, -1):
+            sgn = np.where(np.arange(n) < a, sig, -sig).astype(float)
+            sgn[np.all(Fxi == 0.0, axis=1)] = 0.0  # separation samples: no mesh torque
+            Af = np.zeros((n + 2, n))
+            Af[:n] = sgn[:, None] * Fxi[:, 6:]
+            if land_s is not None:
+                Af[n], Af[n + 1] = land_s[0], land_v[0]
+            Bf = np.zeros((n, self.n_p))
+            Bf[:, :6] = sgn[:, None] * Fxi[:, :6]
+            A_f[sig], B_f[sig] = np.asfortranarray(Af), np.ascontiguousarray(Bf)
+        return _Pattern(H=np.ascontiguousarray(H), G=np.ascontiguousarray(G), K=np.ascontiguousarray(K),
+                        A=A_f, Bf=B_f, land_s=land_s, land_v=land_v, step0_separated=a == 0 and e >= 1)
 
     def _build_patterns(self) -> None:
         n, nc = self.N, self.n_cross
-        self._patterns: dict[tuple[int, int], _Pattern] = {(n, n + 1): self._condense(n, n + 1)}
+        self._all_contact = (n, n + 1)
+        self._patterns: dict[tuple[int, int], _Pattern] = {self._all_contact: self._condense(n, n + 1)}
         for a in range(n):
-            for e in range(a + 1, a + nc + 1):
+            for e in range(a + 1, a + nc + 3):
                 key = (a, min(e, n + 1))
                 if key not in self._patterns:
-                    self._patterns[key] = self._condense(a, key[1])
-        self._all_contact = (n, n + 1)
+                    self._patterns[key] = self._condense(*key)
+        for e in range(1, n + 2):  # landings from a floating start, any countdown
+            if (0, e) not in self._patterns:
+                self._patterns[(0, e)] = self._condense(0, e)
 
     # -- offline: observer --------------------------------------------------------------------------------
     def _build_observer(self) -> None:
@@ -786,6 +818,7 @@ class MPC(Controller):
         self._u = 0.0
         self._plan = np.zeros(n)
         self._lam = np.zeros(n)
+        self._keep = (np.zeros(n), np.zeros(n), np.zeros(n + 2))  # a solution set aside while another is tried
         self._flank = 0  # target flank: +1 front, -1 back, 0 undecided
         self._land: int | None = None
         self._k = 0
@@ -806,9 +839,8 @@ class MPC(Controller):
         tt = t + self.Ts * np.arange(self._blk_len)
         r, rd, rdd = (np.asarray(v, dtype=float) for v in ref.at(tt))
         info, p = self.info, self.info.plant
-        self._R, self._Rd = r, rd
+        self._R, self._Rd, self._Rdd = r, rd, rdd
         self._FF = self._ratio * (info.J_eq * rdd + info.d_eq * rd)  # rigid-train torque, without the load
-        self._DRV = p.J2 * rdd + p.d2 * rd  # torque the mesh must give the load, without the load torque
         return 0
 
     def _observe(self, y_motor: float, y_load: float | None) -> None:
@@ -836,90 +868,130 @@ class MPC(Controller):
             if self._ny == 1:  # motor only: the gap is pinned, not measured
                 z[2] = math.copysign(b, z[2])
 
-    def _steps_to_land(self, s: float) -> int:
+    def _steps_to_land(self, s: float, torque_share: float = 0.25) -> int:
+        """Samples to close the gap to the target flank from ``s``, accelerating then decelerating."""
         dist = max(self._b - self._flank * s, 0.0)
-        return min(self.n_cross, max(1, math.ceil(self.n_cross * math.sqrt(dist / (2 * self._b)))))
+        t = 2.0 * math.sqrt(dist / (torque_share * self._a_max))
+        return min(self.N, max(1, math.ceil(t / self.Ts)))
 
-    def _schedule(self, i: int, tau: float) -> tuple[tuple[int, int], float]:
-        """Mode pattern ``(a, e)`` for this sample and the flank after the (next) landing."""
-        n, b, s = self.N, self._b, float(self._z[2])
-        side = 1 if s >= b - self._tol else (-1 if s <= -(b - self._tol) else 0)
-        drive = self._DRV[i:i + n + 1] - tau  # torque the mesh must carry at k = 0..N
-        if self._flank == 0:  # start: the first flank the preview asks for (front if none)
-            big = np.flatnonzero(np.abs(drive) > self.settings.smoothing)
-            self._flank = int(np.sign(drive[big[0]])) if big.size else (side or 1)
-        sig = self._flank
-        if self._land is not None:  # crossing in progress
-            if side == sig:
-                self._land = None
+    def _solve(self, key: tuple[int, int], p_new: float, sig: int) -> tuple[str, float, float]:
+        """Solve the QP of pattern ``key`` (flank ``sig`` before any crossing).
+
+        Returns the status, the solve time [s] and the full cost (QP cost plus the constant part).
+        """
+        pat = self._patterns[key]
+        p, qp, n = self._p, self._qp, self.N
+        p[5] = p_new
+        np.dot(pat.G, p, out=qp.g)
+        np.dot(pat.Bf[sig], p, out=qp.lba[:n])
+        np.negative(qp.lba[:n], out=qp.lba[:n])
+        if pat.land_s is not None:
+            qp.lba[n] = qp.uba[n] = p_new - float(pat.land_s[1] @ p)
+            if self.settings.soft_landing == "bound":
+                c, v = float(pat.land_v[1] @ p), self.settings.landing_velocity
+                qp.lba[n + 1], qp.uba[n + 1] = -v - c, v - c
             else:
-                e = self._land if self._land >= 1 else self._steps_to_land(s)
-                return (0, min(e, n + 1)), sig * b
-        if side != sig:  # floating (start-up, a bounce) or on the wrong flank: land on the target flank
-            self._land = e = self.n_cross if side == -sig else self._steps_to_land(s)
-            return (0, min(e, n + 1)), sig * b
-        conf = np.flatnonzero(sig * drive < -self.settings.smoothing)
-        if conf.size == 0:
-            return self._all_contact, sig * b
-        c = int(conf[0])
-        same = np.flatnonzero(sig * drive[:c] >= 0.0)
-        k0 = int(same[-1]) + 1 if same.size else 0  # the zero crossing of the transmitted torque
-        a = k0 - self.n_lead
-        if a <= 0:  # start crossing now
-            self._flank = sig = -sig
-            self._land = self.n_cross
-            return (0, min(self.n_cross, n + 1)), sig * b
-        return (a, min(a + self.n_cross, n + 1)), -sig * b
+                qp.lba[n + 1], qp.uba[n + 1] = -_INF, _INF
+        else:
+            qp.lba[n:], qp.uba[n:] = -_INF, _INF
+        qp.set_matrices(pat.H, pat.A[sig])
+        t0 = time.perf_counter()
+        status = qp.solve()
+        dt = time.perf_counter() - t0
+        cost = float(qp.cost[0]) + float(p @ (pat.K @ p)) if status == "ok" else math.inf
+        return status, dt, cost
+
+    def _set_aside(self) -> None:
+        x, lx, la = self._keep
+        x[:], lx[:], la[:] = self._qp.x, self._qp.lam_x, self._qp.lam_a
+
+    def _restore(self) -> None:
+        x, lx, la = self._keep
+        self._qp.x[:], self._qp.lam_x[:], self._qp.lam_a[:] = x, lx, la
 
     def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
-        """Motor torque for sample time ``t`` [N m] (see :class:`~gearctl.design.base.Controller`)."""
+        """Motor torque for sample time ``t`` [N m] (see :class:`~gearctl.design.base.Controller`).
+
+        Notes
+        -----
+        In contact on the target flank the QP that stays on that flank is solved first. If its
+        mesh-torque constraint binds somewhere in the horizon (the plan would pull on the flank), the QP
+        of a crossing centred there is solved too and the cheaper plan (full cost) is applied; a crossing
+        that starts now is then committed. Floating (start-up, a bounce, a crossing) the QP of the
+        landing pattern is solved, with a longer landing if that one is infeasible. The entry in
+        :attr:`solve_times` is the step's total QP time.
+        """
         t_step = time.perf_counter()
-        n = self.N
+        n, b = self.N, self._b
         i = self._preview(t, ref)
         self._observe(y_motor, y_load)
         z = self._z
         tau = self._tau_load + float(z[4])
-        key, p_new = self._schedule(i, tau)
-        pat = self._patterns[key]
-        # parameters and gradient
         p = self._p
         p[:4] = z[:4]
         p[4] = tau
-        p[5] = p_new
         p[self._ip_r:self._ip_r + n] = self._R[i + 1:i + n + 1]
         p[self._ip_rd] = self._Rd[i + n]
         np.subtract(self._FF[i:i + n], tau / self._ratio, out=p[self._ip_ff:self._ip_ff + n])
         p[self._ip_u] = self._u
         qp = self._qp
-        np.dot(pat.G, p, out=qp.g)
-        if qp.m:
-            c = float(pat.av_p @ p)
-            v = self.settings.landing_velocity if pat.av_u.any() else 1e20
-            qp.a[0] = pat.av_u
-            qp.lba[0], qp.uba[0] = -v - c, v - c
-        qp.set_hessian(pat.H)
-        # warm start: the previous plan, shifted
-        qp.x0[:-1] = self._plan[1:]
+        qp.x0[:-1] = self._plan[1:]  # warm start: the previous plan, shifted
         qp.x0[-1] = self._plan[-1]
         qp.lam_x0[:-1] = self._lam[1:]
         qp.lam_x0[-1] = 0.0
-        t0 = time.perf_counter()
-        status = qp.solve()
-        dt = time.perf_counter() - t0
-        self.solve_times.append(dt)
+        s = float(z[2])
+        side = 1 if s >= b - self._tol else (-1 if s <= -(b - self._tol) else 0)
+        if self._flank == 0:  # first sample: the flank the load torque of the reference asks for first
+            drive = self.info.plant.J2 * self._Rdd[i:i + n + 1] + self._d2 * self._Rd[i:i + n + 1] - tau
+            big = np.flatnonzero(np.abs(drive) > self.settings.smoothing)
+            self._flank = int(np.sign(drive[big[0]])) if big.size else (side or 1)
+        sig = self._flank
+        if side == sig:  # in contact on the target flank: stay, or cross if that is cheaper
+            self._land = None
+            key = self._all_contact
+            status, solve_time, cost = self._solve(key, sig * b, sig)
+            if status == "ok":
+                la = np.abs(qp.lam_a[:n])
+                binding = np.flatnonzero(la > 1e-9 * (1.0 + la.max()))
+                if binding.size:
+                    a = max(int(binding[0]) - self.n_lead, 0)
+                    cross = (a, min(a + self.n_cross, n + 1))
+                    self._set_aside()
+                    st2, dt, cost2 = self._solve(cross, -sig * b, sig)
+                    solve_time += dt
+                    if st2 == "ok" and cost2 < cost - self.settings.smoothing * abs(cost):
+                        key = cross
+                        if a == 0:  # the crossing starts now
+                            self._flank, self._land = -sig, cross[1]
+                    else:
+                        self._restore()
+        else:  # floating or on the other flank: land on the target flank
+            if self._land is None:
+                self._land = self.n_cross if side == -sig else self._steps_to_land(s)
+            key = (0, min(max(self._land, 1), n + 1))
+            status, solve_time, _ = self._solve(key, sig * b, sig)
+            if status != "ok" and key[1] <= n:  # cannot land in time: land later, at full torque
+                e = max(key[1] + 1, self._steps_to_land(s, 1.0) + 1)
+                key = (0, min(e, n + 1))
+                st2, dt, _ = self._solve(key, sig * b, sig)
+                solve_time += dt
+                if st2 == "ok":
+                    status, self._land = st2, key[1]
+        self.solve_times.append(solve_time)
         if self._k in self.inject_failures:
             status = "injected failure"
         self.statuses.append(status)
         reason = None
         if status != "ok":
             reason = f"solve failed: {status}"
-        elif dt > self.settings.max_solve_time:
-            reason = f"solve overran: {dt * 1e6:.0f} us > max_solve_time {self.settings.max_solve_time * 1e6:.0f} us"
+        elif solve_time > self.settings.max_solve_time:
+            reason = (f"solve overran: {solve_time * 1e6:.0f} us > max_solve_time "
+                      f"{self.settings.max_solve_time * 1e6:.0f} us")
         if reason is None:
             self._plan[:] = qp.x
             self._lam[:] = qp.lam_x
             u = float(qp.x[0])
-        else:  # the previous plan's next input, saturated; the late plan (if any) warm-starts the next one
+        else:  # the previous plan's next input, saturated; a late plan still warm-starts the next one
             u = min(max(float(qp.x0[0]), -self._umax), self._umax)
             self.fallbacks.append({"t": float(t), "reason": reason})
             if status == "ok":
@@ -929,7 +1001,7 @@ class MPC(Controller):
                 self._plan[:] = qp.x0
                 self._lam[:] = 0.0
             self._plan[0] = u
-        self._sep0 = pat.step0_separated
+        self._sep0 = self._patterns[key].step0_separated
         self._u = u
         self._k += 1
         if self._land is not None:
