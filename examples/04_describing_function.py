@@ -50,9 +50,10 @@ def main(argv: list[str] | None = None) -> None:
     df = predict_limit_cycle(plant, pid)
     imp = predict_limit_cycle(plant, pid, method="impact")
     for c in df:
+        N = element.describing_function_at(c["amplitude"], 2 * math.pi * c["frequency_hz"])
         print(f"DF solution: {c['frequency_hz']:.1f} Hz, A = {c['amplitude'] / b:.4f} b, "
               f"{'stable' if c['stable'] else 'unstable'}, c w / k = {c['damping_ratio']:.2g}, "
-              f"|N| / k = {abs(element.describing_function_at(c['amplitude'], 2 * math.pi * c['frequency_hz'])) / plant.k:.3g}")
+              f"N / k = {N / plant.k:.3g}")
 
     # --- Nyquist of k H with -1/eta(A) (python-control's describing-function plot) ------------------------
     # H is ~1e-7 m/N: scaled by k (and the element by 1/k) so python-control's intersection test works

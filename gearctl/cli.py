@@ -293,6 +293,46 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_describe(args: argparse.Namespace) -> int:
+    from .describe import describe
+
+    d = describe(args.model, args.controller, duration=args.duration)
+    if args.json:
+        print(_dump_json(d))
+        return 0
+    b = None
+    try:
+        from .plant import build_plant
+
+        b = build_plant(load_model(args.model)).backlash
+    except GearctlError:
+        pass
+    print(f"{d['model']}: {d['controller']} ({d['feedback']} feedback, Ts {d['sample_time'] * 1e3:g} ms), limit cycle "
+          f"of the backlash loop")
+    print(f"  {'':28s} {'f [Hz]':>9s} {'A/b':>8s} {'load [urad]':>12s} {'torque [N m]':>13s}  stable")
+    rows = [("describing function", p) for p in d["prediction"] or []]
+    rows += [("impact balance", p) for p in d.get("impact_prediction") or []]
+    sim = d["simulation"]
+
+    def fmt(v: float | None, scale: float = 1.0, spec: str = ".4g") -> str:
+        return "—" if v is None else format(v * scale, spec)
+
+    for name, p in rows:
+        a = p.get("amplitude")
+        print(f"  {name:28s} {fmt(p.get('frequency_hz')):>9s} {fmt(a / b if a and b else None):>8s} "
+              f"{fmt(p.get('load_amplitude'), 1e6):>12s} {fmt(p.get('torque_amplitude')):>13s}  {p.get('stable')}")
+    if not rows:
+        print("  (no limit cycle predicted)")
+    a = sim.get("amplitude")
+    print(f"  {'simulation':28s} {fmt(sim.get('frequency_hz')):>9s} {fmt(a / b if a and b else None):>8s} "
+          f"{fmt(sim.get('load_amplitude'), 1e6):>12s} {fmt(sim.get('torque_amplitude')):>13s}  "
+          f"{'limit cycle' if sim.get('limit_cycle') else 'none'} ({fmt(sim.get('impacts_per_second'))} impacts/s)")
+    ag = d["agreement"]
+    print("  prediction / simulation    " + ", ".join(f"{k.replace('_ratio', '')} {v:.3g}" for k, v in ag.items()
+                                                        if v is not None))
+    return 0
+
+
 def _run_track(model_name: str, controller_name: str, plant_kind: str, ref_kind: str, duration: float | None,
                backlash: float | None, seed: int) -> tuple[Any, Any, Any]:
     """Build plant and controller and run one closed loop (shared by track and describe)."""
@@ -549,6 +589,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--bode", metavar="FILE", help="write the Bode diagram of all modes on common axes")
     p.add_argument("--step", metavar="FILE", help="write the contact-mode step response (s)")
     _COMMANDS["linearize"] = _cmd_linearize
+
+    p = sub.add_parser("describe", help="describing-function limit cycle of a PID loop vs simulation")
+    p.add_argument("model", help="model (e.g. shing1993_servo)")
+    p.add_argument("controller", help="a pid controller (e.g. pid_load: load-side feedback)")
+    p.add_argument("--duration", type=_positive_float, default=2.0, help="simulated time [s] (default 2)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    _COMMANDS["describe"] = _cmd_describe
 
     p = sub.add_parser("track", help="run a controller against the nonlinear plant on a reference")
     p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")

@@ -38,6 +38,7 @@ from gearctl.describe import (
     loop_frequency_response,
     predict_limit_cycle,
     restitution_coefficient,
+    run_limit_cycle,
     sampled_pid,
     simulate_limit_cycle,
 )
@@ -285,6 +286,28 @@ def test_oversampled_run_is_the_same_loop(plant, pid_load, cycle):
     assert_allclose(coarse["torque_amplitude"], cycle["sim"]["torque_amplitude"], rtol=1e-9)
     assert_allclose(coarse["frequency_hz"], cycle["sim"]["frequency_hz"], rtol=1e-4)
     assert coarse["amplitude"] <= cycle["sim"]["amplitude"]  # samples can only miss a peak
+
+
+def test_H_holds_inside_the_simulated_cycle(plant, pid_load, cycle):
+    """The harmonic balance split into its two halves, measured in the nonlinear run: the linear part is
+    exact (-s1/F1 = H(j w) with F1 from the load's equation of motion, J2 theta2'' + d2 theta2' = rb2 F),
+    and the error is the element's: s is a triangle wave (|s1| = 8 A / pi^2 for a symmetric one) and its
+    first-harmonic gain is a third of k eta(A), with a loss angle far above c w / k."""
+    run = run_limit_cycle(plant, pid_load)
+    m = run.t >= 1.0
+    t, s, th2 = run.t[m], run.s[m], run.x[1, m]
+    w = 2 * math.pi * cycle["sim"]["frequency_hz"]
+    n = int((t[-1] - t[0]) * w / (2 * math.pi))  # whole periods
+    sel = t < t[0] + n * 2 * math.pi / w
+    ph = np.exp(-1j * w * t[sel])
+    s1, th1 = 2 * np.mean(s[sel] * ph), 2 * np.mean(th2[sel] * ph)
+    F1 = (plant.J2 * (1j * w) ** 2 + plant.d2 * 1j * w) * th1 / plant.rb2
+    assert_allclose(-s1 / F1, loop_frequency_response(plant, pid_load, [w])[0], rtol=1e-3)
+    A = cycle["sim"]["amplitude"]
+    assert_allclose(abs(s1) / A, 8 / math.pi**2, rtol=0.05)
+    N = F1 / s1
+    assert 0.2 < N.real / (plant.k * dead_zone_factor(A, plant.backlash)) < 0.5
+    assert np.angle(N) > 5 * w * plant.c / plant.k
 
 
 def test_prediction_against_simulation(plant, cycle):

@@ -183,7 +183,7 @@ class MPCSettings:
     relative_velocity: float = 1e7
     terminal: float = 10.0
     soft_landing: str = "penalty"
-    landing_velocity: float = 1e-3
+    landing_velocity: float = 5e-4
     max_solve_time: float = 1e-3
     smoothing: float = 2e-3
     process_noise: float = 1e-3
@@ -632,6 +632,8 @@ class MPC(Controller):
         self._umax = min(info.torque_limit, 1e6)
         self._tau_load = p.load_torque
         self._ratio = info.N
+        self._d2 = p.d2
+        self._rb1, self._rb2 = p.rb1, p.rb2
         self.model = _gap_model(info, Ts)
         # crossing: the lost motion 2b, a quarter of the torque limit accelerating then decelerating the
         # motor alone
@@ -709,10 +711,10 @@ class MPC(Controller):
                 {k: 1.0} if k == 0 else {k: 1.0, k - 1: -1.0})
         land_s = land_v = None
         if land is not None:
-            if st.soft_landing != "off":
-                add(land[3], st.relative_velocity)
+            if st.soft_landing != "off":  # closing at landing_velocity: sigma_new v = v_L, sigma_new = p_new / b
+                add(land[3], st.relative_velocity, {5: -st.landing_velocity / st.backlash})
             land_s, land_v = split(land[2]), split(land[3])
-        Au, Ap, W = np.array(rows_u), np.array(rows_p), np.array(w)
+        Au, Ap, W = np.array(rows_u), np.array(rows_p), np.array(w) * self._cost_scale
         H = 2.0 * (Au.T * W) @ Au
         H = 0.5 * (H + H.T)
         H += 1e-9 * np.trace(H) / n * np.eye(n)  # strictly convex whatever the weights
@@ -724,8 +726,8 @@ class MPC(Controller):
             sgn[np.all(Fxi == 0.0, axis=1)] = 0.0  # separation samples: no mesh torque
             Af = np.zeros((n + 2, n))
             Af[:n] = sgn[:, None] * Fxi[:, 6:]
-            if land_s is not None:
-                Af[n], Af[n + 1] = land_s[0], land_v[0]
+            if land_s is not None:  # rows scaled to O(1): the gap in units of b, the speed in b / Ts
+                Af[n], Af[n + 1] = land_s[0] / self._b, land_v[0] * self.Ts / self._b
             Bf = np.zeros((n, self.n_p))
             Bf[:, :6] = sgn[:, None] * Fxi[:, :6]
             A_f[sig], B_f[sig] = np.asfortranarray(Af), np.ascontiguousarray(Bf)
@@ -735,6 +737,9 @@ class MPC(Controller):
     def _build_patterns(self) -> None:
         n, nc = self.N, self.n_cross
         self._all_contact = (n, n + 1)
+        self._cost_scale = 1.0
+        H0 = self._condense(n, n + 1).H
+        self._cost_scale = 1.0 / float(np.mean(np.diag(H0)))  # Hessian diagonal ~ 1 for the solver
         self._patterns: dict[tuple[int, int], _Pattern] = {self._all_contact: self._condense(n, n + 1)}
         for a in range(n):
             for e in range(a + 1, a + nc + 3):
@@ -753,7 +758,7 @@ class MPC(Controller):
         correct (with the encoders) at once; ``z = [phi, omega, s, v, d]``.
         """
         st, m = self.settings, self.model
-        sp, sd, sm = st.process_noise, st.process_noise, st.measurement_noise
+        sp, sd, sm = st.process_noise, 1e-2 * st.process_noise, st.measurement_noise
         k1, k2, N = m.kappa1, m.kappa2, m.N
         load = st.feedback == "load"
         # measurement y = Cz z (+ nothing): theta1 = phi + kappa1 s, theta2 = phi / N - kappa2 s
@@ -859,9 +864,12 @@ class MPC(Controller):
             ov[:5] = self._z
             ov[5] = self._u
             ov[7] = y_motor
+            sep = self._sep0
             if self._ny == 2:
                 ov[8] = y_load
-            self._z = self._K[self._sep0] @ ov
+                # the mode over the last sample from the encoders: contact now means the rigid model
+                sep = abs(self._rb1 * y_motor - self._rb2 * y_load) < self._b - self._tol
+            self._z = self._K[sep] @ ov
         z, b = self._z, self._b
         if abs(z[2]) >= b - self._tol:  # contact: the reduced model's plastic impact
             z[3] = 0.0
@@ -886,10 +894,11 @@ class MPC(Controller):
         np.dot(pat.Bf[sig], p, out=qp.lba[:n])
         np.negative(qp.lba[:n], out=qp.lba[:n])
         if pat.land_s is not None:
-            qp.lba[n] = qp.uba[n] = p_new - float(pat.land_s[1] @ p)
-            if self.settings.soft_landing == "bound":
+            qp.lba[n] = qp.uba[n] = (p_new - float(pat.land_s[1] @ p)) / self._b
+            if self.settings.soft_landing == "bound":  # closing, at most landing_velocity: 0 <= sigma v <= v_L
                 c, v = float(pat.land_v[1] @ p), self.settings.landing_velocity
-                qp.lba[n + 1], qp.uba[n + 1] = -v - c, v - c
+                lo, hi = (0.0, v) if p_new > 0 else (-v, 0.0)
+                qp.lba[n + 1], qp.uba[n + 1] = (lo - c) * self.Ts / self._b, (hi - c) * self.Ts / self._b
             else:
                 qp.lba[n + 1], qp.uba[n + 1] = -_INF, _INF
         else:

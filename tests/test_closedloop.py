@@ -1,0 +1,428 @@
+"""The sampled closed loop (gearctl/closedloop.py) with the catalog controllers (issue 6).
+
+Benchmark: ``shing1993_servo`` (the report's pair with a motor and a load), the 0.1 rad / 1 Hz sine,
+1 ms sample time, on the improved plant (TR 93-28 section 2) and on Yang–Sun's (section 4). Oracles:
+
+1. physics: with motor-side feedback the load trails the motor by half the lost motion ``b / r_b2``
+   whichever way it is driven, so the PID's RMS error is about ``b / r_b2``; the dead-zone inverse
+   aims the motor half the lost motion ahead and removes most of it; the backlash-free plant is the
+   bound; a wrong estimate leaves ``|b_est - b| / r_b2``;
+2. invariants: determinism for a seed, quantised encoder readings, the inverse with a zero estimate is
+   the PID itself;
+3. failures and bad input: honest results (saturation, divergence with a partial result, fallbacks),
+   ``InputError`` naming the key, CLI exit code 2 with one line on stderr.
+
+Every run here takes ~0.1 s with the compiled kernel.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from gearctl import GearModel, InputError, Plant, SimulationError, build_plant, load_model
+from gearctl.catalog import load_controller
+from gearctl.cli import main
+from gearctl.closedloop import ClosedLoopResult, Encoder, simulate_closed_loop
+from gearctl.design.base import Controller, loop_info
+from gearctl.design.deadzone import DeadzoneInverse
+from gearctl.design.pid import PID, PIDGains
+from gearctl.metrics import tracking_metrics
+from gearctl.params import Sensors
+from gearctl.references import Reference, reference
+
+DURATION = 3.0  # s: three periods of the sine; the statistics start at 0.5 s (reference("sine").settle)
+PLANTS = ("improved", "yang-sun")
+
+
+@pytest.fixture(scope="module")
+def servo() -> GearModel:
+    return load_model("shing1993_servo")
+
+
+@pytest.fixture(scope="module")
+def nominal(servo: GearModel) -> Plant:
+    """The improved plant every controller is designed on."""
+    return build_plant(servo)
+
+
+@pytest.fixture(scope="module")
+def sine() -> Reference:
+    return reference("sine")
+
+
+def run(plant: Plant, ctrl: Controller, ref: Reference, model: GearModel, **kw: object) -> ClosedLoopResult:
+    return simulate_closed_loop(plant, ctrl, ref, DURATION, sensors=model.sensors, **kw)  # type: ignore[arg-type]
+
+
+def rms(res: ClosedLoopResult) -> float:
+    return tracking_metrics(res)["rms_error"]
+
+
+@pytest.fixture(scope="module")
+def baseline(servo: GearModel, nominal: Plant, sine: Reference) -> dict[str, dict[str, float]]:
+    """RMS load-angle error of the catalog PID and dead-zone inverse on each plant."""
+    out: dict[str, dict[str, float]] = {}
+    for kind in PLANTS:
+        plant = build_plant(servo, kind)
+        out[kind] = {c: rms(run(plant, load_controller(c, nominal), sine, servo)) for c in ("pid", "deadzone_inverse")}
+    return out
+
+
+# --- 1. what the inverse buys -----------------------------------------------------------------------------
+
+
+def test_pid_error_is_half_the_lost_motion(baseline: dict[str, dict[str, float]], nominal: Plant) -> None:
+    # motor-side PID: the motor follows the reference, the load trails it by b / r_b2 on whichever flank
+    # carries it (6.65e-4 rad), less near the flank changes: we see 0.95 b / r_b2; 0.8-1.1
+    half = nominal.backlash / nominal.rb2
+    assert 0.8 * half < baseline["improved"]["pid"] < 1.1 * half
+
+
+@pytest.mark.parametrize(("kind", "bound"), [("improved", 3.0), ("yang-sun", 2.5)])
+def test_deadzone_inverse_cuts_rms_error(baseline: dict[str, dict[str, float]], kind: str, bound: float) -> None:
+    ratio = baseline[kind]["pid"] / baseline[kind]["deadzone_inverse"]
+    print(f"{kind}: PID {baseline[kind]['pid']:.3g} rad, inverse {baseline[kind]['deadzone_inverse']:.3g} rad, "
+          f"ratio {ratio:.2f}")
+    # improved: PID 6.3e-4, inverse 1.45e-4 rad -> 4.3x (issue 6 asks for >= 3).
+    # Yang-Sun: PID 5.6e-4, inverse 1.9e-4 rad -> 3.0x. The controllers are designed on the improved
+    # plant; Yang-Sun's stiffer Hertz mesh with its impact-speed damping rattles more at each flank
+    # change (~320 impacts against ~180 in 3 s), which the inverse cannot remove, so its gain there is
+    # smaller. 2.5 keeps the claim ("the inverse removes most of the lost motion on either plant
+    # model") with room for that model difference, not for a regression to the PID's level.
+    assert ratio >= bound
+
+
+# --- 2. the backlash-free bound ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def free_runs(servo: GearModel, sine: Reference) -> dict[str, ClosedLoopResult]:
+    """``--backlash 0`` semantics: the plant and the controller's nominal plant without backlash."""
+    free = build_plant(servo, backlash=0.0)
+    assert free.backlash == 0.0
+    return {c: run(free, load_controller(c, free), sine, servo) for c in ("pid", "deadzone_inverse")}
+
+
+@pytest.mark.parametrize("ctrl", ["pid", "deadzone_inverse"])
+def test_backlash_free_plant_is_the_better_bound(free_runs: dict[str, ClosedLoopResult],
+                                                 baseline: dict[str, dict[str, float]], ctrl: str) -> None:
+    e_free = rms(free_runs[ctrl])
+    # no gap: no impacts, and the error is the PID's own tracking error (we see 8.6e-5 rad)
+    assert not free_runs[ctrl].impacts
+    for kind in PLANTS:
+        assert e_free < baseline[kind][ctrl], kind
+
+
+def test_zero_backlash_inverse_is_the_pid(free_runs: dict[str, ClosedLoopResult]) -> None:
+    # with b = 0 the inverse's offset is zero and it runs the same PID: bit-identical runs
+    a, b = free_runs["pid"], free_runs["deadzone_inverse"]
+    assert_array_equal(a.x, b.x)
+    assert_array_equal(a.torque, b.torque)
+
+
+# --- 3. a wrong backlash estimate -------------------------------------------------------------------------
+
+
+def test_wrong_backlash_estimate_degrades_gracefully(servo: GearModel, nominal: Plant, sine: Reference,
+                                                     baseline: dict[str, dict[str, float]]) -> None:
+    b = nominal.backlash
+    factors = (0.5, 0.75, 1.0, 1.25, 1.5)
+    err = {}
+    for f in factors:
+        ctrl = load_controller("deadzone_inverse", nominal, backlash=b * f)
+        assert ctrl.describe()["backlash_estimate"] == pytest.approx(b * f, rel=1e-15)
+        res = run(nominal, ctrl, sine, servo)  # SimulationError here would fail the test: stays stable
+        assert res.success
+        err[f] = rms(res)
+    pid = baseline["improved"]["pid"]
+    print({f: f"{e / pid:.2f} x PID" for f, e in err.items()})
+    # the error grows with |estimate error| on either side of the true backlash (we see 0.48, 0.25,
+    # 0.23, 0.45, 0.71 x PID)
+    assert err[0.5] > err[0.75] > err[1.0] < err[1.25] < err[1.5]
+    # a half-wrong estimate leaves ~0.5 b / r_b2 = half the PID's error: the underestimate 0.48 x PID
+    # (< 0.6); the overestimate 0.71 x PID (< 0.8): the target then jumps 3 b / r_b2 at each flank
+    # change instead of 2 b / r_b2, and the PID's overshoot on that larger jump adds to the constant
+    # offset. Both stay well below the uncompensated PID.
+    assert err[0.5] < 0.6 * pid
+    assert err[1.5] < 0.8 * pid
+
+
+# --- 4. the flank rule ------------------------------------------------------------------------------------
+
+VELOCITY_FILE = """kind = "deadzone_inverse"
+sample_time = 1e-3
+feedback = "motor"
+rule = "velocity"
+
+[design]
+bandwidth_hz = 20.0
+phase_margin_deg = 50.0
+integral_ratio = 0.1
+
+[source]
+notes = "test: the textbook velocity rule"
+"""
+
+
+@pytest.mark.parametrize("kind", PLANTS)
+def test_velocity_rule_is_worse_than_torque_rule(servo: GearModel, nominal: Plant, sine: Reference,
+                                                 baseline: dict[str, dict[str, float]], kind: str,
+                                                 tmp_path: Path) -> None:
+    plant = build_plant(servo, kind)
+    path = tmp_path / "dz_velocity.toml"
+    path.write_text(VELOCITY_FILE)
+    from_file = load_controller(path, nominal)
+    assert isinstance(from_file, DeadzoneInverse) and from_file.rule == "velocity"
+    e_vel = rms(run(plant, from_file, sine, servo))
+    # the same controller built directly
+    pid = load_controller("deadzone_inverse", nominal).pid
+    direct = DeadzoneInverse(pid, backlash=nominal.backlash, rule="velocity")
+    assert rms(run(plant, direct, sine, servo)) == e_vel
+    # issue 6: "inverse switched on velocity 8.6e-4 rad (worse than none)". On the inertial load the
+    # decelerating half of each cycle is carried by the back flank while the velocity still points
+    # forward, so the velocity rule offsets the motor the wrong way half the time: worse than the torque
+    # rule and worse than no inverse (we see 7.8e-4 against PID 6.3e-4 on improved, 7.4e-4 against
+    # 5.6e-4 on Yang-Sun)
+    assert e_vel > 2.0 * baseline[kind]["deadzone_inverse"]
+    assert e_vel > baseline[kind]["pid"]
+
+
+# --- 5. determinism and sensors ---------------------------------------------------------------------------
+
+
+def test_same_seed_identical_results(servo: GearModel, nominal: Plant, sine: Reference) -> None:
+    noisy = Sensors(motor_encoder_cpr=2**20, load_encoder_cpr=2**20, motor_noise=2e-5, load_noise=2e-5)
+    ctrl = load_controller("deadzone_inverse", nominal)
+    a = simulate_closed_loop(nominal, ctrl, sine, 1.0, sensors=noisy, seed=7)
+    b = simulate_closed_loop(nominal, ctrl, sine, 1.0, sensors=noisy, seed=7)  # the controller is reset
+    for f in ("x", "torque", "command", "y_motor", "mode"):
+        assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+    assert [(e.t, e.kind) for e in a.events] == [(e.t, e.kind) for e in b.events]
+    # noise enters only through the seed: another seed changes the readings and the run
+    c = simulate_closed_loop(nominal, ctrl, sine, 1.0, sensors=noisy, seed=8)
+    assert not np.array_equal(a.y_motor, c.y_motor) and not np.array_equal(a.x, c.x)
+    # without noise the seed has nothing to act on: bit-identical runs for different seeds
+    quiet = Sensors(motor_encoder_cpr=2**20)
+    d = simulate_closed_loop(nominal, ctrl, sine, 1.0, sensors=quiet, seed=1)
+    e = simulate_closed_loop(nominal, ctrl, sine, 1.0, sensors=quiet, seed=2)
+    assert_array_equal(d.x, e.x)
+
+
+def test_encoder_readings_are_quantised(servo: GearModel, nominal: Plant, sine: Reference) -> None:
+    cpr = 4096  # coarse, so the quantum (1.5e-3 rad) is large against rounding
+    sensors = Sensors(motor_encoder_cpr=cpr, load_encoder_cpr=cpr)
+    ctrl = load_controller("pid", nominal)
+    res = simulate_closed_loop(nominal, ctrl, sine, 1.0, sensors=sensors)
+    q = 2 * math.pi / cpr
+    counts = res.y_motor / q
+    # a multiple of 2 pi / cpr (1e-9 count: the division's rounding) and the nearest one to the truth
+    assert_allclose(counts, np.round(counts), rtol=0, atol=1e-9)
+    assert np.all(np.abs(res.y_motor - res.x[0]) <= q / 2 * (1 + 1e-12))
+    assert len(np.unique(np.round(counts))) > 10
+    # the motor-side PID does not use the load encoder: NaN there
+    assert np.all(np.isnan(res.y_load))
+
+
+def test_encoder_unit() -> None:
+    rng = np.random.default_rng(0)
+    enc = Encoder(cpr=8)  # quantum pi / 4
+    assert enc.read(0.3, rng) == pytest.approx(math.pi / 4, rel=1e-15)
+    assert enc.read(-0.3, rng) == pytest.approx(-math.pi / 4, rel=1e-15)
+    assert enc.read(0.1, rng) == 0.0
+    assert Encoder(cpr=None).read(0.123, rng) == 0.123  # ideal encoder: the true angle
+    noisy = Encoder(cpr=None, noise=1e-3)
+    r = np.array([noisy.read(0.0, np.random.default_rng(5)) for _ in range(3)])
+    assert r[0] == r[1] == r[2] != 0.0  # the noise is the generator's, reproducible per seed
+
+
+# --- 6. failures ------------------------------------------------------------------------------------------
+
+WILD_PID = """kind = "pid"
+sample_time = 1e-3
+[gains]
+kp = 1e6
+[source]
+notes = "test: absurd gain"
+"""
+
+
+def test_absurd_gain_runs_saturated_with_a_torque_limit(servo: GearModel, nominal: Plant, sine: Reference,
+                                                        baseline: dict[str, dict[str, float]],
+                                                        tmp_path: Path) -> None:
+    path = tmp_path / "wild.toml"
+    path.write_text(WILD_PID)
+    ctrl = load_controller(path, nominal)
+    # the honest behaviour with the servo's 1 N m limit: the command is clipped, the loop chatters
+    # bang-bang at the limit but the plant cannot diverge (bounded torque, friction): the run succeeds,
+    # saturated nearly all the time, with an error far above the designed PID's
+    res = run(nominal, ctrl, sine, servo)
+    m = tracking_metrics(res)
+    assert res.success
+    assert m["saturated_fraction"] > 0.9  # we see 0.999
+    assert np.all(np.abs(res.torque) <= nominal.torque_limit)
+    assert np.max(np.abs(res.command)) > 100 * nominal.torque_limit  # it asked for far more
+    assert m["rms_error"] > 3 * baseline["improved"]["pid"]  # we see 5e-3 rad, 8x
+
+
+def test_absurd_gain_without_limit_raises_with_partial_result(servo: GearModel, nominal: Plant,
+                                                             sine: Reference, tmp_path: Path) -> None:
+    path = tmp_path / "wild.toml"
+    path.write_text(WILD_PID)
+    unlimited = dataclasses.replace(nominal, torque_limit=math.inf)
+    ctrl = load_controller(path, unlimited)
+    with pytest.raises(SimulationError, match="diverged") as info:
+        run(unlimited, ctrl, sine, servo)
+    part = info.value.result
+    assert isinstance(part, ClosedLoopResult)
+    assert not part.success and "diverged" in part.message
+    n = part.t.size
+    assert 1 < n < DURATION / ctrl.Ts  # stopped early (we see after 4 samples)
+    for f in ("reference", "torque", "command", "y_motor", "mode"):
+        assert getattr(part, f).shape == (n,), f
+    assert part.x.shape == (4, n)
+    assert np.max(np.abs(part.x[2:, -1])) > 1e6  # the divergence it reports is in the record
+
+
+class _NanController(Controller):
+    """Returns NaN between 0.1 and 0.2 s (a failed solve), zero torque otherwise."""
+
+    name = "nan"
+    Ts = 1e-3
+
+    def reset(self) -> None:
+        self.solve_times, self.fallbacks = [], []
+
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
+        return math.nan if 0.1 <= t < 0.2 else 0.01
+
+
+def test_non_finite_command_falls_back_to_zero_torque(nominal: Plant, sine: Reference) -> None:
+    ctrl = _NanController()
+    res = simulate_closed_loop(nominal, ctrl, sine, 0.3)
+    bad = (res.t >= 0.1 - 1e-12) & (res.t < 0.2 - 1e-12)
+    assert res.success
+    assert np.all(res.torque[bad] == 0.0) and np.all(np.isnan(res.command[bad]))
+    assert np.all(res.torque[~bad] == 0.01)
+    assert len(res.fallbacks) == np.count_nonzero(bad) == 100
+    assert all("non-finite" in f["reason"] for f in res.fallbacks)
+    assert_allclose([f["t"] for f in res.fallbacks], res.t[bad], rtol=0, atol=1e-12)
+    assert tracking_metrics(res)["fallbacks"] == 100
+    # a second run starts clean (the controller is reset): the count does not accumulate
+    assert len(simulate_closed_loop(nominal, ctrl, sine, 0.3).fallbacks) == 100
+
+
+# --- 7. bad input -----------------------------------------------------------------------------------------
+
+BASE = """kind = "{kind}"
+sample_time = {Ts}
+{extra}
+[design]
+bandwidth_hz = {bw}
+[source]
+notes = "test"
+"""
+
+
+def _write(tmp_path: Path, kind: str = "pid", Ts: str = "1e-3", extra: str = "", bw: str = "20.0") -> Path:
+    path = tmp_path / "ctrl.toml"
+    path.write_text(BASE.format(kind=kind, Ts=Ts, extra=extra, bw=bw))
+    return path
+
+
+def test_controller_file_valid_template(tmp_path: Path, nominal: Plant) -> None:
+    assert isinstance(load_controller(_write(tmp_path), nominal), PID)  # the template itself is fine
+
+
+def test_controller_file_unknown_key_suggests(tmp_path: Path, nominal: Plant) -> None:
+    with pytest.raises(InputError, match="sample_tme.*did you mean 'sample_time'") as info:
+        load_controller(_write(tmp_path, extra="sample_tme = 1e-3"), nominal)
+    assert info.value.field == "sample_tme"
+    path = tmp_path / "d.toml"
+    path.write_text(BASE.format(kind="pid", Ts="1e-3", extra="", bw="20.0").replace("bandwidth_hz", "bandwith_hz"))
+    with pytest.raises(InputError, match="bandwith_hz.*did you mean 'bandwidth_hz'"):
+        load_controller(path, nominal)
+
+
+def test_controller_file_unknown_kind(tmp_path: Path, nominal: Plant) -> None:
+    with pytest.raises(InputError, match="kind = 'pdi'.*did you mean 'pid'") as info:
+        load_controller(_write(tmp_path, kind="pdi"), nominal)
+    assert info.value.field == "kind"
+
+
+@pytest.mark.parametrize("Ts", ["0.0", "-1e-3", "2.0"])
+def test_controller_file_sample_time_out_of_range(tmp_path: Path, nominal: Plant, Ts: str) -> None:
+    with pytest.raises(InputError, match="sample_time") as info:
+        load_controller(_write(tmp_path, Ts=Ts), nominal)
+    assert info.value.field == "sample_time"
+
+
+@pytest.mark.parametrize("kind", ["pid", "deadzone_inverse"])
+def test_controller_file_bandwidth_above_nyquist(tmp_path: Path, nominal: Plant, kind: str) -> None:
+    # Ts = 1 ms: the Nyquist frequency is 500 Hz
+    with pytest.raises(InputError, match="bandwidth_hz.*500") as info:
+        load_controller(_write(tmp_path, kind=kind, bw="600.0"), nominal)
+    assert info.value.field == "bandwidth_hz"
+
+
+def test_controller_file_bad_rule_and_width(tmp_path: Path, nominal: Plant) -> None:
+    with pytest.raises(InputError, match="rule") as info:
+        load_controller(_write(tmp_path, kind="deadzone_inverse", extra='rule = "position"'), nominal)
+    assert info.value.field == "rule"
+    with pytest.raises(InputError, match="width") as info:
+        load_controller(_write(tmp_path, kind="deadzone_inverse", extra="width = 0.0"), nominal)
+    assert info.value.field == "width"
+    with pytest.raises(InputError, match="backlash") as info:
+        load_controller(_write(tmp_path, kind="deadzone_inverse", extra="backlash = 0.5"), nominal)
+    assert info.value.field == "backlash"
+
+
+def test_pid_gains_and_duration_validation(nominal: Plant, sine: Reference) -> None:
+    with pytest.raises(InputError, match="kp"):
+        PIDGains(kp=-1.0)
+    pid = PID(loop_info(nominal), PIDGains(kp=10.0))
+    with pytest.raises(InputError, match="duration"):
+        simulate_closed_loop(nominal, pid, sine, 0.0)
+    with pytest.raises(InputError, match="duration"):
+        simulate_closed_loop(nominal, pid, sine, 1e-4)  # shorter than one sample
+
+
+# --- 8. the CLI -------------------------------------------------------------------------------------------
+
+
+def test_cli_track_unknown_controller(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["track", "shing1993_servo", "no_such_controller"]) == 2
+    cap = capsys.readouterr()
+    assert cap.err.count("\n") == 1 and cap.err.startswith("gearctl track: error:")
+    assert "no_such_controller" in cap.err and "Traceback" not in cap.err
+    assert cap.out == ""
+
+
+def test_cli_track_json(capsys: pytest.CaptureFixture[str], servo: GearModel, nominal: Plant,
+                        sine: Reference) -> None:
+    assert main(["track", "shing1993_servo", "pid", "--duration", "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("rms_error", "max_error", "final_error", "impacts", "max_impact_velocity", "fallbacks",
+                "solve_time"):
+        assert key in out, key
+    assert out["solve_time"] is None  # the PID solves no optimisation
+    assert out["fallbacks"] == 0
+    # the same run through the API: identical figures (deterministic, seed 0)
+    res = simulate_closed_loop(nominal, load_controller("pid", nominal), sine, 1.0, sensors=servo.sensors)
+    m = tracking_metrics(res)
+    for key in ("rms_error", "max_error", "final_error", "impacts"):
+        assert out[key] == m[key], key
+
+
+def test_cli_track_backlash_zero(capsys: pytest.CaptureFixture[str],
+                                 free_runs: dict[str, ClosedLoopResult]) -> None:
+    assert main(["track", "shing1993_servo", "deadzone_inverse", "--backlash", "0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["backlash"] == 0.0 and out["impacts"] == 0
+    assert out["rms_error"] == rms(free_runs["deadzone_inverse"])  # --backlash 0 = build_plant(backlash=0)
