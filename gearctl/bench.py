@@ -270,7 +270,8 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
         table(["controller", "improved -> improved", "improved -> yang-sun", "yang-sun -> improved"], body)
     failed = [r for r in result["runs"] if not r.get("ok")]
     for r in failed:
-        lines.append(f"FAILED: {r['controller']} on {r['plant']} ({r['reference']}): {r['message']}")
+        how = "" if r["design"] == "improved" else f", designed on {r['design']}"
+        lines.append(f"FAILED: {r['controller']} on {r['plant']} ({r['reference']}{how}): {r['message']}")
     return "\n".join(lines).rstrip() + "\n"
 
 

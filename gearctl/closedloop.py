@@ -199,10 +199,11 @@ def simulate_closed_loop(
         y1 = read_m(x[0], rng)
         y2 = read_l(x[1], rng) if use_load else nan
         c = step(ti, y1, y2 if use_load else None, ref)
-        if not math.isfinite(c):
-            c = 0.0
-            controller.fallbacks.append({"t": ti, "reason": "non-finite command, zero torque"})
-        ui = c if -lim <= c <= lim else math.copysign(lim, c)
+        if math.isfinite(c):
+            ui = c if -lim <= c <= lim else math.copysign(lim, c)
+        else:  # keep what the controller asked for in `command`; apply zero torque
+            ui = 0.0
+            controller.fallbacks.append({"t": ti, "reason": f"non-finite command {c!r}, zero torque"})
         ym_l.append(y1)
         yl_l.append(y2)
         cmd_l.append(c)

@@ -50,6 +50,8 @@ class MotionProgram:
     settle: float = 0.0
 
     def _profile(self, D: float) -> tuple[float, float, float]:
+        if D == 0.0:  # a hold: no move
+            return 0.0, 0.0, 0.0
         a, v = self.accel, self.velocity
         ta = 2 * v / a  # S-curve: the mean acceleration over a ramp is a/2 (peak a)
         if v * ta > D:  # never reaches the cruise velocity
@@ -68,8 +70,8 @@ class MotionProgram:
         sgn = 1.0 if D >= 0 else -1.0
         ta, tc, v = self._profile(abs(D))
         T = 2 * ta + tc
-        if tau <= 0.0:
-            return self.origins[k], 0.0, 0.0
+        if tau <= 0.0 or T == 0.0:
+            return (self.origins[k] if tau <= 0.0 else self.targets[k]), 0.0, 0.0
         if tau >= T:
             return self.targets[k], 0.0, 0.0
         w = 2 * math.pi / ta
