@@ -519,7 +519,8 @@ def _cmd_perf(args: argparse.Namespace) -> int:
     for name, r in scen.items():
         label = {"free": "free vibration (shing1993)", "pd": "1 kHz PD loop on a sine (shing1993_servo)"}[name]
         print(f"{label}:")
-        print(f"  gearctl                      {r['gearctl_sim_per_wall']:10.4g} sim-s/wall-s, error {r['gearctl_error']:.1e} b")
+        print(f"  gearctl                      {r['gearctl_sim_per_wall']:10.4g} sim-s/wall-s, "
+              f"error {r['gearctl_error']:.1e} b")
         print(f"  python-control (default tol) {r['python_control_sim_per_wall']:10.4g} sim-s/wall-s, error "
               f"{r['python_control_error']:.1e} b -> {r['ratio']:.0f}x")
         print(f"  python-control (rtol 1e-10)  {r['python_control_tight_sim_per_wall']:10.4g} sim-s/wall-s, error "
@@ -601,7 +602,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
     p.add_argument("controller", nargs="?", default="deadzone_inverse",
                    help="controller: catalog name (pid, deadzone_inverse, mpc) or TOML path (default deadzone_inverse)")
-    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved", help="plant (default improved)")
+    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved",
+                   help="plant (default improved)")
     p.add_argument("--reference", choices=("sine", "step", "ramp", "move"), default="sine",
                    help="sine: 0.1 rad 1 Hz; step: 0.05 rad + 0.5 N m load step; ramp; move: S-curve (default sine)")
     p.add_argument("--duration", type=_positive_float, help="simulated time [s] (default per reference)")
@@ -630,7 +632,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("models", nargs="*", help="models (default shing1993_servo)")
     p.add_argument("--controllers", nargs="+", metavar="FILE", help="controllers (default: every catalog entry)")
     p.add_argument("--plants", default="improved,yang-sun,tvms",
-                   help="comma-separated plants; the backlash-free plant is always added (default improved,yang-sun,tvms)")
+                   help="comma-separated plants; the backlash-free plant is always added "
+                        "(default improved,yang-sun,tvms)")
     p.add_argument("--references", default="sine,move,step", help="comma-separated references (default sine,move,step)")
     p.add_argument("--duration", type=_positive_float, help="simulated time of every run [s] (default per reference)")
     p.add_argument("--jobs", type=_positive_int, help="worker processes (default: all cores)")

@@ -276,14 +276,16 @@ def plot_precision(result: Any, *, title: str = "") -> Figure:
     n = result.deviations_up.shape[1]
     for j in range(n):
         ax.plot(P, result.deviations_up[:, j] * 1e6, "^", color="C0", alpha=0.5, label="approach +" if j == 0 else None)
-        ax.plot(P, result.deviations_down[:, j] * 1e6, "v", color="C3", alpha=0.5, label="approach -" if j == 0 else None)
+        ax.plot(P, result.deviations_down[:, j] * 1e6, "v", color="C3", alpha=0.5,
+                label="approach -" if j == 0 else None)
     for mean, s, color, lab in ((st["mean_up"], st["s_up"], "C0", "+"), (st["mean_down"], st["s_down"], "C3", "-")):
         ax.plot(P, np.asarray(mean) * 1e6, "-", color=color, label=f"mean {lab}")
         ax.fill_between(P, (np.asarray(mean) - 2 * np.asarray(s)) * 1e6, (np.asarray(mean) + 2 * np.asarray(s)) * 1e6,
                         color=color, alpha=0.15)
     ax.plot(P, np.asarray(st["mean_bidirectional"]) * 1e6, "k--", label="mean bidirectional")
     ax.set(xlabel="target position [rad]", ylabel="deviation [urad]",
-           title=title or f"ISO 230-2: B = {st['reversal_value'] * 1e6:.1f} urad, R = {st['repeatability'] * 1e6:.1f} urad, "
+           title=title or f"ISO 230-2: B = {st['reversal_value'] * 1e6:.1f} urad, "
+                          f"R = {st['repeatability'] * 1e6:.1f} urad, "
                           f"A = {st['accuracy'] * 1e6:.1f} urad")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)

@@ -78,7 +78,8 @@ class Reference:
         z = np.zeros_like(t)
         if self.kind == "sine":
             w = 2 * math.pi * self.frequency
-            return self.amplitude * np.sin(w * t), self.amplitude * w * np.cos(w * t), -self.amplitude * w**2 * np.sin(w * t)
+            a = self.amplitude
+            return a * np.sin(w * t), a * w * np.cos(w * t), -a * w**2 * np.sin(w * t)
         if self.kind == "step":
             return np.where(on, self.amplitude, 0.0), z, z
         if self.kind == "ramp":
@@ -189,7 +190,8 @@ def reference(kind: str, **kwargs: float | str) -> Reference:
 
     ``sine``: 0.1 rad at 1 Hz (a reversal every 0.5 s; error statistics from 0.5 s, after start-up).
     ``step``: 0.05 rad at 0.1 s with a 0.5 N m load-torque step against the motion at 1.0 s (error
-    statistics from 0.6 s: the hold and the disturbance rejection, not the step itself). ``ramp``: 0.2 rad at 0.5 rad/s from 0.1 s. ``move``: a
+    statistics from 0.6 s: the hold and the disturbance rejection, not the step itself).
+    ``ramp``: 0.2 rad at 0.5 rad/s from 0.1 s. ``move``: a
     0.2 rad point-to-point move, S-curve, 1 rad/s, 10 rad/s^2, from 0.1 s.
     """
     defaults: dict[str, dict[str, float | str]] = {

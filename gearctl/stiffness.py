@@ -337,9 +337,10 @@ def damping_coefficient(k: float, damping_ratio: float, m_eq: float) -> float:
 
     The report's 237.6651 N s/m is what the same consistent form gives when the inertias are taken as
     solid disks of the *base* radius instead of the pitch radius: ``I ~ r^4`` makes ``m_eq`` scale
-    with ``cos^4 phi`` and ``c`` with ``cos^2 phi``, and ``269.15 * cos^2(20 deg) = 237.67``. gearctl keeps the pitch-radius disks, which
-    reproduce the report's own ``I1`` and ``I2``, and lets a model file give
-    ``damping_coefficient = 237.6651`` to run the report's simulations exactly.
+    with ``cos^4 phi`` and ``c`` with ``cos^2 phi``, and ``269.15 * cos^2(20 deg) = 237.67``. gearctl
+    keeps the pitch-radius disks, which reproduce the report's own ``I1`` and ``I2``, and lets a model
+    file give ``damping_coefficient = 237.6651`` to run the report's simulations exactly
+    (``shing1993_report``).
 
     References
     ----------
