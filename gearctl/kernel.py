@@ -36,7 +36,9 @@ import scipy.linalg
 
 from .plant import Plant, PlantKind
 
-__all__ = ["Kernel", "EventKind", "compiled_available", "contact_matrices", "ZENO_VELOCITY"]
+__all__ = [
+    "Kernel", "EventKind", "compiled_available", "contact_matrices", "ZENO_VELOCITY", "cache_dir", "c_compiler",
+]
 
 #: Impacts slower than this along the line of action are made perfectly plastic (the Zeno rule) [m/s].
 ZENO_VELOCITY = 1e-6
@@ -84,12 +86,14 @@ class _State(ctypes.Structure):
 _LIB: ctypes.CDLL | None | bool = False  # False: not tried yet
 
 
-def _cache_dir() -> Path:
+def cache_dir() -> Path:
+    """Per-user folder of gearctl's compiled code (``$XDG_CACHE_HOME/gearctl`` or ``~/.cache/gearctl``)."""
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "gearctl"
 
 
-def _compiler() -> str | None:
+def c_compiler() -> str | None:
+    """The C compiler to build gearctl's compiled code with, or None where there is none."""
     cc = os.environ.get("CC") or (sysconfig.get_config_var("CC") or "cc").split()[0]
     for cand in (cc, "cc", "gcc", "clang"):
         if shutil.which(cand):
@@ -108,9 +112,9 @@ def _load() -> ctypes.CDLL | None:
     src = _SRC.read_bytes()
     tag = hashlib.sha256(src + sys.version.encode()).hexdigest()[:16]
     suffix = ".dll" if sys.platform == "win32" else ".so"
-    target = _cache_dir() / f"kernel-{tag}{suffix}"
+    target = cache_dir() / f"kernel-{tag}{suffix}"
     if not target.exists():
-        cc = _compiler()
+        cc = c_compiler()
         if cc is None:
             return None
         try:

@@ -1,79 +1,90 @@
-"""Backlash-aware position MPC: a mode-switched condensed QP on a gap model, solved by CasADi's conic.
+"""Backlash-aware position MPC: mode-switched condensed QPs on a gap model, solved by CasADi's conic.
 
 Per sample the controller
 
-1. updates a mode-switched steady-state Kalman filter (motor and load encoders) on the *gap model*
-   below, which estimates the motor-side centre angle and speed, the gap ``s`` and its rate, and a
-   load-torque disturbance (integral action);
-2. decides, from the reference preview, which flank must carry the load over the horizon (the sign of
-   ``J2 r'' + d2 r' - load_torque - d_hat``, with hysteresis ``smoothing``) and, when the flank changes,
-   where in the horizon the motor crosses the gap: that fixes the *mode sequence* (contact on the old
-   flank, separation, contact on the new flank);
-3. solves ONE small dense QP in the torque sequence for that mode sequence: tracking of the predicted
-   load angle, torque about the rigid-train feedforward, torque rate, and at the planned landing the
-   landing position and the relative velocity (soft landing, a penalty or a hard bound), with the
-   torque limit as box bounds, warm-started from the shifted previous plan;
-4. checks the solution (solver flag, KKT residual, bounds) and the solve time; on a failure or an
-   overrun it applies the previous plan's next input, saturated, and records the event in
-   :attr:`fallbacks`.
+1. updates two steady-state Kalman filters (motor and load encoders): one for the centre of inertia
+   of the train (angle, speed, load-torque disturbance: integral action), one for the gap ``s`` and
+   its rate ``v`` (report eqs 4-5, 11-12);
+2. picks a *mode sequence* for the horizon (contact on the present flank; or separation from sample
+   ``a`` and a landing on the other flank at sample ``e``) and solves, for that fixed sequence, ONE small
+   dense QP in the torque sequence: load-angle tracking, torque about the rigid-train feedforward,
+   torque rate, and at the planned landing the relative velocity (soft landing); constraints are the
+   torque limit, the sign of the mesh torque in contact (a flank can push, never pull), the gap
+   within the flanks while floating, the landing position (equality) and, with
+   ``soft_landing = "bound"``, ``0 <= closing speed <= landing_velocity``;
+3. in contact, it first solves the QP that stays on the flank; if its mesh-torque constraint binds
+   (the plan would pull), it also solves the QP of a crossing centred there and applies the cheaper
+   plan (full cost, constant part included). Floating, it solves the landing on the target flank after
+   a countdown that only decreases (so the plan cannot keep postponing the landing) and, after an
+   unplanned float (a bounce, start-up), the landing on the other flank too;
+4. checks every solution (solver flag, KKT residual, feasibility) and the step's solve time; on a
+   failure or an overrun of ``max_solve_time`` it applies the previous plan's next input, saturated,
+   and records the event in :attr:`~gearctl.design.base.Controller.fallbacks`.
 
 The gap model
 -------------
 Coordinates ``z = [phi, omega, s, v]``: ``phi = (J1 theta1 + (J2/N) theta2) / J_eq`` is the motor-side
-angle of the centre of inertia, ``omega`` its rate (the train's angular momentum over ``J_eq``, which
-an impact does not change), ``s = r_b1 theta1 - r_b2 theta2`` the relative displacement along the
-line of action (report eqs 4, 11) and ``v`` its rate (eqs 5, 12). Then
-``theta1 = phi + kappa1 s`` and ``theta2 = phi / N - kappa2 s`` with ``kappa1 = J2 / (N r_b2 J_eq)``,
-``kappa2 = J1 / (r_b2 J_eq)``.
+angle of the centre of inertia and ``omega`` its rate (the train's angular momentum over ``J_eq``,
+which an impact does not change); ``s = r_b1 theta1 - r_b2 theta2`` and ``v = s'`` (eqs 4-5, 11-12).
+Then ``theta1 = phi + kappa1 s`` and ``theta2 = phi / N - kappa2 s`` with
+``kappa1 = J2 / (N r_b2 J_eq)``, ``kappa2 = J1 / (r_b2 J_eq)``.
 
 - Separation (eqs 6-7): two free inertias with their viscous friction, discretised exactly (ZOH).
 - Contact (eqs 1-3, 8-10) in the quasi-static limit of the mesh: the rigid train
-  ``J_eq phi'' = xi1 + xi2 / N - d_eq phi'`` with ``s`` held and ``v = 0``.
-- Landing: a plastic impact in the reduced model (``v -> 0``, ``s -> sigma b``, ``phi, omega``
-  unchanged: momentum is conserved).
+  ``J_eq phi'' = xi1 + xi2 / N - d_eq phi'`` with ``s`` held and ``v = 0``; the mesh torque on the load
+  is ``J2 theta2'' + d2 omega2 - xi2`` (eq 2), affine in the torques.
+- Landing: a plastic impact in the reduced model (``v -> 0``, ``s -> sigma b``; momentum and the load
+  angle kept).
 
-The prediction is affine in the torque sequence once the mode sequence is fixed, so each pattern
-(separation from step ``a`` to landing at step ``e``) has a constant Hessian; all patterns are
-condensed once in the constructor, and a step only forms the gradient ``g = G_pattern p`` from the
-parameter vector ``p`` (state estimate, disturbance, reference preview, feedforward, last torque).
+Once the mode sequence is fixed the prediction is affine in the torques, so each pattern ``(a, e)`` has
+constant QP matrices: all of them (about 140 for a horizon of 20) are condensed once in the
+constructor, and a step only forms ``M p`` (gradient and constraint bounds at once) from the parameter
+vector ``p`` (estimate, disturbance, reference preview, feedforward, last torque).
 
 Notes
 -----
-*Mode-switched model rather than a smooth contact law.* The mesh mode (2.8 kHz on the benchmark
-servo, lightly damped) lies above the 1 kHz sample rate: a smooth or stiff contact law in the
-prediction would have to be integrated well below the sample period and solved as an NLP (IPOPT or
-fatrop: milliseconds per solve), while the torque the loop can shape at 1 kHz does not reach the mesh
-mode anyway. With the mesh quasi-static the plant is piecewise linear in ``z`` and only the timing of
-a flank change is combinatorial; that timing follows from the reference (the dead-zone inverse's rule,
-applied on the preview), so one convex QP per sample remains. The price: the plan cannot shape the
-bounces after an impact, only the relative velocity at which the flanks meet.
+*Mode-switched model rather than a smooth contact law.* The mesh mode (2.8 kHz on the benchmark servo,
+lightly damped) lies above the 1 kHz sample rate: a smooth or stiff contact law in the prediction
+would have to be integrated well below the sample period and solved as an NLP (IPOPT or fatrop:
+milliseconds per solve), while torque held over 1 ms cannot shape the mesh mode anyway. With the mesh
+quasi-static the plant is piecewise affine in ``z``; only the timing of a flank change is
+combinatorial, and comparing the costs of "stay" and "cross at the binding sample" decides it with one
+or two convex QPs per sample instead of a mixed-integer program. The price: the plan cannot shape the
+bounces after an impact, only the speed at which the flanks meet, and it lands onto a flank that
+carries at least ``smoothing`` of mesh torque, so the impact cascade dies out instead of being landed
+again and again.
 
-*Crossing timing.* A crossing lasts ``n_c`` samples, the time to cover the lost motion ``2 b`` with a
-quarter of the torque limit accelerating and decelerating the motor alone, and is centred on the
-zero crossing of the transmitted torque (where the load needs least torque, so coasting costs least).
-The hysteresis ``smoothing`` only confirms a flank change; the crossing is timed at the zero crossing.
+*Observer.* Impacts conserve momentum, so the centre-of-inertia filter is the rigid train in every
+mode and never needs the mode. The gap filter predicts with the separation model and trusts it
+(small gain) unless the innovation shows an impact (large gain); when the encoders show contact it
+applies the reduced model's plastic impact (``v = 0``). With the motor encoder alone the gap is
+predicted open loop and pinned at the flank it reaches.
 
-*Solver path.* The QP is box-constrained (one extra row with the landing-velocity bound), dense and
-small (``horizon`` variables). Called from Python, any CasADi Function costs 25-40 us of call overhead
-on the 2-core benchmark machine before the solver runs, and daqp through ``casadi.conic`` took
-65-130 us median, up to 250 us at the 99th percentile. So for ``daqp`` and ``qrqp`` the conic (with a
-KKT check appended) is generated as C with CasADi's code generator, compiled once with the system C
-compiler into a per-user cache (as :mod:`gearctl.kernel` does) and called through :mod:`ctypes` with
-preallocated buffers: about 5-15 us per solve. Without a C compiler (or with ``GEARCTL_NO_COMPILE=1``)
-the same conic is called through CasADi. ``osqp`` and ``proxqp`` always go through CasADi.
+*Solver path.* The QP has ``horizon`` variables and ``horizon + 2`` constraint rows, dense. Called from
+Python, a CasADi Function costs 25-40 us of call overhead on the 2-core benchmark machine before the
+solver runs (daqp through ``casadi.conic``: 65-130 us median, up to 250 us at the 99th percentile). So
+for ``daqp`` and ``qrqp`` the conic, with the KKT check appended, is generated as C by CasADi's code
+generator, compiled once with the system C compiler into the per-user cache (as
+:mod:`gearctl.kernel` does) and called through :mod:`ctypes` on preallocated buffers: 5-30 us per solve
+with daqp. Without a C compiler (or with ``GEARCTL_NO_COMPILE=1``) the conic is called through
+CasADi. ``osqp`` and ``proxqp`` always go through CasADi (0.5-1 ms per step here), and qrqp's
+generated code needs about 2 ms on this QP: daqp is the default. Python's cyclic garbage collector is
+paused during the solver call (and restored at once), so that a collection (4-8 ms here) lands in the
+step overhead, which :attr:`MPC.step_times` measures, not inside the solve.
 
-*Checking a solve.* CasADi's generated daqp code returns success on an infeasible QP (the setup
-failure is ignored), so every solution is also checked: primal feasibility and the stationarity
-residual ``H x + g + lam_x + A' lam_a`` relative to the data, against a tolerance per solver.
+*Checking a solve.* CasADi's generated daqp code reports success on an infeasible QP (the setup
+failure is ignored), so every solution is checked: primal feasibility and the stationarity residual
+``H x + g + lam_x + A' lam_a`` relative to the data, against a tolerance per solver (rows are scaled to
+O(1): the gap in ``b``, its rate in ``b / Ts``, mesh torques in N m).
 
 *Warm starts.* The shifted previous plan and bound multipliers are passed as ``x0`` and ``lam_x0`` to
-every solver. qrqp, osqp and proxqp use them; DAQP's CasADi interface always starts from the
-unconstrained minimiser, which for this QP (torque limit rarely active) is already the solution.
+every solver; qrqp, osqp and proxqp use them, DAQP's CasADi interface starts from the unconstrained
+minimiser. The shifted plan is also the fallback.
 
-*A solver plugin that is not installed* is an :class:`InputError` when the controller is built (not a
-silent switch to another solver, which would make the solve-time figures describe a different
-controller). qpOASES is installed in the wheel but prints a banner from C on construction, so it is not
-offered; hpipm needs a structured (OCP) problem and is not offered either.
+*A solver plugin that is not installed* is an :class:`~gearctl.errors.InputError` when the controller is
+built (not a silent switch to another solver, which would make the solve-time figures describe a
+different controller). qpOASES is in the wheel but prints a banner from C when it is built, and hpipm
+needs a structured (OCP) problem, so neither is offered.
 
 References
 ----------
@@ -82,20 +93,19 @@ M. Nordin, P.-O. Gutman, "Controlling mechanical systems with backlash - a surve
 (2002) 1633-1649. P. Rostalski, T. Besselmann, M. Baric, F. Van Belzen, M. Morari, "A hybrid approach
 to modelling, control and state estimation of mechanical systems with backlash", Int. J. Control 80
 (2007) 1729-1740. D. Arnstrom, A. Bemporad, D. Axehill, "A dual active-set solver for embedded
-quadratic programming using recursive LDL' updates", IEEE TAC 67 (2022) (DAQP).
+quadratic programming using recursive LDL' updates", IEEE Trans. Automatic Control 67 (2022) 4362-4369.
 """
 
 from __future__ import annotations
 
 import ctypes
 import dataclasses
+import gc
 import hashlib
 import math
 import os
-import shutil
 import subprocess
 import sys
-import sysconfig
 import tempfile
 import time
 from pathlib import Path
@@ -106,6 +116,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from ..errors import InputError, SolverError
+from ..kernel import c_compiler, cache_dir
 from ..references import Reference
 from .base import Controller, LoopInfo
 from .registry import number
@@ -151,20 +162,21 @@ class MPCSettings:
     torque_rate : float
         Weight of the torque change per sample [1/(N m)^2].
     relative_velocity : float
-        Weight of the relative velocity along the line of action at a planned landing [s^2/m^2].
+        Weight of the closing speed's deviation from ``landing_velocity`` at a planned landing, along the
+        line of action [s^2/m^2].
     terminal : float
         Extra weight at the last sample, as a multiple of ``tracking``, on the load-angle error and on
         the load-speed error times half the horizon time.
     soft_landing : str
-        ``"penalty"`` (``relative_velocity`` weight), ``"bound"`` (penalty and
-        ``|v| <= landing_velocity`` as a hard constraint) or ``"off"``.
+        ``"bound"``: ``0 <= closing speed <= landing_velocity`` as a hard constraint, plus the penalty;
+        ``"penalty"``: the ``relative_velocity`` penalty alone; ``"off"``: neither (hard landings).
     landing_velocity : float
-        Bound on the relative velocity at a planned landing [m/s] (``soft_landing = "bound"``).
+        Closing speed of a planned landing [m/s]: the bound, and the penalty's target.
     max_solve_time : float
-        A solve slower than this counts as an overrun and falls back [s].
+        A step whose QP solves take longer than this counts as an overrun and falls back [s].
     smoothing : float
-        Hysteresis of the flank decision [N m]: a flank change is planned only once the transmitted
-        torque in the preview passes this far beyond zero.
+        Mesh torque on the load the plan must leave on a flank at the first sample after a landing
+        [N m]: the impacts then die out quickly instead of the motor floating off and landing again.
     process_noise : float
         Observer: std of the unmodelled torque on each shaft per sample, and of the load-torque
         disturbance's change per sample [N m].
@@ -179,14 +191,14 @@ class MPCSettings:
     feedback: str = "load"
     tracking: float = 1e8
     torque: float = 1e-2
-    torque_rate: float = 10.0
+    torque_rate: float = 300.0
     relative_velocity: float = 1e7
     terminal: float = 10.0
-    soft_landing: str = "penalty"
-    landing_velocity: float = 5e-4
+    soft_landing: str = "bound"
+    landing_velocity: float = 2e-4
     max_solve_time: float = 1e-3
     smoothing: float = 2e-3
-    process_noise: float = 1e-3
+    process_noise: float = 1e-4
     measurement_noise: float = 2e-6
     backlash: float = 5e-5
 
@@ -271,12 +283,9 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     Raises
     ------
     InputError
-        For a value out of range (naming ``file: key``), an unknown or not installed solver, or a
-        ``[design]`` table (the MPC is tuned by its ``[weights]``).
+        For a value out of range (naming ``file: key``) or an unknown or not installed solver. (A
+        ``[design]`` table is rejected by the registry: the MPC is tuned by its ``[weights]``.)
     """
-    if "design" in spec:
-        raise InputError(f"{path}: [design] is not used by kind 'mpc': tune the MPC with [weights]",
-                         field="design")
 
     def choice(key: str, default: Any, allowed: tuple[Any, ...]) -> Any:
         v = spec.get(key, default)
@@ -313,7 +322,7 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     if not (0.0 < b < 0.01):
         raise InputError(f"{path}: backlash = {b!r} is out of range: expected 0 < value < 0.01 [m]",
                          field="backlash")
-    settings = MPCSettings(
+    fields = dict(
         horizon=int(horizon),
         solver=solver,
         feedback=choice("feedback", d.feedback, FEEDBACK),
@@ -336,8 +345,8 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
                                  section="observer", unit="[rad]", lo_open=True),
         backlash=b,
     )
-    try:
-        return MPC(info, settings, Ts=Ts, name=name)
+    try:  # the checks across keys (MPCSettings) and of the sample time (MPC), restated with the file
+        return MPC(info, MPCSettings(**fields), Ts=Ts, name=name)
     except InputError as exc:
         raise InputError(f"{path}: {exc}", field=exc.field) from None
 
@@ -400,19 +409,6 @@ def _kalman_gain(A: NDArray, G: NDArray, Qw: NDArray, C: NDArray, R: NDArray) ->
 # --- the QP solver ---------------------------------------------------------------------------------------
 
 
-def _cache_dir() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "gearctl"
-
-
-def _c_compiler() -> str | None:
-    cc = os.environ.get("CC") or (sysconfig.get_config_var("CC") or "cc").split()[0]
-    for cand in (cc, "cc", "gcc", "clang"):
-        if shutil.which(cand):
-            return cand
-    return None
-
-
 class _QP:
     """One dense QP ``min 1/2 x'Hx + g'x, lbx <= x <= ubx, lba <= A x <= uba`` per call, built once.
 
@@ -426,8 +422,9 @@ class _QP:
         import casadi as ca
 
         self.n, self.m, self.plugin = n, m, plugin
-        opts = {**_PLUGIN_OPTIONS[plugin], "error_on_fail": True}
+        opts = {**_PLUGIN_OPTIONS[plugin], "error_on_fail": False}
         conic = ca.conic("mpc_conic", plugin, {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m, n)}, opts)
+        self._conic = conic
         h, g, a = ca.MX.sym("h", n, n), ca.MX.sym("g", n), ca.MX.sym("a", m, n)
         lbx, ubx, x0, l0 = (ca.MX.sym(s, n) for s in ("lbx", "ubx", "x0", "lam_x0"))
         lba, uba = ca.MX.sym("lba", m), ca.MX.sym("uba", m)
@@ -452,6 +449,7 @@ class _QP:
         self.x, self.lam_x, self.lam_a = np.zeros(n), np.zeros(n), np.zeros(m)
         self.cost, self.kkt = np.zeros(1), np.zeros(1)
         self.tol = _KKT_TOL[plugin]
+        self._dm: dict[tuple[int, int], Any] = {}  # CasADi path: H and A as DM, per pattern
         self.compiled = False
         self.note = ""
         want = compiled if compiled is not None else not os.environ.get("GEARCTL_NO_COMPILE")
@@ -470,26 +468,20 @@ class _QP:
         """Generate C for :attr:`function`, compile it once per source into the user cache."""
         import casadi as ca
 
-        cc = _c_compiler()
+        cc = c_compiler()
         if cc is None:
             raise OSError("no C compiler found")
         casadi_dir = Path(ca.__file__).parent
         with tempfile.TemporaryDirectory() as tmp:
-            cwd = os.getcwd()
-            try:
-                os.chdir(tmp)  # CasADi writes the generated file into the working directory
-                gen = ca.CodeGenerator(f"{fname}.c", {"with_header": False})
-                gen.add(self.function)
-                gen.generate()
-            finally:
-                os.chdir(cwd)
-            src = (Path(tmp) / f"{fname}.c").read_bytes()
+            gen = ca.CodeGenerator(f"{fname}.c", {"with_header": False})
+            gen.add(self.function)
+            src = Path(gen.generate(tmp + os.sep)).read_bytes()  # the prefix: a directory
         flags = ["-O2", "-shared", "-fPIC", f"-I{casadi_dir / 'include'}"]
         libs = ["-lm"]
         if self.plugin == "daqp":  # the wheel ships libdaqp.so next to CasADi's own libraries
             libs = [f"-L{casadi_dir}", "-ldaqp", f"-Wl,-rpath,{casadi_dir}", "-lm"]
         tag = hashlib.sha256(src + " ".join([cc, *flags, *libs, sys.version]).encode()).hexdigest()[:16]
-        target = _cache_dir() / f"{fname}-{tag}.so"
+        target = cache_dir() / f"{fname}-{tag}.so"
         if not target.exists():
             target.parent.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
@@ -526,6 +518,13 @@ class _QP:
         """
         if self.compiled:
             self._arg[0], self._arg[6] = ptr
+        else:  # CasADi converts a numpy matrix on every call (~40 us each here): convert once per pattern
+            dm = self._dm.get(ptr)
+            if dm is None:
+                import casadi as ca
+
+                dm = self._dm[ptr] = (ca.DM(H), ca.DM(np.ascontiguousarray(A)))
+            self._h_dm, self._a_dm = dm
         self.h, self.a = H, A
 
     def solve(self) -> str:
@@ -537,14 +536,20 @@ class _QP:
             flag = self._fn(self._arg, self._res, self._iw, self._w, self._mem)
             if flag:
                 return f"{self.plugin} returned flag {flag}"
-        else:
-            try:
-                out = self.function.call([self.h, self.g, self.lbx, self.ubx, self.x0, self.lam_x0, self.a,
-                                          self.lba, self.uba])
-            except RuntimeError as exc:
-                return f"{self.plugin} failed: {str(exc).strip().splitlines()[-1][:160]}"
-            for buf, val in zip((self.x, self.lam_x, self.lam_a, self.cost, self.kkt), out, strict=True):
-                buf[:] = np.asarray(val).ravel()
+        else:  # through CasADi: the conic itself (its stats carry the solver's status), the check in numpy
+            sol = self._conic(h=self._h_dm, g=self.g, a=self._a_dm, lba=self.lba, uba=self.uba, lbx=self.lbx,
+                              ubx=self.ubx, x0=self.x0, lam_x0=self.lam_x0)
+            stats = self._conic.stats()
+            for buf, name in ((self.x, "x"), (self.lam_x, "lam_x"), (self.lam_a, "lam_a"), (self.cost, "cost")):
+                buf[:] = np.asarray(sol[name]).ravel()
+            if not stats.get("success", False):
+                return f"{self.plugin}: {stats.get('return_status', 'failed')}"
+            x, hx, ax = self.x, self.h @ self.x, self.a @ self.x
+            stat = hx + self.g + self.lam_x + self.a.T @ self.lam_a
+            pinf = max(float(np.max(self.lbx - x)), float(np.max(x - self.ubx)), float(np.max(self.lba - ax)),
+                       float(np.max(ax - self.uba)), 0.0)
+            scale = 1.0 + float(np.max(np.abs(self.g))) + float(np.max(np.abs(hx)))
+            self.kkt[0] = max(float(np.max(np.abs(stat))) / scale, pinf)
         k = self.kkt[0]
         if not k <= self.tol:  # also catches NaN
             return f"{self.plugin} solution fails the KKT check ({k:.2g} > {self.tol:g})"
@@ -554,6 +559,8 @@ class _QP:
 # --- the controller --------------------------------------------------------------------------------------
 
 _INF = 1e20  # "no bound" for constraint rows (finite: some plugins reject inf)
+_CROSS_MARGIN = 2e-3  # a crossing must lower the plan's cost by this fraction (no flank change on a tie)
+_FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this much cheaper to land on
 
 
 @dataclasses.dataclass(slots=True)
@@ -574,7 +581,7 @@ class _Pattern:
     ptr: dict[int, tuple[int, int]]  # data addresses of H and A[sig] (the compiled solver reads them)
     has_landing: bool
     land_row: int  # mesh-torque row of the first contact sample after the landing (-1: none in the horizon)
-    step0_separated: bool
+    gap_rows: NDArray[np.intp]  # rows that bound the gap (floating samples): -b <= s <= b, width 2 in units of b
 
 
 class MPC(Controller):
@@ -638,7 +645,6 @@ class MPC(Controller):
         self._umax = min(info.torque_limit, 1e6)
         self._tau_load = p.load_torque
         self._ratio = info.N
-        self._d2 = p.d2
         self._rb1, self._rb2 = p.rb1, p.rb2
         self.model = _gap_model(info, Ts)
         # crossing: the lost motion 2b, a quarter of the torque limit accelerating then decelerating the
@@ -671,6 +677,8 @@ class MPC(Controller):
         Z[:, :4] = np.eye(4)
         states, land = [], None
         Fxi = np.zeros((n, nxi))
+        Sxi = np.zeros((n, nxi))  # the gap after sample k while floating (kept within the flanks)
+        gap = np.zeros(n, dtype=bool)
         for k in range(n):
             sep = a <= k < e
             A, B = (m.A_sep, m.B_sep) if sep else (m.A_con, m.B_con)
@@ -687,6 +695,8 @@ class MPC(Controller):
             elif not sep:  # torque the mesh gives the load over sample k: J2 theta2'' + d2 omega2 - tau (eq 2)
                 Fxi[k] = pl.J2 / (m.N * self.Ts) * (Z[1] - Zprev[1]) + pl.d2 / (2 * m.N) * (Z[1] + Zprev[1])
                 Fxi[k, 4] -= 1.0
+            else:  # floating, not yet landed: -b <= s <= b
+                Sxi[k], gap[k] = Z[2], True
             states.append(Z)
         cy = np.array([1 / m.N, 0.0, -m.kappa2, 0.0])  # theta2
         cv = np.array([0.0, 1 / m.N, 0.0, -m.kappa2])  # omega2
@@ -735,10 +745,10 @@ class MPC(Controller):
             sgn = np.where(np.arange(n) < a, sig, -sig).astype(float)
             sgn[np.all(Fxi == 0.0, axis=1)] = 0.0  # separation samples: no mesh torque
             Af = np.zeros((n + 2, n))
-            Af[:n] = sgn[:, None] * Fxi[:, 6:]
+            Af[:n] = sgn[:, None] * Fxi[:, 6:] + Sxi[:, 6:] / self._b  # row k: mesh torque, or the gap / b
             M = np.zeros((2 * n + 2, self.n_p))
             M[:n] = G
-            M[n:2 * n, :6] = -sgn[:, None] * Fxi[:, :6]
+            M[n:2 * n, :6] = -sgn[:, None] * Fxi[:, :6] - Sxi[:, :6] / self._b  # gap rows: minus s_free / b
             if land_s is not None:  # rows scaled to O(1): the gap in units of b, the speed in b / Ts
                 Af[n], Af[n + 1] = land_s[0] / self._b, land_v[0] * self.Ts / self._b
                 M[2 * n] = -land_s[1] / self._b
@@ -747,7 +757,7 @@ class MPC(Controller):
             A_f[sig], M_f[sig] = np.asfortranarray(Af), np.ascontiguousarray(M)
             ptr[sig] = (Hc.ctypes.data, A_f[sig].ctypes.data)
         return _Pattern(H=Hc, K=np.ascontiguousarray(K), A=A_f, M=M_f, ptr=ptr, has_landing=land_s is not None,
-                        land_row=e if e < n else -1, step0_separated=a == 0 and e >= 1)
+                        land_row=e if e < n else -1, gap_rows=np.flatnonzero(gap))
 
     def _build_patterns(self) -> None:
         n, nc = self.N, self.n_cross
@@ -792,7 +802,6 @@ class MPC(Controller):
         # gap: rows of the separation model (they also see phi, omega through friction)
         self._gap_rows = tuple(float(v) for v in (*m.A_sep[2], *m.B_sep[2], *m.A_sep[3], *m.B_sep[3]))
         r_s = sm * math.hypot(self.info.plant.rb1, self.info.plant.rb2)
-        self._r_s = r_s
         Ag, Gg = m.A_sep[2:, 2:], m.B_sep[2:, :1]
         v_small = sp  # unmodelled torque on the motor
         v_big = self._b / self.Ts  # an impact: a velocity jump of the order of b / Ts
@@ -809,12 +818,12 @@ class MPC(Controller):
         n = self.N
         self.solve_times, self.fallbacks, self.statuses, self.step_times = [], [], [], []
         self._z = None  # observer state [phi, omega, s, v, d]
-        self._sep0 = False  # mode of the last sample in the plan (separated?)
         self._u = 0.0
         self._plan = np.zeros(n)
         self._lam = np.zeros(n)
         self._keep = (np.zeros(n), np.zeros(n), np.zeros(n + 2))  # a solution set aside while another is tried
         self._flank = 0  # target flank: +1 front, -1 back, 0 undecided
+        self._gap_bounded = True  # whether the QP's upper row bounds hold a pattern's gap rows
         self._land: int | None = None
         self._k = 0
         self._p = np.zeros(self.n_p)
@@ -833,7 +842,7 @@ class MPC(Controller):
         self._blk_len = 512 + n + 2
         tt = t + self.Ts * np.arange(self._blk_len)
         r, rd, rdd = (np.asarray(v, dtype=float) for v in ref.at(tt))
-        info, p = self.info, self.info.plant
+        info = self.info
         self._R, self._Rd = r, rd
         self._FF = FF = self._ratio * (info.J_eq * rdd + info.d_eq * rd)  # rigid-train torque, without the load
         # per sample i, the preview the parameter vector needs: r_{i+1..i+N}, r'_{i+N}, FF_{i..i+N-1}
@@ -899,6 +908,14 @@ class MPC(Controller):
         p[5] = p_new
         np.dot(pat.M[sig], p, out=qp.gl)
         lba, uba = qp.lba, qp.uba
+        if self._gap_bounded:  # undo the last pattern's gap rows
+            uba[:n] = _INF
+            self._gap_bounded = False
+        if pat.gap_rows.size:  # -b <= s <= b: in units of b, -1 - s_free / b <= row <= 1 - s_free / b
+            g_rows = pat.gap_rows
+            uba[g_rows] = lba[g_rows] + 1.0
+            lba[g_rows] -= 1.0
+            self._gap_bounded = True
         if pat.land_row >= 0:  # land onto a loaded flank: the impacts then die out instead of re-landing
             lba[pat.land_row] += self._f_land
         if pat.has_landing:
@@ -913,12 +930,24 @@ class MPC(Controller):
             lba[n] = lba[n + 1] = -_INF
             uba[n] = uba[n + 1] = _INF
         qp.set_matrices(pat.H, pat.A[sig], pat.ptr[sig])
+        # Python's cyclic collector is paused for the call (and restored at once): a collection triggered by
+        # the few objects the call allocates would otherwise land inside the solve (4-8 ms on the benchmark
+        # machine); it runs at the next allocation instead, in the step overhead that step_times measures
+        collect = gc.isenabled()
+        gc.disable()
         t0 = time.perf_counter()
         status = qp.solve()
         dt = time.perf_counter() - t0
-        if not cost:
-            return status, dt, 0.0
-        return status, dt, (float(qp.cost[0]) + float(p @ (pat.K @ p)) if status == "ok" else math.inf)
+        if collect:
+            gc.enable()
+        return status, dt, (self._full_cost(key) if cost else 0.0)
+
+    def _full_cost(self, key: tuple[int, int]) -> float:
+        """Full cost of the solution in the QP buffers for pattern ``key`` (``inf`` if it failed)."""
+        if not self._qp.kkt[0] <= self._qp.tol:
+            return math.inf
+        p = self._p
+        return float(self._qp.cost[0]) + float(p @ (self._patterns[key].K @ p))
 
     def _land_on(self, flank: int, e: int, s: float) -> tuple[str, float, float, tuple[int, int]]:
         """Solve the landing on ``flank`` after ``e`` samples (later if that is infeasible).
@@ -926,8 +955,6 @@ class MPC(Controller):
         Returns the status, the solve time [s], the full cost and the pattern used.
         """
         n, b = self.N, self._b
-        if e < self._steps_to_land(s, flank, 1.0):  # cannot make it even at full torque: land later
-            e = self._steps_to_land(s, flank, 0.5)
         key = (0, min(max(e, 1), n + 1))
         # the force rows take the sign of the flank *before* a crossing: for a landing, -flank
         status, dt, cost = self._solve(key, flank * b, -flank, True)
@@ -981,17 +1008,19 @@ class MPC(Controller):
         if side != 0 and side == sig:  # in contact on the target flank: stay, or cross if that is cheaper
             self._land = None
             key = self._all_contact
-            status, solve_time, cost = self._solve(key, sig * b, sig, True)
-            if status == "ok":
-                la = np.abs(qp.lam_a[:n])
+            status, solve_time, _ = self._solve(key, sig * b, sig)
+            lam = qp.lam_a[:n]
+            if status == "ok" and lam.any():  # active-set solvers give exact zeros for inactive rows
+                la = np.abs(lam)
                 binding = np.flatnonzero(la > 1e-9 * (1.0 + la.max()))
                 if binding.size:
+                    cost = self._full_cost(key)
                     a = max(int(binding[0]) - self.n_lead, 0)
                     cross = (a, min(a + self.n_cross, n + 1))
                     self._set_aside()
                     st2, dt, cost2 = self._solve(cross, -sig * b, sig, True)
                     solve_time += dt
-                    if st2 == "ok" and cost2 < cost - self.settings.smoothing * abs(cost):
+                    if st2 == "ok" and cost2 < cost - _CROSS_MARGIN * abs(cost):
                         key = cross
                         if a == 0:  # the crossing starts now
                             self._flank, self._land = -sig, cross[1]
@@ -1000,19 +1029,21 @@ class MPC(Controller):
         else:  # floating or on the other flank: land on the target flank, or on the other if much cheaper
             if self._land is None and side == -sig:  # still on the old flank: the crossing just decided
                 self._land = self.n_cross
-            e = self._land if self._land is not None else max(self._steps_to_land(s, sig), 2)
+            # a countdown only decreases (the plan may not postpone its landing); a new landing is planned with
+            # a quarter of the torque limit, and never in less than two samples (accelerate, then decelerate)
+            e = max(self._land, 1) if self._land is not None else max(self._steps_to_land(s, sig), 2)
             status, solve_time, cost, key = self._land_on(sig, e, s)
             if side == 0:
                 self._set_aside()
                 e2 = max(self._steps_to_land(s, -sig), 2)
                 st2, dt, cost2, key2 = self._land_on(-sig, e2, s)
                 solve_time += dt
-                if st2 == "ok" and (status != "ok" or cost2 < cost - 0.1 * abs(cost)):
+                if st2 == "ok" and (status != "ok" or cost2 < cost - _FLIP_MARGIN * abs(cost)):
                     status, key, self._flank = st2, key2, -sig
                     self._land = key2[1]
                 else:
                     self._restore()
-            if status == "ok" and self._land is None:
+            if status == "ok":  # the landing actually planned (it may have been put off), counted down from now
                 self._land = key[1]
         self.solve_times.append(solve_time)
         if self._k in self.inject_failures:
@@ -1022,8 +1053,8 @@ class MPC(Controller):
         if status != "ok":
             reason = f"solve failed: {status}"
         elif solve_time > self.settings.max_solve_time:
-            reason = (f"solve overran: {solve_time * 1e6:.0f} us > max_solve_time "
-                      f"{self.settings.max_solve_time * 1e6:.0f} us")
+            reason = (f"solve overran: {solve_time * 1e6:.3g} us > max_solve_time "
+                      f"{self.settings.max_solve_time * 1e6:.3g} us")
         if reason is None:
             self._plan[:] = qp.x
             self._lam[:] = qp.lam_x
@@ -1038,7 +1069,6 @@ class MPC(Controller):
                 self._plan[:] = qp.x0
                 self._lam[:] = 0.0
             self._plan[0] = u
-        self._sep0 = self._patterns[key].step0_separated
         self._u = u
         self._k += 1
         if self._land is not None:

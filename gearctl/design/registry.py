@@ -33,8 +33,7 @@ CONTROLLER_KEYS: dict[str, tuple[set[str], dict[str, set[str]]]] = {
         {"kind", "name", "sample_time", "feedback", "horizon", "solver", "backlash", "soft_landing",
          "landing_velocity", "max_solve_time", "smoothing"},
         {"weights": {"tracking", "torque", "torque_rate", "relative_velocity", "terminal"},
-         "observer": {"process_noise", "measurement_noise"},
-         "design": {"bandwidth_hz", "phase_margin_deg", "integral_ratio"}},
+         "observer": {"process_noise", "measurement_noise"}},
     ),
 }
 _SOURCE_KEYS = {"citation", "table", "notes", "url", "doi"}
