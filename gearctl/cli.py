@@ -334,7 +334,7 @@ def _cmd_describe(args: argparse.Namespace) -> int:
 
 
 def _run_track(model_name: str, controller_name: str, plant_kind: str, ref_kind: str, duration: float | None,
-               backlash: float | None, seed: int) -> tuple[Any, Any, Any]:
+               backlash: float | None, seed: int, realtime: bool = False) -> tuple[Any, Any, Any]:
     """Build plant and controller and run one closed loop (shared by track and describe)."""
     from .catalog import load_controller
     from .closedloop import simulate_closed_loop
@@ -347,6 +347,7 @@ def _run_track(model_name: str, controller_name: str, plant_kind: str, ref_kind:
     nominal = build_plant(model, backlash=backlash)  # controllers are designed on the improved plant
     plant = build_plant(model, plant_kind, backlash=backlash)
     ctrl = load_controller(controller_name, nominal)
+    ctrl.realtime = realtime
     ref = reference(ref_kind)
     dur = duration if duration is not None else _DEFAULT_DURATION[ref_kind]
     res = simulate_closed_loop(plant, ctrl, ref, dur, sensors=model.sensors, seed=seed)
@@ -360,7 +361,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     from .metrics import tracking_metrics
 
     model, ctrl, res = _run_track(args.model, args.controller, args.plant, args.reference, args.duration,
-                                  args.backlash, args.seed)
+                                  args.backlash, args.seed, args.realtime)
     m = tracking_metrics(res)
     out = {"model": model.name, "controller": res.controller, "plant": args.plant, "reference": args.reference,
            "backlash": res.plant.backlash, "seed": args.seed, **m}
@@ -385,7 +386,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
           f"fastest {m['max_impact_velocity']:.3g} m/s")
     if st is not None:
         print(f"  solve time             median {st['median'] * 1e6:.0f} us, p99 {st['p99'] * 1e6:.0f} us, "
-              f"max {st['max'] * 1e6:.0f} us (sample period {ctrl.Ts * 1e6:.0f} us); fallbacks {m['fallbacks']}")
+              f"max {st['max'] * 1e6:.0f} us (sample period {ctrl.Ts * 1e6:.0f} us); overruns {m['overruns']}, "
+              f"fallbacks {m['fallbacks']}")
     print(f"  wall time              {m['wall_time']:.3g} s ({m['duration'] / max(m['wall_time'], 1e-9):.0f} "
           f"simulated s per wall s)")
     for path, what in ((args.csv, "CSV"), (args.plot, "plot")):
@@ -451,7 +453,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     plants = tuple(p.strip() for p in args.plants.split(",") if p.strip())
     refs = tuple(r.strip() for r in args.references.split(",") if r.strip())
     spec = BenchSpec(models=tuple(args.models) or ("shing1993_servo",), controllers=tuple(args.controllers or ()),
-                     plants=plants, references=refs, duration=args.duration, seed=args.seed)
+                     plants=plants, references=refs, duration=args.duration, seed=args.seed,
+                     realtime=args.realtime)
     n = len(spec.runs())
     bar = None
     if not args.quiet:
@@ -609,6 +612,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=_positive_float, help="simulated time [s] (default per reference)")
     p.add_argument("--backlash", type=_nonnegative_float, help="override the plant's backlash [m] (0: none)")
     p.add_argument("--seed", type=int, default=0, help="sensor-noise seed (default 0)")
+    p.add_argument("--realtime", action="store_true",
+                   help="an optimisation that overruns its time budget falls back, as on the target "
+                        "(default: overruns are counted, results are deterministic)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--csv", metavar="FILE", help="write the run per sample")
     p.add_argument("--plot", metavar="FILE", help="write reference/load angle, error, torque and gap plot")
@@ -638,6 +644,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=_positive_float, help="simulated time of every run [s] (default per reference)")
     p.add_argument("--jobs", type=_positive_int, help="worker processes (default: all cores)")
     p.add_argument("--seed", type=int, default=0, help="sensor-noise seed (default 0)")
+    p.add_argument("--realtime", action="store_true",
+                   help="optimisations that overrun their time budget fall back, as on the target "
+                        "(default: overruns are counted, results are deterministic)")
     p.add_argument("--json", metavar="FILE", help="write every figure as JSON")
     p.add_argument("--out", metavar="DIR", help="write plots and a Markdown report")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -79,6 +79,8 @@ class ClosedLoopResult:
         Wall time of the run [s].
     settle : float
         The reference's settle time [s] (start of the error statistics).
+    overruns : int
+        Optimisation solves that took longer than the controller's budget (see ``Controller.realtime``).
     """
 
     t: NDArray[np.float64]
@@ -98,6 +100,7 @@ class ClosedLoopResult:
     message: str
     wall_time: float
     settle: float = 0.0
+    overruns: int = 0
 
     @property
     def error(self) -> NDArray[np.float64]:
@@ -236,6 +239,7 @@ def simulate_closed_loop(
         mode=mode[sl], events=events, solve_times=np.asarray(controller.solve_times, dtype=float),
         fallbacks=list(controller.fallbacks), plant=plant, controller=controller.describe(),
         success=message == "ok", message=message, wall_time=wall, settle=ref.settle,
+        overruns=getattr(controller, "overruns", 0),
     )
     if not res.success:
         raise SimulationError(f"closed loop failed: {message}", result=res)

@@ -28,7 +28,7 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> d
         ``rms_error``, ``max_error``, ``final_error`` [rad] (load angle ``r - theta2``; final: at the last
         sample), ``impacts`` (count, both flanks), ``impacts_front``, ``impacts_back``,
         ``max_impact_velocity`` [m/s] (relative velocity along the line of action), ``fallbacks``
-        (count), ``solve_time`` {``median``, ``p99``, ``max``} [s] or None for controllers that solve no
+        (count), ``overruns`` (solves over the controller's time budget), ``solve_time`` {``median``, ``p99``, ``max``} [s] or None for controllers that solve no
         optimisation, ``torque_rms`` [N m], ``saturated_fraction`` (samples at the torque limit),
         ``duration`` [s], ``wall_time`` [s].
     """
@@ -47,6 +47,7 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> d
         "impacts_back": sum(1 for i in imp if i.side == "back"),
         "max_impact_velocity": float(max((abs(i.velocity) for i in imp), default=0.0)),
         "fallbacks": len(res.fallbacks),
+        "overruns": res.overruns,
         "solve_time": None if st.size == 0 else {
             "median": float(np.median(st)), "p99": float(np.percentile(st, 99)), "max": float(np.max(st)),
         },

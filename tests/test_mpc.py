@@ -305,6 +305,7 @@ def test_solver_failure_and_overrun_fall_back(servo, mpc_spec, monkeypatch: pyte
     # every solve overruns: every step falls back (the plans it follows are one sample late, so a landing
     # can become infeasible too: that is reported as a failure)
     ctrl = _mpc(plant, mpc_spec, max_solve_time=1e-9)
+    ctrl.realtime = True  # act on overruns as on the target (the default only counts them)
     res = simulate_closed_loop(plant, ctrl, ref, 0.02, sensors=model.sensors)
     assert len(res.fallbacks) == res.t.size - 1
     reasons = [f["reason"] for f in res.fallbacks]
@@ -386,3 +387,14 @@ def test_settings_validate_directly() -> None:
         MPCSettings(torque_rate=-1.0)
     with pytest.raises(InputError, match="solver = 'ipopt'"):
         MPCSettings(solver="ipopt")
+
+
+def test_overruns_are_counted_not_acted_on_by_default(servo, mpc_spec) -> None:
+    """Without ``realtime`` a solve over its budget is counted but the plan is applied: deterministic runs."""
+    model, plant = servo
+    ref = reference("sine")
+    ctrl = _mpc(plant, mpc_spec, max_solve_time=1e-9)  # every solve overruns
+    a = simulate_closed_loop(plant, ctrl, ref, 0.05, sensors=model.sensors)
+    assert a.overruns == a.solve_times.size > 0 and not a.fallbacks
+    b = simulate_closed_loop(plant, _mpc(plant, mpc_spec), ref, 0.05, sensors=model.sensors)
+    np.testing.assert_array_equal(a.x, b.x)  # the budget does not change the trajectory

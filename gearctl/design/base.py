@@ -64,15 +64,24 @@ class Controller(abc.ABC):
         Wall time of each optimisation solve [s] (empty for controllers that solve none).
     fallbacks : list of dict
         Samples where a solve failed or overran and a safe command was used: ``{"t", "reason"}``.
+    realtime : bool
+        For controllers that solve an optimisation: whether a solve that overruns its time budget falls
+        back to the safe command, as on the target (True), or is only counted in :attr:`overruns`
+        (False, the default: the simulated trajectory then does not depend on how busy this machine is,
+        and results are deterministic for a seed).
+    overruns : int
+        Solves that took longer than the budget.
     """
 
     name: str = "controller"
     Ts: float = 1e-3
     uses_load_encoder: bool = False
+    realtime: bool = False
 
     def __init__(self) -> None:
         self.solve_times: list[float] = []
         self.fallbacks: list[dict[str, Any]] = []
+        self.overruns = 0
 
     @abc.abstractmethod
     def reset(self) -> None:
