@@ -22,6 +22,7 @@ from .design.base import Controller
 from .errors import InputError
 from .params import Sensors
 from .plant import Plant
+from .references import move_point, move_times
 
 __all__ = ["MotionProgram", "PrecisionResult", "iso230_statistics", "precision_test"]
 
@@ -49,44 +50,15 @@ class MotionProgram:
     accel: float
     settle: float = 0.0
 
-    def _profile(self, D: float) -> tuple[float, float, float]:
-        if D == 0.0:  # a hold: no move
-            return 0.0, 0.0, 0.0
-        a, v = self.accel, self.velocity
-        ta = 2 * v / a  # S-curve: the mean acceleration over a ramp is a/2 (peak a)
-        if v * ta > D:  # never reaches the cruise velocity
-            ta = math.sqrt(2 * D / a)
-            v = a * ta / 2
-        tc = (D - v * ta) / v
-        return ta, tc, v
-
     def duration(self, D: float) -> float:
         """Duration of one move over ``|D|`` [s]."""
-        ta, tc, _ = self._profile(abs(D))
+        ta, tc, _ = move_times(abs(D), self.velocity, self.accel)
         return 2 * ta + tc
 
     def _move(self, k: int, tau: float) -> tuple[float, float, float]:
         D = self.targets[k] - self.origins[k]
         sgn = 1.0 if D >= 0 else -1.0
-        ta, tc, v = self._profile(abs(D))
-        T = 2 * ta + tc
-        if tau <= 0.0 or T == 0.0:
-            return (self.origins[k] if tau <= 0.0 else self.targets[k]), 0.0, 0.0
-        if tau >= T:
-            return self.targets[k], 0.0, 0.0
-        w = 2 * math.pi / ta
-
-        def ramp(s: float) -> tuple[float, float, float]:
-            return ((v / ta) * (s * s / 2 + (math.cos(w * s) - 1) / w**2), (v / ta) * (s - math.sin(w * s) / w),
-                    (v / ta) * (1 - math.cos(w * s)))
-
-        if tau <= ta:
-            p, dp, ddp = ramp(tau)
-        elif tau <= ta + tc:
-            p, dp, ddp = v * ta / 2 + v * (tau - ta), v, 0.0
-        else:
-            pr, vr, ar = ramp(T - tau)
-            p, dp, ddp = abs(D) - pr, vr, -ar
+        p, dp, ddp = move_point(tau, abs(D), self.velocity, self.accel)
         return self.origins[k] + sgn * p, sgn * dp, sgn * ddp
 
     def at(self, t: Any) -> tuple[Any, Any, Any]:

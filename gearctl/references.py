@@ -16,9 +16,55 @@ from numpy.typing import ArrayLike, NDArray
 from .errors import InputError
 from .units import quantity, validate_fields
 
-__all__ = ["Reference", "reference", "REFERENCES"]
+__all__ = ["Reference", "reference", "REFERENCES", "move_times", "move_point"]
 
 REFERENCES = ("sine", "step", "ramp", "move")
+
+
+def move_times(distance: float, velocity: float, accel: float, profile: str = "s-curve") -> tuple[float, float, float]:
+    """Ramp time, cruise time and cruise velocity of a rest-to-rest move over ``distance >= 0``.
+
+    ``accel`` is the peak acceleration [rad/s^2]; a move too short to reach ``velocity`` never cruises.
+    S-curve: acceleration ``(a/2)(1 - cos(2 pi t / t_a))`` over each ramp, so ``t_a = 2 v / a``;
+    trapezoid: constant ``a``, ``t_a = v / a``.
+    """
+    if distance <= 0.0:
+        return 0.0, 0.0, 0.0
+    mean = accel / 2 if profile == "s-curve" else accel  # mean acceleration over a ramp
+    ta = velocity / mean
+    if velocity * ta > distance:  # triangular: never reaches the cruise velocity
+        ta = math.sqrt(distance / mean)
+        velocity = mean * ta
+    return ta, (distance - velocity * ta) / velocity, velocity
+
+
+def move_point(tau: float, distance: float, velocity: float, accel: float,
+               profile: str = "s-curve") -> tuple[float, float, float]:
+    """Position, velocity, acceleration at time ``tau`` after the start of a move over ``distance >= 0``."""
+    ta, tc, v = move_times(distance, velocity, accel, profile)
+    T = 2 * ta + tc
+    if tau <= 0.0 or T == 0.0:
+        return (0.0 if tau <= 0.0 else distance), 0.0, 0.0
+    if tau >= T:
+        return distance, 0.0, 0.0
+    if profile == "trapezoid":
+        a = v / ta
+
+        def ramp(u: float) -> tuple[float, float, float]:
+            return 0.5 * a * u * u, a * u, a
+    else:
+        w = 2 * math.pi / ta
+
+        def ramp(u: float) -> tuple[float, float, float]:
+            return ((v / ta) * (u * u / 2 + (math.cos(w * u) - 1) / w**2), (v / ta) * (u - math.sin(w * u) / w),
+                    (v / ta) * (1 - math.cos(w * u)))
+
+    if tau <= ta:
+        return ramp(tau)
+    if tau <= ta + tc:
+        return v * ta / 2 + v * (tau - ta), v, 0.0
+    p, dp, ddp = ramp(T - tau)
+    return distance - p, dp, -ddp
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -38,7 +84,7 @@ class Reference:
     rate : float
         Ramp rate [rad/s]; for a move, the cruise velocity [rad/s].
     accel : float
-        Move acceleration [rad/s^2].
+        Peak acceleration of a move [rad/s^2].
     profile : str
         Move velocity profile: ``trapezoid`` or ``s-curve`` (sinusoidal jerk-limited ramps).
     disturbance_time : float
@@ -87,7 +133,8 @@ class Reference:
             T = abs(self.amplitude) / self.rate
             r = np.where(on, sgn * self.rate * np.minimum(tau, T), 0.0)
             return r, np.where(on & (tau < T), sgn * self.rate, 0.0), z
-        return self._move(tau)
+        out = np.array([self._scalar(float(x)) for x in t.ravel()]).T  # a move: the scalar path per sample
+        return out[0].reshape(t.shape), out[1].reshape(t.shape), out[2].reshape(t.shape)
 
     def _scalar(self, t: float) -> tuple[float, float, float]:
         """Pure-float path of :meth:`at` (the controllers call it once per sample)."""
@@ -105,80 +152,8 @@ class Reference:
         if self.kind == "ramp":
             T = abs(self.amplitude) / self.rate
             return (sgn * self.rate * min(tau, T), sgn * self.rate if tau < T else 0.0, 0.0)
-        ta, tc, v, T = self._move_times()
-        if tau >= T:
-            return self.amplitude, 0.0, 0.0
-        D, a = abs(self.amplitude), self.accel
-        if self.profile == "trapezoid":
-            if tau < ta:
-                return sgn * 0.5 * a * tau**2, sgn * a * tau, sgn * a
-            if tau < ta + tc:
-                return sgn * (0.5 * a * ta**2 + v * (tau - ta)), sgn * v, 0.0
-            td = T - tau
-            return sgn * (D - 0.5 * a * td**2), sgn * a * td, -sgn * a
-        w = 2 * math.pi / ta
-
-        def ramp(u: float) -> tuple[float, float, float]:
-            return ((v / ta) * (u * u / 2 + (math.cos(w * u) - 1) / w**2), (v / ta) * (u - math.sin(w * u) / w),
-                    (v / ta) * (1 - math.cos(w * u)))
-
-        if tau <= ta:
-            p, dp, ddp = ramp(tau)
-            return sgn * p, sgn * dp, sgn * ddp
-        if tau <= ta + tc:
-            return sgn * (v * ta / 2 + v * (tau - ta)), sgn * v, 0.0
-        p, dp, ddp = ramp(T - tau)
-        return sgn * (D - p), sgn * dp, -sgn * ddp
-
-    def _move_times(self) -> tuple[float, float, float, float]:
-        """Ramp time, cruise time, cruise velocity and duration of the move."""
-        D, a, v = abs(self.amplitude), self.accel, self.rate
-        ta = v / a
-        if a * ta**2 > D:  # triangular: never reaches the cruise velocity
-            ta = math.sqrt(D / a)
-            v = a * ta
-        tc = (D - a * ta**2) / v if v > 0 else 0.0
-        return ta, tc, v, 2 * ta + tc
-
-    def _move(self, tau: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
-        D, sgn = abs(self.amplitude), math.copysign(1.0, self.amplitude)
-        a, v = self.accel, self.rate
-        ta = v / a
-        if a * ta**2 > D:  # triangular: never reaches the cruise velocity
-            ta = math.sqrt(D / a)
-            v = a * ta
-        tc = (D - a * ta**2) / v if v > 0 else 0.0
-        T = 2 * ta + tc
-        tt = np.clip(tau, 0.0, T)
-        if self.profile == "trapezoid":
-            acc = np.where(tt < ta, a, np.where(tt < ta + tc, 0.0, -a))
-            p1 = 0.5 * a * np.minimum(tt, ta) ** 2
-            vel = np.where(tt < ta, a * tt, np.where(tt < ta + tc, v, v - a * (tt - ta - tc)))
-            p2 = v * np.clip(tt - ta, 0.0, tc)
-            td = np.clip(tt - ta - tc, 0.0, ta)
-            p3 = v * td - 0.5 * a * td**2
-            pos = p1 + p2 + p3
-        else:  # s-curve: acceleration a (1 - cos(2 pi t / ta)) over each ramp, same ta and peak velocity v
-            w = 2 * math.pi / ta
-
-            def ramp(s: NDArray) -> tuple[NDArray, NDArray, NDArray]:
-                acc_ = (v / ta) * (1 - np.cos(w * s))
-                vel_ = (v / ta) * (s - np.sin(w * s) / w)
-                pos_ = (v / ta) * (s**2 / 2 + (np.cos(w * s) - 1) / w**2)
-                return pos_, vel_, acc_
-
-            s1 = np.minimum(tt, ta)
-            P1, V1, A1 = ramp(s1)
-            p2 = v * np.clip(tt - ta, 0.0, tc)
-            s3 = np.clip(tt - ta - tc, 0.0, ta)
-            P3r, V3r, A3r = ramp(ta - s3)
-            P3 = v * ta / 2 - P3r  # mirror of the first ramp
-            pos = np.where(tt <= ta, P1, v * ta / 2 + p2 + np.where(tt > ta + tc, P3, 0.0))
-            vel = np.where(tt <= ta, V1, np.where(tt <= ta + tc, v, V3r))
-            acc = np.where(tt <= ta, A1, np.where(tt <= ta + tc, 0.0, -A3r))
-        inside = (tau >= 0) & (tau <= T)
-        pos = np.where(tau < 0, 0.0, pos)
-        return sgn * pos, sgn * np.where(inside, vel, 0.0), sgn * np.where(inside, acc, 0.0)
+        p, dp, ddp = move_point(tau, abs(self.amplitude), self.rate, self.accel, self.profile)
+        return sgn * p, sgn * dp, sgn * ddp
 
     def load_disturbance(self, t: float) -> float:
         """Load-torque disturbance at time ``t`` [N m]."""
