@@ -28,7 +28,8 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> d
         ``rms_error``, ``max_error``, ``final_error`` [rad] (load angle ``r - theta2``; final: at the last
         sample), ``impacts`` (count, both flanks), ``impacts_front``, ``impacts_back``,
         ``max_impact_velocity`` [m/s] (relative velocity along the line of action), ``fallbacks``
-        (count), ``overruns`` (solves over the controller's time budget), ``solve_time`` {``median``, ``p99``, ``max``} [s] or None for controllers that solve no
+        (count), ``overruns`` (solves over the controller's time budget),
+        ``solve_time`` {``median``, ``p99``, ``max``} [s] or None for controllers that solve no
         optimisation, ``torque_rms`` [N m], ``saturated_fraction`` (samples at the torque limit),
         ``duration`` [s], ``wall_time`` [s].
     """
