@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import functools
 import hashlib
 import math
 import os
@@ -167,11 +168,20 @@ def contact_matrices(plant: Plant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _propagators(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """``Phi(h) = e^{A h}`` and ``Gamma(h) = int_0^h e^{A t} dt`` (cached: a bench builds the same ones often)."""
+    return _propagators_cached(A.tobytes(), h)
+
+
+@functools.lru_cache(maxsize=256)
+def _propagators_cached(A_bytes: bytes, h: float) -> tuple[np.ndarray, np.ndarray]:
     M = np.zeros((8, 8))
-    M[:4, :4] = A
+    M[:4, :4] = np.frombuffer(A_bytes).reshape(4, 4)
     M[:4, 4:] = np.eye(4)
     E = scipy.linalg.expm(M * h)
-    return E[:4, :4], E[:4, 4:]
+    Phi, Gam = E[:4, :4].copy(), E[:4, 4:].copy()
+    Phi.flags.writeable = False
+    Gam.flags.writeable = False
+    return Phi, Gam
 
 
 # --- the kernel object ----------------------------------------------------------------------------------

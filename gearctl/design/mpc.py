@@ -183,7 +183,9 @@ class MPCSettings:
     measurement_noise : float
         Observer: std of each encoder's error [rad].
     backlash : float
-        Backlash estimate ``b`` [m].
+        Backlash estimate ``b`` [m], ``0 <= b < 0.01``. With ``b = 0`` the train is taken as backlash-free
+        (see *The backlash-free limit* in the module docstring): the landing settings (``soft_landing``,
+        ``landing_velocity``, ``relative_velocity``, ``smoothing``) are then unused.
     """
 
     horizon: int = 20
@@ -228,9 +230,8 @@ class MPCSettings:
         if self.torque == 0.0 and self.torque_rate == 0.0:
             raise InputError("torque = 0 and torque_rate = 0: at least one torque weight must be > 0 "
                              "(the QP needs a positive definite Hessian)", field="torque")
-        if not (0.0 < self.backlash < 0.01):
-            raise bad("backlash", "a number with 0 < value < 0.01 [m] (a backlash-free train needs no MPC "
-                      "of this kind)")
+        if not (0.0 <= self.backlash < 0.01):  # also rejects NaN
+            raise bad("backlash", "a number with 0 <= value < 0.01 [m] (0: a backlash-free train)")
 
 
 # --- reading a controller file ---------------------------------------------------------------------------
@@ -274,7 +275,8 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     name : str
         Label.
     backlash : float, optional
-        Backlash estimate overriding the file's ``backlash`` and the model's [m].
+        Backlash estimate overriding the file's ``backlash`` and the model's [m]; ``0 <= backlash < 0.01``,
+        0 giving the backlash-free (rigid-train) MPC, e.g. on the benchmark's backlash-free plant.
 
     Returns
     -------
@@ -318,10 +320,10 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     if backlash is not None:
         b = backlash
     else:
-        b = number(path, spec, "backlash", plant.backlash, 0.0, 0.01, unit="[m]", lo_open=True)
-    if not (0.0 < b < 0.01):
-        raise InputError(f"{path}: backlash = {b!r} is out of range: expected 0 < value < 0.01 [m]",
-                         field="backlash")
+        b = number(path, spec, "backlash", plant.backlash, 0.0, 0.01, unit="[m]")
+    if not (0.0 <= b < 0.01):  # also rejects NaN
+        raise InputError(f"{path}: backlash = {b!r} is out of range: expected 0 <= value < 0.01 [m] "
+                         f"(0: a backlash-free train)", field="backlash")
     fields = dict(
         horizon=int(horizon),
         solver=solver,
@@ -641,6 +643,7 @@ class MPC(Controller):
         p = info.plant
         self.N = n = st.horizon
         self._b = st.backlash
+        self._rigid = st.backlash == 0.0  # backlash-free: one rigid train, the mesh pushes and pulls
         self._tol = 0.02 * st.backlash  # contact when |s| >= b - tol (encoder resolution ~1 % of b)
         self._umax = min(info.torque_limit, 1e6)
         self._tau_load = p.load_torque
@@ -650,7 +653,8 @@ class MPC(Controller):
         # crossing: the lost motion 2b, a quarter of the torque limit accelerating then decelerating the
         # motor alone
         self._a_max = p.rb1 * self._umax / p.J1  # relative acceleration at full torque [m/s^2]
-        self.n_cross = max(2, math.ceil(2.0 * math.sqrt(2 * self._b / (0.25 * self._a_max)) / Ts))
+        self.n_cross = 0 if self._rigid else max(2, math.ceil(2.0 * math.sqrt(2 * self._b / (0.25 * self._a_max))
+                                                             / Ts))
         self.n_lead = self.n_cross // 2
         # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
@@ -663,7 +667,8 @@ class MPC(Controller):
         self._qp.uba[:n] = _INF
         self._bound_landing = st.soft_landing == "bound"
         self._f_land = st.smoothing
-        self._v_land = st.landing_velocity * Ts / st.backlash  # in the velocity row's units, b / Ts
+        # in the velocity row's units, b / Ts (no landing rows without backlash)
+        self._v_land = 0.0 if self._rigid else st.landing_velocity * Ts / st.backlash
         self.statuses: list[str] = []
         self.step_times: list[float] = []
         self.reset()
@@ -741,14 +746,18 @@ class MPC(Controller):
         K = (Ap.T * W) @ Ap
         Hc = np.ascontiguousarray(H)
         A_f, M_f, ptr = {}, {}, {}
+        # the gap rows in units of b (only patterns with a float have any: none without backlash)
+        inv_b = 1.0 / self._b if gap.any() else 0.0
         for sig in (1, -1):
             sgn = np.where(np.arange(n) < a, sig, -sig).astype(float)
             sgn[np.all(Fxi == 0.0, axis=1)] = 0.0  # separation samples: no mesh torque
+            if self._rigid:  # no gap: the mesh pulls as well as pushes, its torque is not constrained
+                sgn[:] = 0.0
             Af = np.zeros((n + 2, n))
-            Af[:n] = sgn[:, None] * Fxi[:, 6:] + Sxi[:, 6:] / self._b  # row k: mesh torque, or the gap / b
+            Af[:n] = sgn[:, None] * Fxi[:, 6:] + Sxi[:, 6:] * inv_b  # row k: mesh torque, or the gap / b
             M = np.zeros((2 * n + 2, self.n_p))
             M[:n] = G
-            M[n:2 * n, :6] = -sgn[:, None] * Fxi[:, :6] - Sxi[:, :6] / self._b  # gap rows: minus s_free / b
+            M[n:2 * n, :6] = -sgn[:, None] * Fxi[:, :6] - Sxi[:, :6] * inv_b  # gap rows: minus s_free / b
             if land_s is not None:  # rows scaled to O(1): the gap in units of b, the speed in b / Ts
                 Af[n], Af[n + 1] = land_s[0] / self._b, land_v[0] * self.Ts / self._b
                 M[2 * n] = -land_s[1] / self._b
@@ -766,6 +775,8 @@ class MPC(Controller):
         H0 = self._condense(n, n + 1).H
         self._cost_scale = 1.0 / float(np.mean(np.diag(H0)))  # Hessian diagonal ~ 1 for the solver
         self._patterns: dict[tuple[int, int], _Pattern] = {self._all_contact: self._condense(n, n + 1)}
+        if self._rigid:  # backlash-free: the train is always in contact, no separation or landing patterns
+            return
         for a in range(n):
             for e in range(a + 1, a + nc + 3):
                 key = (a, min(e, n + 1))
