@@ -41,6 +41,18 @@ constant QP matrices: all of them (about 140 for a horizon of 20) are condensed 
 constructor, and a step only forms ``M p`` (gradient and constraint bounds at once) from the parameter
 vector ``p`` (estimate, disturbance, reference preview, feedforward, last torque).
 
+The backlash-free limit
+-----------------------
+A backlash estimate ``b = 0`` (e.g. the benchmark's backlash-free plant) is the limit of the design:
+there is no gap, so no separation, crossing or landing pattern, and the mesh is a rigid coupling that
+transmits torque both ways (with ``b = 0`` the plant's contact law ``F = k s + c s'`` acts on both
+sides of ``s = 0``), so the sign constraint on the mesh torque is dropped. Each step solves the
+contact QP alone (tracking, torque, torque rate, the torque limit, terminal weight: the rigid train),
+one solve per sample. The gap is taken as ``s = v = 0`` (the mesh deflection ``F / k`` is far below
+the encoders' resolution) and the gap filter is not designed; the centre-of-inertia filter, with its
+load-disturbance estimate, still gives the integral action. The landing settings are then unused.
+Solve-time recording, fallbacks, overrun handling and the solver path are those of ``b > 0``.
+
 Notes
 -----
 *Mode-switched model rather than a smooth contact law.* The mesh mode (2.8 kHz on the benchmark servo,
@@ -617,7 +629,7 @@ class MPC(Controller):
     fallbacks : list of dict
         ``{"t", "reason"}`` for each step that applied the previous plan's next input.
     n_cross : int
-        Samples a planned crossing of the gap lasts.
+        Samples a planned crossing of the gap lasts (0 without backlash: nothing to cross).
 
     Raises
     ------
@@ -651,10 +663,10 @@ class MPC(Controller):
         self._rb1, self._rb2 = p.rb1, p.rb2
         self.model = _gap_model(info, Ts)
         # crossing: the lost motion 2b, a quarter of the torque limit accelerating then decelerating the
-        # motor alone
+        # motor alone (none without backlash)
         self._a_max = p.rb1 * self._umax / p.J1  # relative acceleration at full torque [m/s^2]
-        self.n_cross = 0 if self._rigid else max(2, math.ceil(2.0 * math.sqrt(2 * self._b / (0.25 * self._a_max))
-                                                             / Ts))
+        t_cross = 2.0 * math.sqrt(2 * self._b / (0.25 * self._a_max))
+        self.n_cross = 0 if self._rigid else max(2, math.ceil(t_cross / Ts))
         self.n_lead = self.n_cross // 2
         # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
@@ -746,18 +758,18 @@ class MPC(Controller):
         K = (Ap.T * W) @ Ap
         Hc = np.ascontiguousarray(H)
         A_f, M_f, ptr = {}, {}, {}
-        # the gap rows in units of b (only patterns with a float have any: none without backlash)
-        inv_b = 1.0 / self._b if gap.any() else 0.0
+        # the gap rows, in units of b: only patterns with a float have any (none without backlash; Sxi = 0 else)
+        gb = self._b if gap.any() else 1.0
         for sig in (1, -1):
             sgn = np.where(np.arange(n) < a, sig, -sig).astype(float)
             sgn[np.all(Fxi == 0.0, axis=1)] = 0.0  # separation samples: no mesh torque
             if self._rigid:  # no gap: the mesh pulls as well as pushes, its torque is not constrained
                 sgn[:] = 0.0
             Af = np.zeros((n + 2, n))
-            Af[:n] = sgn[:, None] * Fxi[:, 6:] + Sxi[:, 6:] * inv_b  # row k: mesh torque, or the gap / b
+            Af[:n] = sgn[:, None] * Fxi[:, 6:] + Sxi[:, 6:] / gb  # row k: mesh torque, or the gap / b
             M = np.zeros((2 * n + 2, self.n_p))
             M[:n] = G
-            M[n:2 * n, :6] = -sgn[:, None] * Fxi[:, :6] - Sxi[:, :6] * inv_b  # gap rows: minus s_free / b
+            M[n:2 * n, :6] = -sgn[:, None] * Fxi[:, :6] - Sxi[:, :6] / gb  # gap rows: minus s_free / b
             if land_s is not None:  # rows scaled to O(1): the gap in units of b, the speed in b / Ts
                 Af[n], Af[n + 1] = land_s[0] / self._b, land_v[0] * self.Ts / self._b
                 M[2 * n] = -land_s[1] / self._b
@@ -795,6 +807,7 @@ class MPC(Controller):
         ``phi_m = (J1 y1 + (J2/N) y2) / J_eq`` (``y1 - kappa1 s`` with the motor encoder alone).
         Gap ``[s, v]``: the separation model, measured by ``s_m = r_b1 y1 - r_b2 y2``; a small gain
         (the model is exact between impacts) and a large one, used when the innovation shows an impact.
+        Without backlash there is no gap to estimate (``s = v = 0``) and the gap gains are not designed.
         """
         st, m = self.settings, self.model
         sp, sd, sm = st.process_noise, st.process_noise, st.measurement_noise
@@ -813,6 +826,10 @@ class MPC(Controller):
         # gap: rows of the separation model (they also see phi, omega through friction)
         self._gap_rows = tuple(float(v) for v in (*m.A_sep[2], *m.B_sep[2], *m.A_sep[3], *m.B_sep[3]))
         r_s = sm * math.hypot(self.info.plant.rb1, self.info.plant.rb2)
+        if self._rigid:  # no gap (and no impact: the velocity-jump model below would be degenerate)
+            self._Lg = ((0.0, 0.0), (0.0, 0.0))
+            self._impact_innovation = math.inf
+            return
         Ag, Gg = m.A_sep[2:, 2:], m.B_sep[2:, :1]
         v_small = sp  # unmodelled torque on the motor
         v_big = self._b / self.Ts  # an impact: a velocity jump of the order of b / Ts
@@ -874,7 +891,7 @@ class MPC(Controller):
         s_m = float(self._rb1 * y_motor - self._rb2 * y_load) if load else 0.0
         if self._z is None:  # first sample: at rest, the gap from the encoders (mid-gap without them)
             phi_m = y_motor - m.kappa1 * s_m
-            self._z = np.array([phi_m, 0.0, s_m, 0.0, 0.0])
+            self._z = np.array([phi_m, 0.0, 0.0 if self._rigid else s_m, 0.0, 0.0])
             return
         z, u = self._z, self._u
         phi, om, s, v, d = z.tolist()
@@ -883,7 +900,9 @@ class MPC(Controller):
         a0, a1, a2, a3, b0, b1, c0, c1, c2, c3, d0, d1 = self._gap_rows
         s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau
         v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau
-        if load:
+        if self._rigid:  # no gap: the rigid train (the mesh deflection F / k is below the encoders' resolution)
+            s_n, v_n = 0.0, 0.0
+        elif load:
             if abs(s_m) >= b - tol:  # contact: the reduced model's plastic impact
                 s_n, v_n = s_m, 0.0
             else:
@@ -920,6 +939,8 @@ class MPC(Controller):
         p[5] = p_new
         np.dot(pat.M[sig], p, out=qp.gl)
         lba, uba = qp.lba, qp.uba
+        if self._rigid:  # the mesh-torque rows are empty: no bound (the mesh pulls as well as pushes)
+            lba[:n] = -_INF
         if self._gap_bounded:  # undo the last pattern's gap rows
             uba[:n] = _INF
             self._gap_bounded = False
@@ -993,8 +1014,9 @@ class MPC(Controller):
         mesh-torque constraint binds somewhere in the horizon (the plan would pull on the flank), the QP
         of a crossing centred there is solved too and the cheaper plan (full cost) is applied; a crossing
         that starts now is then committed. Floating (start-up, a bounce, a crossing) the QP of the
-        landing pattern is solved, with a longer landing if that one is infeasible. The entry in
-        :attr:`solve_times` is the step's total QP time.
+        landing pattern is solved, with a longer landing if that one is infeasible. Without backlash
+        (``backlash = 0``) only the rigid-train QP is solved, with the mesh torque unconstrained. The entry
+        in :attr:`solve_times` is the step's total QP time.
         """
         t_step = time.perf_counter()
         n, b = self.N, self._b
@@ -1017,7 +1039,10 @@ class MPC(Controller):
         sig = self._flank
         if sig == 0:  # first sample: in contact, or floating (both flanks are then tried, front first)
             self._flank = sig = side or 1
-        if side != 0 and side == sig:  # in contact on the target flank: stay, or cross if that is cheaper
+        if self._rigid:  # backlash-free: the rigid-train QP alone (no flank, no crossing, no landing)
+            key = self._all_contact
+            status, solve_time, _ = self._solve(key, 0.0, 1)
+        elif side != 0 and side == sig:  # in contact on the target flank: stay, or cross if that is cheaper
             self._land = None
             key = self._all_contact
             status, solve_time, _ = self._solve(key, sig * b, sig)
