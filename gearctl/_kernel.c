@@ -250,26 +250,41 @@ int gc_advance_pwl(const gc_params *p, gc_state *st, double u1, double u2, doubl
     double t_end = st->t + T;
     st->n_events = 0;
     long guard = 0;
+    /* per mode and call: the affine term a, Gamma(h) a, and x' carried from step to step (x'(h) = Phi x'(0)) */
+    int cached_mode = 99, have_dx = 0;
+    double a[4], gam_a[4], dx0[4], dx1[4];
     while (st->t < t_end) {
         int mode = st->mode;
         int dyn = loaded(mode) ? 0 : 1;
         const double *A = p->A[dyn];
-        double a[4], x0[4], x1[4], tmp[4], dx0[4], dx1[4];
+        double x0[4], x1[4];
         double D[NTAY][4];
         int nt = 0, i;
-        affine(p, mode, u1, u2, a);
+        if (mode != cached_mode) {
+            affine(p, mode, u1, u2, a);
+            matvec4(p->Gam[dyn], a, gam_a);
+            cached_mode = mode;
+            have_dx = 0;
+        }
         memcpy(x0, st->x, sizeof x0);
+        if (!have_dx) {
+            matvec4(A, x0, dx0);
+            for (i = 0; i < 4; i++) dx0[i] += a[i];
+        }
         double remaining = t_end - st->t, h = p->h[dyn];
         int lands = fabs(remaining - h) <= 1e-9 * h; /* this step ends the interval */
-        if (lands || remaining > h) {                 /* a full step: precomputed exact propagator */
+        int full = lands || remaining > h;
+        if (full) { /* a full step: precomputed exact propagator */
             matvec4(p->Phi[dyn], x0, x1);
-            matvec4(p->Gam[dyn], a, tmp);
-            for (i = 0; i < 4; i++) x1[i] += tmp[i];
+            for (i = 0; i < 4; i++) x1[i] += gam_a[i];
+            matvec4(p->Phi[dyn], dx0, dx1);
         } else { /* the last, partial step: Taylor series of the same exact solution */
             h = remaining;
             lands = 1;
             nt = taylor(A, p->rho[dyn], x0, a, h, D);
             taylor_eval(D, nt, h, x1);
+            matvec4(A, x1, dx1);
+            for (i = 0; i < 4; i++) dx1[i] += a[i];
         }
         /* events: each g_e is positive inside the mode */
         double cg[2][4], g0[2];
@@ -278,9 +293,6 @@ int gc_advance_pwl(const gc_params *p, gc_state *st, double u1, double u2, doubl
         int ne = (p->b == 0.0 && p->law == 0) ? 0 : event_functions(p, mode, cg, g0, target);
         double best = -1.0;
         int which = -1;
-        matvec4(A, x0, dx0);
-        matvec4(A, x1, dx1);
-        for (i = 0; i < 4; i++) { dx0[i] += a[i]; dx1[i] += a[i]; }
         for (int e = 0; e < ne; e++) {
             double ga = g0[e], gb = g0[e], da = 0.0, db = 0.0, dscale = 0.0;
             for (i = 0; i < 4; i++) {
@@ -318,9 +330,12 @@ int gc_advance_pwl(const gc_params *p, gc_state *st, double u1, double u2, doubl
         st->n_steps++;
         if (which < 0) {
             memcpy(st->x, x1, sizeof x1);
+            memcpy(dx0, dx1, sizeof dx1);
+            have_dx = 1;
             st->t = lands ? t_end : st->t + h;
             if (ne == 0 && p->b == 0.0) st->mode = s_of(p, x1) >= 0.0 ? 1 : -1; /* the label only */
         } else {
+            have_dx = 0; /* the state jumped to the event (and a plastic impact may change it) */
             if (nt == 0) nt = taylor(A, p->rho[dyn], x0, a, h, D);
             taylor_eval(D, nt, best, st->x);
             st->t += best;

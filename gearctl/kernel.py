@@ -344,15 +344,17 @@ class Kernel:
 
         0 is success; events are appended to :attr:`events` as ``(t, kind, side, v)``.
         """
-        if self._fn is not None:
-            t_end = self._st.t + T
+        fn = self._fn
+        if fn is not None:
+            st = self._st
+            t_end = st.t + T
+            status = fn(self._pp, self._sp, u1, u2, T, self._evp, self._cap)
             while True:
-                status = self._fn(self._pp, self._sp, u1, u2, t_end - self._st.t, self._evp, self._cap)
-                n = min(self._st.n_events, self._cap)
-                if n:
-                    self._drain(n)
+                if st.n_events:
+                    self._drain(min(st.n_events, self._cap))
                 if status != _BUFFER_FULL:
                     return status
+                status = fn(self._pp, self._sp, u1, u2, t_end - st.t, self._evp, self._cap)
         if self.exact:
             return _py_advance_pwl(self, u1, u2, T)
         return _py_advance_ode(self, u1, u2, T)
