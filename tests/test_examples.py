@@ -1,0 +1,44 @@
+"""Smoke tests: each example runs end to end on a short horizon and writes its figures."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _main(name: str):  # noqa: ANN202
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    spec.loader.exec_module(mod)  # type: ignore[union-attr]
+    return mod.main
+
+
+def test_report_figures(tmp_path: Path) -> None:
+    _main("01_report_figures")(["--out", str(tmp_path), "--duration", "0.002"])
+    assert {p.name for p in tmp_path.glob("*.png")} == {
+        "fig08-11_stiffness.png", "fig12-16_free.png", "fig17-21_load.png"}
+
+
+def test_bode_step_margins(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    _main("03_bode_step_margins")(["--out", str(tmp_path)])
+    assert len(list(tmp_path.glob("*.png"))) == 3
+    out = capsys.readouterr().out
+    assert "PID on the contact" in out and "PID on the separation" in out
+
+
+def test_benchmark_report(tmp_path: Path) -> None:
+    _main("05_benchmark_report")(["--out", str(tmp_path), "--duration", "0.05"])
+    report = (tmp_path / "report.md").read_text()
+    assert "| controller |" in report and "backlash-free" in report
+    assert (tmp_path / "rms_by_controller.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_simulator_benchmark(capsys: pytest.CaptureFixture[str]) -> None:
+    _main("02_simulator_benchmark")()
+    out = capsys.readouterr().out
+    assert out.count("python-control (rtol 1e-10)") == 2
