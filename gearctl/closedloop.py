@@ -18,11 +18,11 @@ from numpy.typing import NDArray
 
 from .design.base import Controller
 from .errors import InputError, SimulationError
-from .kernel import EventKind, Kernel
+from .kernel import Kernel
 from .params import Sensors
 from .plant import Plant
 from .references import Reference
-from .simulate import DIVERGENCE_LIMIT, Event
+from .simulate import DIVERGENCE_LIMIT, Event, located_events
 
 __all__ = ["ClosedLoopResult", "simulate_closed_loop", "Encoder"]
 
@@ -232,8 +232,7 @@ def simulate_closed_loop(
     yl = np.array([*yl_l, enc_l.read(xs[1, -1], rng) if use_load else nan])
     wall = time.perf_counter() - wall0
     sl = slice(0, last + 1)
-    events = [Event(float(te), EventKind.NAMES[int(k)], "front" if sd > 0 else "back", float(v))
-              for te, k, sd, v in kn.events]
+    events = located_events(kn)
     res = ClosedLoopResult(
         t=t[sl], x=xs[:, sl], reference=r[sl], torque=u[sl], command=cmd[sl], y_motor=ym[sl], y_load=yl[sl],
         mode=mode[sl], events=events, solve_times=np.asarray(controller.solve_times, dtype=float),

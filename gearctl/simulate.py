@@ -244,14 +244,19 @@ def simulate(
     return res
 
 
+def located_events(kn: Kernel) -> list[Event]:
+    """The events a kernel located, as :class:`Event` objects in time order."""
+    return [Event(float(te), EventKind.NAMES[int(k)], "front" if sd > 0 else "back", float(v))
+            for te, k, sd, v in kn.events]
+
+
 def _result(plant: Plant, kn: Kernel, t: NDArray, x: NDArray, u: NDArray, mode: NDArray, dys: NDArray,
             status: int) -> SimulationResult:
     diverged = status == 0 and not np.all(np.abs(x[2:, -1]) < DIVERGENCE_LIMIT)
     ok = status == 0 and not diverged
     message = "ok" if ok else (f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s" if diverged
                                else Kernel.status_message(status))
-    events = [Event(float(te), EventKind.NAMES[int(k)], "front" if sd > 0 else "back", float(v))
-              for te, k, sd, v in kn.events]
+    events = located_events(kn)
     return SimulationResult(
         t=t, x=x, u=u, s=plant.rb1 * x[0] - plant.rb2 * x[1], mode=mode,
         force=contact_force(plant, x, mode, dys), events=events, max_penetration=kn.max_penetration,
