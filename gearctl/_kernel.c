@@ -42,6 +42,13 @@ typedef struct {
 } gc_params;
 
 typedef struct {
+    double t;
+    double v; /* relative velocity along the line of action at the event [m/s] */
+    long kind;
+    long side;
+} gc_event;
+
+typedef struct {
     double x[4];
     double t;
     double d_ys;    /* Yang-Sun damping factor of the current contact [N s/m^2] */
@@ -50,14 +57,11 @@ typedef struct {
     long n_events;  /* events located in the last call (may exceed the buffer) */
     long n_steps;   /* sub-steps taken in total */
     int mode;
+    /* inputs of gc_step (one call per controller sample with two pointer arguments: cheap from ctypes) */
+    double u1, u2, T;
+    gc_event *ev;
+    long cap;
 } gc_state;
-
-typedef struct {
-    double t;
-    double v; /* relative velocity along the line of action at the event [m/s] */
-    long kind;
-    long side;
-} gc_event;
 
 /* ---------------------------------------------------------------- shared helpers */
 
@@ -589,4 +593,11 @@ int gc_run(const gc_params *p, gc_state *st, double u1, double u2, double dt, lo
     }
     st->n_events = total;
     return status;
+}
+
+/* One interval with the inputs stored in the state (u1, u2, T, ev, cap): the closed loop's per-sample call. */
+int gc_step(const gc_params *p, gc_state *st) {
+    if (p->kind == 0 && p->tc1 == 0.0 && p->tc2 == 0.0)
+        return gc_advance_pwl(p, st, st->u1, st->u2, st->T, st->ev, st->cap);
+    return gc_advance_ode(p, st, st->u1, st->u2, st->T, st->ev, st->cap);
 }

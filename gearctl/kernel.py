@@ -79,7 +79,9 @@ class _Params(ctypes.Structure):
 class _State(ctypes.Structure):
     _fields_ = [("x", ctypes.c_double * 4), ("t", ctypes.c_double), ("d_ys", ctypes.c_double),
                 ("h_ode", ctypes.c_double), ("max_pen", ctypes.c_double), ("n_events", ctypes.c_long),
-                ("n_steps", ctypes.c_long), ("mode", ctypes.c_int)]
+                ("n_steps", ctypes.c_long), ("mode", ctypes.c_int),
+                ("u1", ctypes.c_double), ("u2", ctypes.c_double), ("T", ctypes.c_double),
+                ("ev", ctypes.c_void_p), ("cap", ctypes.c_long)]
 
 
 # --- compilation -----------------------------------------------------------------------------------------
@@ -135,6 +137,8 @@ def _load() -> ctypes.CDLL | None:
         fn.restype = ctypes.c_int
         fn.argtypes = [ctypes.POINTER(_Params), ctypes.POINTER(_State), ctypes.c_double, ctypes.c_double,
                        ctypes.c_double, ctypes.c_void_p, ctypes.c_long]
+    lib.gc_step.restype = ctypes.c_int
+    lib.gc_step.argtypes = [ctypes.POINTER(_Params), ctypes.POINTER(_State)]
     lib.gc_run.restype = ctypes.c_int
     lib.gc_run.argtypes = [ctypes.POINTER(_Params), ctypes.POINTER(_State), ctypes.c_double, ctypes.c_double,
                            ctypes.c_double, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
@@ -286,8 +290,10 @@ class Kernel:
         self._fn = None
         if lib is not None:
             self._fn = lib.gc_advance_pwl if self.exact else lib.gc_advance_ode
+            self._step = lib.gc_step
             self._pp, self._sp = ctypes.byref(prm), ctypes.byref(st)
             self._evp = self._ev.ctypes.data
+            st.ev, st.cap = self._evp, self._cap
 
     # -- state access
     @property
@@ -344,17 +350,18 @@ class Kernel:
 
         0 is success; events are appended to :attr:`events` as ``(t, kind, side, v)``.
         """
-        fn = self._fn
-        if fn is not None:
+        if self._fn is not None:
             st = self._st
             t_end = st.t + T
-            status = fn(self._pp, self._sp, u1, u2, T, self._evp, self._cap)
+            st.u1, st.u2, st.T = u1, u2, T
+            status = self._step(self._pp, self._sp)  # two pointer arguments: the cheapest ctypes call
             while True:
                 if st.n_events:
                     self._drain(min(st.n_events, self._cap))
                 if status != _BUFFER_FULL:
                     return status
-                status = fn(self._pp, self._sp, u1, u2, t_end - st.t, self._evp, self._cap)
+                st.T = t_end - st.t
+                status = self._step(self._pp, self._sp)
         if self.exact:
             return _py_advance_pwl(self, u1, u2, T)
         return _py_advance_ode(self, u1, u2, T)
