@@ -85,17 +85,16 @@ def test_pid_error_is_half_the_lost_motion(baseline: dict[str, dict[str, float]]
     assert 0.8 * half < baseline["improved"]["pid"] < 1.1 * half
 
 
-@pytest.mark.parametrize(("kind", "bound"), [("improved", 3.0), ("yang-sun", 2.5)])
+@pytest.mark.parametrize(("kind", "bound"), [("improved", 3.0), ("yang-sun", 3.0)])
 def test_deadzone_inverse_cuts_rms_error(baseline: dict[str, dict[str, float]], kind: str, bound: float) -> None:
     ratio = baseline[kind]["pid"] / baseline[kind]["deadzone_inverse"]
     print(f"{kind}: PID {baseline[kind]['pid']:.3g} rad, inverse {baseline[kind]['deadzone_inverse']:.3g} rad, "
           f"ratio {ratio:.2f}")
-    # improved: PID 6.3e-4, inverse 1.45e-4 rad -> 4.3x (issue 6 asks for >= 3).
-    # Yang-Sun: PID 5.6e-4, inverse 1.9e-4 rad -> 3.0x. The controllers are designed on the improved
-    # plant; Yang-Sun's stiffer Hertz mesh with its impact-speed damping rattles more at each flank
-    # change (~320 impacts against ~180 in 3 s), which the inverse cannot remove, so its gain there is
-    # smaller. 2.5 keeps the claim ("the inverse removes most of the lost motion on either plant
-    # model") with room for that model difference, not for a regression to the PID's level.
+    # improved: PID 6.3e-4, inverse 1.43e-4 rad -> 4.4x (issue 6 asks for >= 3 on both plants).
+    # Yang-Sun: PID 5.6e-4, inverse 1.85e-4 rad -> 3.04x: the margin is thin. The controllers are
+    # designed on the improved plant; Yang-Sun's stiffer Hertz mesh with its impact-speed damping rattles
+    # more at each flank change (~320 impacts against ~180 in 3 s), which the inverse cannot remove.
+    # The runs are deterministic (no noise, fixed seed), so the bound cannot flake.
     assert ratio >= bound
 
 

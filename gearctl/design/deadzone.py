@@ -62,7 +62,7 @@ class DeadzoneInverse(Controller):
             raise InputError(f"backlash = {backlash!r} is out of range: expected 0 <= value < 0.01 [m]",
                              field="backlash")
         self.pid, self.backlash, self.rule, self.name = pid, backlash, rule, name
-        self.width = width if width is not None else (2e-3 if rule == "torque" else 1e-2)
+        self.width = width if width is not None else (5e-4 if rule == "torque" else 1e-2)
         if not (self.width > 0 and math.isfinite(self.width)):
             raise InputError(f"width = {self.width!r} is out of range: expected a number > 0", field="width")
         self.Ts = pid.Ts

@@ -162,7 +162,7 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
         b = backlash if backlash is not None else number(path, spec, "backlash", plant.backlash, 0.0, 0.01,
                                                           unit="[m]")
         rule = _choice(path, spec, "rule", "torque", ("torque", "velocity"))
-        width = number(path, spec, "width", 2e-3 if rule == "torque" else 1e-2, 0.0, 1e3, lo_open=True,
+        width = number(path, spec, "width", 5e-4 if rule == "torque" else 1e-2, 0.0, 1e3, lo_open=True,
                        unit="[N m] (torque rule) or [rad/s] (velocity rule)")
         return DeadzoneInverse(pid, backlash=b, rule=rule, width=width, name=name)
     from .mpc import build_mpc  # CasADi is imported only when an MPC is asked for
