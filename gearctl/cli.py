@@ -98,6 +98,13 @@ def _write_csv(path: str, header: Sequence[str], columns: Sequence[Any]) -> None
         raise InputError(f"cannot write {path}: {exc.strerror}") from None
 
 
+def _say_written(*pairs: tuple[str | None, str]) -> None:
+    """Print ``wrote FILE (what)`` for each file the user asked for."""
+    for path, what in pairs:
+        if path:
+            print(f"  wrote {path} ({what})")
+
+
 def _save_figure(fig: Any, path: str) -> None:
     from .plots import save
 
@@ -232,9 +239,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     print(f"  final                  theta1 {f['theta1']:.6g} rad, theta2 {f['theta2']:.6g} rad, "
           f"omega1 {f['omega1']:.6g} rad/s, omega2 {f['omega2']:.6g} rad/s, {summary['final_mode']}")
     print(f"  energy                 {energy[0]:.6g} J -> {energy[-1]:.6g} J")
-    for path, what in ((args.csv, "CSV"), (args.plot, "plot")):
-        if path:
-            print(f"  wrote {path} ({what})")
+    _say_written((args.csv, "CSV"), (args.plot, "plot"))
     return 0
 
 
@@ -287,9 +292,7 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
               f"anti-resonance {mesh.antiresonance_hz:.5g} Hz (motor torque -> motor angle)")
     print(f"  rigid train            J_eq {modes.plant.J1 + modes.plant.J2 / modes.plant.gear_ratio ** 2:.5g} kg m^2 "
           f"on the motor, gear ratio {modes.plant.gear_ratio:.4g}")
-    for path, what in ((args.bode, "Bode of contact, separation and rigid models"), (args.step, "step response")):
-        if path:
-            print(f"  wrote {path} ({what})")
+    _say_written((args.bode, "Bode of contact, separation and rigid models"), (args.step, "step response"))
     return 0
 
 
@@ -390,9 +393,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
               f"fallbacks {m['fallbacks']}")
     print(f"  wall time              {m['wall_time']:.3g} s ({m['duration'] / max(m['wall_time'], 1e-9):.0f} "
           f"simulated s per wall s)")
-    for path, what in ((args.csv, "CSV"), (args.plot, "plot")):
-        if path:
-            print(f"  wrote {path} ({what})")
+    _say_written((args.csv, "CSV"), (args.plot, "plot"))
     return 0
 
 

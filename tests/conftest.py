@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from gearctl import GearModel, load_model
+from gearctl import GearModel, Plant, build_plant, load_model
 from gearctl.catalog import resolve
+from gearctl.kernel import compiled_available
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -61,3 +62,15 @@ def write_model(tmp_path: Path, shing_toml_text: str) -> Callable[..., Path]:
         return path
 
     return write
+
+
+def require_compiled(compiled: bool | None) -> None:
+    """Skip a compiled-path check where the C kernel cannot be built."""
+    if compiled and not compiled_available():
+        pytest.skip("compiled kernel not available (no C compiler, or GEARCTL_NO_COMPILE set)")
+
+
+@pytest.fixture(scope="module")
+def improved(shing: GearModel) -> Plant:
+    """The report's pair, improved plant (computed k, eq 38 damping, linear law)."""
+    return build_plant(shing)

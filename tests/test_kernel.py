@@ -22,25 +22,14 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg
+from conftest import require_compiled
 from numpy.testing import assert_allclose
 
 from gearctl import ContactLaw, GearModel, InputError, Plant, build_plant, load_model
-from gearctl.kernel import ZENO_VELOCITY, EventKind, Kernel, compiled_available, contact_matrices
+from gearctl.kernel import ZENO_VELOCITY, EventKind, Kernel, contact_matrices
 from gearctl.simulate import Event, SimulationResult, simulate
 
 KERNELS = [pytest.param(True, id="compiled"), pytest.param(False, id="python")]
-
-
-def require_compiled(compiled: bool) -> None:
-    """Skip a compiled-path check where the C kernel cannot be built."""
-    if compiled and not compiled_available():
-        pytest.skip("compiled kernel not available (no C compiler, or GEARCTL_NO_COMPILE set)")
-
-
-@pytest.fixture(scope="module")
-def improved(shing: GearModel) -> Plant:
-    """The report's pair, improved plant (computed k, eq 38 damping, linear law)."""
-    return build_plant(shing)
 
 
 @pytest.fixture(scope="module")

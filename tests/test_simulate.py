@@ -25,30 +25,18 @@ import math
 import numpy as np
 import pytest
 import scipy.optimize
+from conftest import require_compiled
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from gearctl import ContactLaw, GearModel, InputError, Plant, PlantKind, SimulationError, build_plant, load_model
-from gearctl.kernel import compiled_available
 from gearctl.plant import plant_nlsys
 from gearctl.reference import reference_solution
 from gearctl.simulate import CASES, SimulationResult, contact_force, report_case, simulate
 
 KERNELS = [pytest.param(True, id="compiled"), pytest.param(False, id="python")]
 FREE_X0 = (0.0, 0.0, 50.0, 0.0)  # section 5.1.1: neutral positions, omega1 = 50 rad/s, omega2 = 0
-
-
-def require_compiled(compiled: bool | None) -> None:
-    """Skip a compiled-path check where the C kernel cannot be built."""
-    if compiled and not compiled_available():
-        pytest.skip("compiled kernel not available (no C compiler, or GEARCTL_NO_COMPILE set)")
-
-
-@pytest.fixture(scope="module")
-def improved(shing: GearModel) -> Plant:
-    """The report's pair, improved plant (computed k, eq 38 damping, linear law)."""
-    return build_plant(shing)
 
 
 @pytest.fixture(scope="module")
