@@ -16,13 +16,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .design.base import Controller
+from .controller import Controller, ReferenceLike
 from .errors import InputError, SimulationError
 from .kernel import Kernel
+from .limits import check_output_size
 from .params import Sensors
 from .plant import Plant
-from .references import Reference
 from .simulate import DIVERGENCE_LIMIT, Event, located_events
+from .units import DURATION, SEED
 
 __all__ = ["ClosedLoopResult", "simulate_closed_loop", "Encoder"]
 
@@ -52,8 +53,8 @@ class ClosedLoopResult:
     ----------
     t : ndarray, shape (n,)
         Sample times [s].
-    x : ndarray, shape (4, n)
-        True plant states at the samples.
+    x : ndarray, shape (nx, n)
+        True plant states at the samples (shaft angles, then speeds).
     reference : ndarray, shape (n,)
         Load-angle reference [rad].
     torque : ndarray, shape (n,)
@@ -62,10 +63,13 @@ class ClosedLoopResult:
         Torque the controller asked for [N m].
     y_motor, y_load : ndarray, shape (n,)
         Encoder readings [rad] (``y_load`` NaN without a load encoder).
-    mode : ndarray of int, shape (n,)
-        Contact mode at the samples (-1 back, 0 separation, 1 front).
-    events : list of Event
-        Impacts and separations located inside the samples.
+    mode : ndarray of int, shape (n,) or (stages, n)
+        Contact mode at the samples (-1 back, 0 separation, 1 front), one row per stage of a train.
+    event_log : ndarray
+        Impacts and separations located inside the samples (:data:`gearctl.kernel.EVENT_DTYPE`);
+        :attr:`events` as objects.
+    counts : dict
+        Exact event counts per stage (:data:`gearctl.kernel.COUNT_NAMES`), also beyond the recorded ones.
     solve_times : ndarray
         Controller optimisation solve times [s] (empty for controllers that solve none).
     fallbacks : list of dict
@@ -91,7 +95,8 @@ class ClosedLoopResult:
     y_motor: NDArray[np.float64]
     y_load: NDArray[np.float64]
     mode: NDArray[np.int_]
-    events: list[Event]
+    event_log: np.ndarray
+    counts: dict[str, Any]
     solve_times: NDArray[np.float64]
     fallbacks: list[dict[str, Any]]
     plant: Plant
@@ -103,25 +108,41 @@ class ClosedLoopResult:
     overruns: int = 0
 
     @property
+    def load_angle(self) -> NDArray[np.float64]:
+        """True load-shaft angle [rad]."""
+        return self.x[self.x.shape[0] // 2 - 1]
+
+    @property
     def error(self) -> NDArray[np.float64]:
-        """Load-angle tracking error ``r - theta2`` [rad]."""
-        return self.reference - self.x[1]
+        """Load-angle tracking error ``r - theta_load`` [rad]."""
+        return self.reference - self.load_angle
 
     @property
     def s(self) -> NDArray[np.float64]:
-        """Relative displacement along the line of action [m]."""
-        return self.plant.rb1 * self.x[0] - self.plant.rb2 * self.x[1]
+        """Relative displacement along the line of action [m] (one row per stage of a train)."""
+        return self.plant.relative_displacement(self.x)
+
+    @property
+    def events(self) -> list[Event]:
+        """The recorded mesh events as objects."""
+        return located_events(self.event_log)
 
     @property
     def impacts(self) -> list[Event]:
         """Impacts, including plastic ones."""
         return [e for e in self.events if e.kind in ("impact", "plastic")]
 
+    @property
+    def impact_count(self) -> int:
+        """Impacts of all stages (exact, also beyond the recorded events)."""
+        c = self.counts
+        return int(np.sum(c["impacts_front"] + c["impacts_back"] + c["plastic_front"] + c["plastic_back"]))
+
 
 def simulate_closed_loop(
     plant: Plant,
     controller: Controller,
-    ref: Reference,
+    ref: ReferenceLike,
     duration: float,
     *,
     sensors: Sensors | None = None,
@@ -164,16 +185,18 @@ def simulate_closed_loop(
         If the loop diverges or the plant state becomes NaN; ``error.result`` holds the run so far.
     """
     Ts = controller.Ts
-    if not (duration > 0 and math.isfinite(duration)):
-        raise InputError(f"duration = {duration!r} is out of range: expected a number > 0 [s]", field="duration")
+    DURATION.check("duration", duration)
+    SEED.check("seed", seed)
     n = int(round(duration / Ts))
     if n < 1:
         raise InputError(f"duration = {duration!r} is shorter than one sample ({Ts:g} s)", field="duration")
+    check_output_size(n + 1, plant.nx + 8, field="duration", fix="a shorter --duration")
     sensors = sensors or Sensors()
     enc_m = Encoder(sensors.motor_encoder_cpr, sensors.motor_noise)
     enc_l = Encoder(sensors.load_encoder_cpr, sensors.load_noise)
     rng = np.random.default_rng(seed)
-    x0 = np.zeros(4) if x0 is None else np.asarray(x0, dtype=float)
+    x0 = np.zeros(plant.nx) if x0 is None else np.asarray(x0, dtype=float)
+    w = plant.nx // 2
     kn = Kernel(plant, x0, dt=Ts, compiled=compiled)
     controller.reset()
     t = np.arange(n + 1) * Ts
@@ -184,12 +207,13 @@ def simulate_closed_loop(
     use_load = controller.uses_load_encoder
     tick = max(1, n // 100)
     status, last, message = 0, n, "ok"
-    st = kn._st
+    xk = kn._x
     advance, step, read_m, read_l = kn.advance, controller.step, enc_m.read, enc_l.read
     disturbance = ref.load_disturbance
     # per-sample records as Python lists (cheaper than numpy element writes); arrays at the end
     xs_l: list[list[float]] = [list(x0)]
-    mode_l = [int(np.sign(kn.mode))]
+    modes = kn._mode
+    mode_l = [np.sign(modes).tolist()]
     u_l: list[float] = []
     cmd_l: list[float] = []
     ym_l: list[float] = []
@@ -200,7 +224,7 @@ def simulate_closed_loop(
         x = xs_l[-1]
         ti = tl_list[i]
         y1 = read_m(x[0], rng)
-        y2 = read_l(x[1], rng) if use_load else nan
+        y2 = read_l(x[w - 1], rng) if use_load else nan
         c = step(ti, y1, y2 if use_load else None, ref)
         if math.isfinite(c):
             ui = c if -lim <= c <= lim else math.copysign(lim, c)
@@ -212,30 +236,33 @@ def simulate_closed_loop(
         cmd_l.append(c)
         u_l.append(ui)
         status = advance(ui, tl + disturbance(ti), Ts)
-        xn = st.x[:]
+        xn = xk.tolist()
         xs_l.append(xn)
-        mo = st.mode
-        mode_l.append(1 if mo > 0 else (-1 if mo < 0 else 0))
+        mode_l.append([1 if mo > 0 else (-1 if mo < 0 else 0) for mo in modes.tolist()])
         if status != 0:
             last, message = i + 1, Kernel.status_message(status)
+            if status == 3:
+                message = (f"event cascade: more contact events than the run may locate ({kn.events_total} by "
+                           f"t = {kn.t:.6g} s); the contact chatters without settling")
             break
-        if not (abs(xn[2]) < DIVERGENCE_LIMIT and abs(xn[3]) < DIVERGENCE_LIMIT):
+        if not all(abs(v) < DIVERGENCE_LIMIT for v in xn[w:]):
             last, message = i + 1, f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s at t = {t[i + 1]:.4g} s"
             break
         if progress is not None and i % tick == 0:
             progress(i / n)
     xs = np.array(xs_l).T
-    mode = np.array(mode_l)
+    mode = np.array(mode_l).T
+    mode = mode[0] if mode.shape[0] == 1 else mode
     u = np.array([*u_l, u_l[-1]])
     cmd = np.array([*cmd_l, cmd_l[-1]])
     ym = np.array([*ym_l, enc_m.read(xs[0, -1], rng)])
-    yl = np.array([*yl_l, enc_l.read(xs[1, -1], rng) if use_load else nan])
+    yl = np.array([*yl_l, enc_l.read(xs[w - 1, -1], rng) if use_load else nan])
     wall = time.perf_counter() - wall0
     sl = slice(0, last + 1)
-    events = located_events(kn)
     res = ClosedLoopResult(
         t=t[sl], x=xs[:, sl], reference=r[sl], torque=u[sl], command=cmd[sl], y_motor=ym[sl], y_load=yl[sl],
-        mode=mode[sl], events=events, solve_times=np.asarray(controller.solve_times, dtype=float),
+        mode=mode[..., sl], event_log=kn.event_log, counts=kn.counts,
+        solve_times=np.asarray(controller.solve_times, dtype=float),
         fallbacks=list(controller.fallbacks), plant=plant, controller=controller.describe(),
         success=message == "ok", message=message, wall_time=wall, settle=ref.settle,
         overruns=getattr(controller, "overruns", 0),

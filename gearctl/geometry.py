@@ -1,21 +1,33 @@
-"""Involute geometry of a spur-gear pair (report section 3.1, eqs 22–28).
+"""Involute geometry of a spur-gear pair (report section 3.1, eqs 22–28), with profile shift.
 
-A :class:`GearPair` holds the data a designer types (teeth, module, pressure angle, face width,
-material, backlash); :func:`pair_geometry` turns it into the radii, the line-of-action points
-A, B, C, D, E, F, P, the contact ratio, the tooth thicknesses and the gear inertias.
+A :class:`GearPair` holds the data a designer types (teeth, module, pressure angle, profile shifts,
+face width, material, backlash); :func:`pair_geometry` turns it into the radii, the operating centre
+distance and pressure angle, the line-of-action points A, B, C, D, E, F, P, the contact ratio, the
+tooth thicknesses and the gear inertias.
 
-All lengths are in metres, angles in radians.
+All lengths are in metres, angles in radians. Profile shift follows ISO 21771 (DIN 3960): the shift
+``x m`` moves the generating rack's datum line away from the gear centre.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 from .errors import InputError
 from .units import quantity, validate_fields
 
-__all__ = ["GearPair", "Geometry", "pair_geometry", "involute", "undercut_limit"]
+__all__ = [
+    "GearPair",
+    "Geometry",
+    "pair_geometry",
+    "involute",
+    "inverse_involute",
+    "operating_pressure_angle",
+    "undercut_limit",
+    "minimum_profile_shift",
+]
 
 
 def involute(phi: float) -> float:
@@ -29,29 +41,133 @@ def involute(phi: float) -> float:
     return math.tan(phi) - phi
 
 
-def undercut_limit(pressure_angle: float, addendum_coefficient: float = 1.0) -> float:
-    """Fewest teeth a rack-generated gear has without undercut: ``2 h_a* / sin^2(phi)``.
+def inverse_involute(value: float) -> float:
+    """Angle ``phi`` in ``(0, pi/2)`` with ``inv(phi) = value`` [rad], by Newton's method.
+
+    Parameters
+    ----------
+    value : float
+        Value of the involute function, > 0.
+
+    Returns
+    -------
+    float
+        The angle [rad], to a few units in the last place.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` is not a positive finite number (no such angle).
+
+    Notes
+    -----
+    ``inv`` is increasing and convex on ``(0, pi/2)``, so Newton's method started to the right of the
+    root converges monotonically without overshooting. Both ``(3 value)^(1/3)`` (since
+    ``inv(phi) >= phi^3 / 3``) and ``atan(value + pi/2)`` (since ``tan(phi) = value + phi < value + pi/2``)
+    lie right of the root; the smaller of the two starts the iteration.
+
+    Examples
+    --------
+    >>> round(math.degrees(inverse_involute(0.014904384)), 6)
+    20.0
+    """
+    if not (value > 0.0 and math.isfinite(value)):
+        raise ValueError(f"inverse_involute({value!r}): expected a positive finite value")
+    phi = min((3.0 * value) ** (1.0 / 3.0), math.atan(value + math.pi / 2))
+    for _ in range(100):
+        step = (involute(phi) - value) / math.tan(phi) ** 2
+        phi -= step
+        if abs(step) <= 1e-15 * phi:
+            break
+    return phi
+
+
+def operating_pressure_angle(
+    pressure_angle: float, teeth1: int, teeth2: int, x1: float = 0.0, x2: float = 0.0
+) -> float:
+    """Operating pressure angle ``alpha_w`` of an external pair meshing without backlash [rad].
+
+    ``inv(alpha_w) = inv(alpha) + 2 (x1 + x2) tan(alpha) / (z1 + z2)`` (ISO 21771, DIN 3960).
+
+    Parameters
+    ----------
+    pressure_angle : float
+        Pressure angle ``alpha`` of the generating rack [rad].
+    teeth1, teeth2 : int
+        Numbers of teeth ``z1``, ``z2``.
+    x1, x2 : float
+        Profile-shift coefficients [1].
+
+    Returns
+    -------
+    float
+        ``alpha_w`` [rad]; exactly ``pressure_angle`` when ``x1 + x2 == 0`` (standard and "V-zero" pairs).
+
+    Raises
+    ------
+    ValueError
+        If the right-hand side is not positive (a negative shift sum too large for the teeth: no angle).
+
+    Examples
+    --------
+    >>> round(math.degrees(operating_pressure_angle(math.radians(20.0), 12, 24, 0.6, 0.36)), 4)
+    26.0886
+    """
+    shift = x1 + x2
+    if shift == 0.0:  # exact, so that unshifted and V-zero pairs keep every result bit for bit
+        return pressure_angle
+    return inverse_involute(involute(pressure_angle) + 2.0 * shift * math.tan(pressure_angle) / (teeth1 + teeth2))
+
+
+def undercut_limit(pressure_angle: float, addendum_coefficient: float = 1.0, profile_shift: float = 0.0) -> float:
+    """Fewest teeth a rack-generated gear has without undercut: ``2 (h_a* - x) / sin^2(alpha)``.
+
+    Parameters
+    ----------
+    pressure_angle : float
+        Pressure angle ``alpha`` of the generating rack [rad].
+    addendum_coefficient : float
+        Addendum of the generating rack (taken equal to the gears' addendum) / module, ``h_a*`` [1].
+    profile_shift : float
+        Profile-shift coefficient ``x`` of the gear [1].
 
     Examples
     --------
     >>> round(undercut_limit(math.radians(20.0)), 2)
     17.1
+    >>> round(undercut_limit(math.radians(20.0), 1.0, 0.3), 2)
+    11.97
     """
-    return 2.0 * addendum_coefficient / math.sin(pressure_angle) ** 2
+    return 2.0 * (addendum_coefficient - profile_shift) / math.sin(pressure_angle) ** 2
+
+
+def minimum_profile_shift(teeth: int, pressure_angle: float, addendum_coefficient: float = 1.0) -> float:
+    """Smallest profile-shift coefficient that keeps a gear of ``teeth`` teeth free of undercut [1].
+
+    ``x_min = h_a* - z sin^2(alpha) / 2``, the inverse of :func:`undercut_limit`.
+
+    Examples
+    --------
+    >>> round(minimum_profile_shift(12, math.radians(20.0)), 4)
+    0.2981
+    """
+    return addendum_coefficient - teeth * math.sin(pressure_angle) ** 2 / 2.0
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class GearPair:
-    """A standard spur-gear pair at standard centre distance, with backlash.
+    """A spur-gear pair, possibly profile-shifted, at its zero-backlash operating centre distance.
 
-    Gear 1 is the driving pinion, gear 2 the driven gear (report Figure 1).
+    Gear 1 is the driving pinion, gear 2 the driven gear (report Figure 1). With ``x1 = x2 = 0`` this
+    is the report's standard pair at standard centre distance.
 
     Raises
     ------
     InputError
-        If a field is out of its range, if a gear has fewer teeth than the undercut limit
-        (the tooth model of eqs 14–19 does not cover undercut teeth), if an addendum reaches past
-        the mating gear's base circle (interference), or if the contact ratio is below 1.
+        If a field is out of its range, if a gear has fewer teeth than the undercut limit for its
+        profile shift (the tooth model of eqs 14–19 does not cover undercut teeth), if the profile
+        shifts admit no operating pressure angle, if a tip reaches the mating gear below its generated
+        involute (interference), if a tooth tip is pointed, or if the contact ratio is below 1.
     """
 
     teeth1: int = quantity(unit="1", doc="number of teeth of gear 1 (pinion)", low=3, high=1000, integer=True)
@@ -67,6 +183,12 @@ class GearPair:
     )
     dedendum_coefficient: float = quantity(
         unit="1", doc="dedendum / module", low=0.6, high=2.0, default=1.25
+    )
+    x1: float = quantity(
+        unit="1", doc="profile-shift coefficient of gear 1 (ISO 21771)", low=-1.0, high=1.5, default=0.0
+    )
+    x2: float = quantity(
+        unit="1", doc="profile-shift coefficient of gear 2 (ISO 21771)", low=-1.0, high=1.5, default=0.0
     )
     young_modulus: float = quantity(unit="Pa", doc="Young's modulus E", low=1e9, high=1e12)
     poisson_ratio: float = quantity(
@@ -84,43 +206,92 @@ class GearPair:
 
     def __post_init__(self) -> None:
         validate_fields(self)
-        phi = self.pressure_angle
-        limit = undercut_limit(phi, self.addendum_coefficient)
-        for name in ("teeth1", "teeth2"):
-            n = getattr(self, name)
-            if n < limit:
-                rule = (
-                    f"is below the undercut limit for a pressure angle of {math.degrees(phi):g} deg and "
-                    f"addendum {self.addendum_coefficient:g}: expected a whole number >= "
-                    f"{math.ceil(limit - 1e-9)} (the tooth model does not cover undercut teeth)"
-                )
-                raise InputError(f"{name} = {n} {rule}", field=name, rule=rule)
+        _check_undercut(self)
         if self.dedendum_coefficient <= self.addendum_coefficient:
             rule = f"must exceed addendum_coefficient = {self.addendum_coefficient:g} (tip clearance)"
             raise InputError(
                 f"dedendum_coefficient = {self.dedendum_coefficient:g} {rule}", field="dedendum_coefficient", rule=rule
             )
         g = _raw_geometry(self)
-        for j, reach in enumerate((g["AD"], g["l"] - g["AC"]), start=1):
-            if reach > g["l"] * (1 + 1e-12):
-                rule = (
-                    f"makes the addendum of gear {j} reach past the mating gear's base circle (interference: "
-                    f"contact length {reach * 1e3:.4g} mm > line of action {g['l'] * 1e3:.4g} mm); expected a "
-                    f"shorter addendum or more teeth on the other gear"
-                )
-                raise InputError(
-                    f"addendum_coefficient = {self.addendum_coefficient:g} {rule}",
-                    field="addendum_coefficient", rule=rule,
-                )
-        eps = (g["AD"] - g["AC"]) / g["pb"]
-        if eps < 1.0:
+        _check_interference(self, g)
+        _check_tips(self, g)
+        _check_contact_ratio(self, g)
+
+
+# --- validation (one check per function, each raising a one-line InputError that names the field) ----
+
+
+def _shift_field(pair: GearPair, j: int | None = None) -> str:
+    """Field to name for a shift-dependent rule: gear ``j``'s shift (or the larger one), else the addendum."""
+    if j is not None and getattr(pair, f"x{j}") != 0.0:
+        return f"x{j}"
+    if pair.x1 == 0.0 and pair.x2 == 0.0:
+        return "addendum_coefficient"
+    return "x1" if abs(pair.x1) >= abs(pair.x2) else "x2"
+
+
+def _input_error(pair: GearPair, field: str, rule: str) -> InputError:
+    """The one-line error ``"<field> = <value> <rule>"`` (the shape the catalog loader restates)."""
+    return InputError(f"{field} = {getattr(pair, field):g} {rule}", field=field, rule=rule)
+
+
+def _check_undercut(pair: GearPair) -> None:
+    """Each gear at or above the undercut limit for its own profile shift."""
+    phi, ha = pair.pressure_angle, pair.addendum_coefficient
+    for j, (name, n, x) in enumerate((("teeth1", pair.teeth1, pair.x1), ("teeth2", pair.teeth2, pair.x2)), start=1):
+        limit = undercut_limit(phi, ha, x)
+        if n < limit:
+            tool = f", addendum {ha:g} and profile shift x{j} = {x:g}" if x != 0.0 else f" and addendum {ha:g}"
+            x_min = math.ceil(minimum_profile_shift(n, phi, ha) * 1e4) / 1e4  # rounded up: the value shown passes
             rule = (
-                f"gives a contact ratio of {eps:.4g}, below 1: expected a contact ratio >= 1 (the pair would "
-                f"lose contact once per mesh); use more teeth or a longer addendum"
+                f"is below the undercut limit for a pressure angle of {math.degrees(phi):g} deg{tool}: expected "
+                f"a whole number >= {math.ceil(limit - 1e-9)} or a profile shift x{j} >= {x_min:g} (the tooth "
+                f"model does not cover undercut teeth)"
             )
-            raise InputError(
-                f"addendum_coefficient = {self.addendum_coefficient:g} {rule}", field="addendum_coefficient", rule=rule
+            raise InputError(f"{name} = {n} {rule}", field=name, rule=rule)
+
+
+def _check_interference(pair: GearPair, g: dict[str, Any]) -> None:
+    """Each tip meets the mating flank on its generated involute (see :func:`pair_geometry`, Notes)."""
+    # reach of gear j's tip along the line of action, from gear 1's tangent point A or gear 2's tangent point B,
+    # against the start of the mating gear's generated involute (its base-circle tangent point if below it)
+    reaches = ((g["AD"], g["l"] - g["g2"]["form"]), (g["l"] - g["AC"], g["l"] - g["g1"]["form"]))
+    for j, (reach, room) in enumerate(reaches, start=1):
+        if reach > room * (1 + 1e-12):
+            rule = (
+                f"makes the addendum of gear {j} reach below the mating gear's involute (interference: contact "
+                f"length {reach * 1e3:.6g} mm > {room * 1e3:.6g} mm available on the line of action); expected a "
+                f"shorter addendum, another profile shift or more teeth on the other gear"
             )
+            raise _input_error(pair, _shift_field(pair, j), rule)
+
+
+def _check_tips(pair: GearPair, g: dict[str, Any]) -> None:
+    """No pointed tooth tip (eq 28 must give a positive thickness)."""
+    for j in (1, 2):
+        sa = g[f"g{j}"]["sa"]
+        if sa <= 0.0:
+            rule = (
+                f"makes the tip of gear {j} pointed (tooth thickness at the tip {sa * 1e3:.4g} mm <= 0): expected "
+                f"a tip thickness > 0 (ISO 21771 / DIN 3960 recommend >= 0.2 module); use a smaller profile shift "
+                f"or a shorter addendum"
+            )
+            raise _input_error(pair, _shift_field(pair, j), rule)
+
+
+def _check_contact_ratio(pair: GearPair, g: dict[str, Any]) -> None:
+    """Contact ratio at least 1 (some tooth pair always in contact)."""
+    eps = (g["AD"] - g["AC"]) / g["pb"]
+    if eps < 1.0:
+        shifts = "" if pair.x1 == 0.0 and pair.x2 == 0.0 else f" (profile shifts x1 = {pair.x1:g}, x2 = {pair.x2:g})"
+        rule = (
+            f"gives a contact ratio of {eps:.4g}{shifts}, below 1: expected a contact ratio >= 1 (the pair would "
+            f"lose contact once per mesh); use more teeth, a longer addendum or a smaller profile shift sum"
+        )
+        raise _input_error(pair, _shift_field(pair), rule)
+
+
+# --- geometry ----------------------------------------------------------------------------------------
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -129,13 +300,26 @@ class Geometry:
 
     Points on the line of action are given as distances from A (the tangent point on gear 1's
     base circle): ``AB = l``, ``AC``, ``AD``, ``AE``, ``AF``, ``AP``. Per-gear quantities are
-    tuples ``(gear 1, gear 2)``.
+    tuples ``(gear 1, gear 2)``. ``pitch_radius`` is the reference radius ``m z / 2``; the pair
+    rolls on ``operating_pitch_radius`` at ``centre_distance`` with pressure angle
+    ``operating_pressure_angle`` (all equal to the reference ones when ``x1 + x2 = 0``).
+
+    New with profile shift (ISO 21771): ``profile_shift`` ``(x1, x2)`` [1]; ``operating_pressure_angle``
+    ``alpha_w`` [rad]; ``reference_centre_distance`` ``a = m (z1 + z2) / 2`` [m]; ``centre_distance``
+    ``a_w = a cos(alpha) / cos(alpha_w)`` [m]; ``operating_pitch_radius`` ``r_w = r cos(alpha) / cos(alpha_w)``
+    [m]; ``tooth_thickness_reference`` ``s_j = m (pi/2 + 2 x_j tan(alpha))`` [m], the reference-circle
+    thickness eqs 27, 28 and 30 start from (``tooth_thickness_pitch`` stays ``pi m / 2``).
     """
 
     pitch_radius: tuple[float, float]
+    operating_pitch_radius: tuple[float, float]
     base_radius: tuple[float, float]
     addendum_radius: tuple[float, float]
     dedendum_radius: tuple[float, float]
+    profile_shift: tuple[float, float]
+    operating_pressure_angle: float
+    reference_centre_distance: float
+    centre_distance: float
     base_pitch: float
     AB: float
     AC: float
@@ -145,6 +329,7 @@ class Geometry:
     AP: float
     contact_ratio: float
     tooth_thickness_pitch: float
+    tooth_thickness_reference: tuple[float, float]
     tooth_thickness_base: tuple[float, float]
     tooth_thickness_addendum: tuple[float, float]
     h_a: tuple[float, float]
@@ -159,19 +344,69 @@ class Geometry:
         return self.base_pitch / self.base_radius[0]
 
 
-def _raw_geometry(pair: GearPair) -> dict[str, float]:
-    """Line-of-action distances without validation (used by the validation itself)."""
-    m, phi = pair.module, pair.pressure_angle
-    rp1, rp2 = m * pair.teeth1 / 2, m * pair.teeth2 / 2
-    rb1, rb2 = rp1 * math.cos(phi), rp2 * math.cos(phi)
-    ra1, ra2 = rp1 + pair.addendum_coefficient * m, rp2 + pair.addendum_coefficient * m
-    ab = (rb1 + rb2) * math.tan(phi)  # AB = l
+def _operating_pressure_angle(pair: GearPair) -> float:
+    """``alpha_w`` of the pair, or an InputError naming a shift if the shifts admit none."""
+    try:
+        return operating_pressure_angle(pair.pressure_angle, pair.teeth1, pair.teeth2, pair.x1, pair.x2)
+    except ValueError:
+        rule = (
+            f"gives, with x1 + x2 = {pair.x1 + pair.x2:g} on {pair.teeth1} + {pair.teeth2} teeth, no operating "
+            f"pressure angle (inv(alpha_w) = inv(alpha) + 2 (x1 + x2) tan(alpha) / (z1 + z2) <= 0): expected a "
+            f"larger profile shift sum"
+        )
+        raise _input_error(pair, _shift_field(pair), rule) from None
+
+
+def _tooth_thickness(rb: float, r: float, s: float, phi: float, radius: float) -> float:
+    """Tooth thickness at ``radius`` of a tooth ``s`` thick at reference radius ``r`` (eq 26, ISO 21771)."""
+    return radius * (s / r + 2 * (involute(phi) - involute(math.acos(rb / radius))))
+
+
+def _gear_geometry(pair: GearPair, j: int, k: float) -> dict[str, float]:
+    """Radii, thicknesses and involute start of gear ``j`` (1 or 2), with the tip alteration ``k*`` [1]."""
+    m, phi, ha, hf = pair.module, pair.pressure_angle, pair.addendum_coefficient, pair.dedendum_coefficient
+    z, x = (pair.teeth1, pair.x1) if j == 1 else (pair.teeth2, pair.x2)
+    r = m * z / 2
+    rb = r * math.cos(phi)
+    ra = r + (ha + x + k) * m
+    tp = math.pi * m / 2
+    s = tp + 2 * x * m * math.tan(phi)  # reference-circle thickness (ISO 21771); tp without shift
     return {
+        "r": r, "rb": rb, "ra": ra, "rd": r - (hf - x) * m, "tp": tp, "s": s,
+        "sa": _tooth_thickness(rb, r, s, phi, ra),  # eq 28
+        # start of the generated involute, as a tangent length from the base circle: where the generating
+        # rack's tip line (h_a* - x below the datum line) leaves the line of action; >= 0 above the undercut limit
+        "form": max(0.0, r * math.sin(phi) - (ha - x) * m / math.sin(phi)),
+    }
+
+
+def _raw_geometry(pair: GearPair) -> dict[str, Any]:
+    """Centre distances and line-of-action distances, without validation (used by the validation).
+
+    ``g1`` and ``g2`` hold the per-gear quantities of :func:`_gear_geometry`.
+    """
+    m, phi = pair.module, pair.pressure_angle
+    alpha_w = _operating_pressure_angle(pair)
+    stretch = math.cos(phi) / math.cos(alpha_w)  # exactly 1.0 without a shift sum
+    a = m * (pair.teeth1 + pair.teeth2) / 2
+    a_w = a * stretch
+    k = min(0.0, (a_w - a) / m - (pair.x1 + pair.x2))  # tip alteration k* (ISO 21771): keeps the tip clearance
+    g1, g2 = _gear_geometry(pair, 1, k), _gear_geometry(pair, 2, k)
+    ab = (g1["rb"] + g2["rb"]) * math.tan(alpha_w)  # AB = l
+    return {
+        "g1": g1, "g2": g2, "alpha_w": alpha_w, "a": a, "a_w": a_w, "stretch": stretch,
         "l": ab,
-        "AC": ab - math.sqrt(ra2**2 - rb2**2),
-        "AD": math.sqrt(ra1**2 - rb1**2),
+        "AC": ab - math.sqrt(g2["ra"] ** 2 - g2["rb"] ** 2),
+        "AD": math.sqrt(g1["ra"] ** 2 - g1["rb"] ** 2),
         "pb": math.pi * m * math.cos(phi),
     }
+
+
+def _beam_heights(ra: float, rb: float, rd: float) -> tuple[float, float]:
+    """Heights ``(h_a, h_b)`` of the tooth beam (eqs 22–25)."""
+    if rd > rb:  # eqs 24-25: dedendum circle outside the base circle
+        return ra - rb, 0.0
+    return ra - rd, rb - rd  # eqs 22-23
 
 
 def pair_geometry(pair: GearPair) -> Geometry:
@@ -185,9 +420,9 @@ def pair_geometry(pair: GearPair) -> Geometry:
     Returns
     -------
     Geometry
-        Radii [m], line-of-action points [m], contact ratio, tooth thicknesses [m] (eqs 26–28),
-        beam heights ``h_a``, ``h_b`` (eqs 22–25) and the trapezoid height ``w`` (eq 19) [m],
-        inertias [kg m^2] and the gear ratio ``N2/N1``.
+        Radii [m], operating pressure angle [rad] and centre distances [m], line-of-action points [m],
+        contact ratio, tooth thicknesses [m] (eqs 26–28), beam heights ``h_a``, ``h_b`` (eqs 22–25) and
+        the trapezoid height ``w`` (eq 19) [m], inertias [kg m^2] and the gear ratio ``N2/N1``.
 
     Notes
     -----
@@ -195,12 +430,40 @@ def pair_geometry(pair: GearPair) -> Geometry:
     ``b`` enters the dynamics only as the clearance of eqs 4 and 11). Where the dedendum circle lies
     outside the base circle the beam starts at the base circle (eqs 24–25).
 
+    Profile shift (ISO 21771 / DIN 3960). A shift ``x_j`` moves gear j's generating rack out by ``x_j m``:
+    the reference tooth thickness becomes ``s_j = m (pi/2 + 2 x_j tan(alpha))``, the dedendum radius
+    ``r_j - (h_f* - x_j) m``, and the pair meshes without backlash at the operating pressure angle
+    ``inv(alpha_w) = inv(alpha) + 2 (x1 + x2) tan(alpha) / (z1 + z2)`` and centre distance
+    ``a_w = a cos(alpha) / cos(alpha_w)``. The report's Figure 4 relations then hold with ``alpha_w`` as
+    the inclination of the line of action: ``AB = (r_b1 + r_b2) tan(alpha_w)``, ``AP = r_b1 tan(alpha_w)``.
+    Eq 26 may start from any circle of the tooth; gearctl starts eqs 27–28 (and eq 30) from the
+    reference circle ``(r_j, s_j, alpha)``, where the shift enters only through ``s_j``.
+    ``tooth_thickness_pitch`` keeps its unshifted meaning ``pi m / 2``.
+
+    Tip shortening: the tip radius is ``r_j + (h_a* + x_j + k*) m`` with ISO 21771's tip alteration
+    ``k* m = a_w - a - (x1 + x2) m`` (never positive). gearctl applies it, as KHK's and DIN 3960's
+    worked examples do, because (i) the pair keeps the tip clearance ``(h_f* - h_a*) m`` that
+    ``dedendum_coefficient`` is validated for; without it a pair with ``x1 + x2 > 0`` loses part of
+    that clearance (0.13 m of 0.25 m for z = 12 + 24, x = 0.6 + 0.36); (ii) the contact ratio and the
+    beam heights then describe gears as they are usually cut. ``k* = 0`` when ``x1 + x2 = 0``.
+
+    Checks (each a one-line InputError naming the field): undercut with each gear's own shift
+    (``z >= 2 (h_a* - x) / sin^2 alpha``); interference, i.e. a tip reaching the mating gear below the
+    start of its rack-generated involute (the rack's tip line is taken ``h_a* - x`` below the datum line,
+    as the undercut limit does; without shift this is never stricter than the base-circle rule of the
+    report's Figure 4, since a mating gear's tip reaches at most as deep as the generating rack's);
+    pointed tips, ``s_a <= 0``; contact ratio below 1. The tip rule is the model's limit, not ISO's
+    strength recommendation ``s_a >= 0.2 m`` (0.4 m case-hardened): unshifted pairs the report's model
+    has always accepted go below 0.2 m (12 teeth at 27 deg, ``h_a* = 1.2``: 0.015 m), and eqs 19 and 28
+    stay defined down to a pointed tip. Check ``tooth_thickness_addendum`` against ISO's rule when
+    designing gears.
+
     Limitation: eqs 24–25 start the tooth beam at the base circle whenever the dedendum circle lies
-    outside it (above ``2 h_f* / (1 - cos phi)`` teeth: 42 at 20 deg, 27 at 25 deg). The report's own
-    80-tooth gear uses this branch and Table 1 is reproduced with it, but for much larger gears the beam
-    grows longer than the real tooth and the mesh stiffness per face width falls below ISO 6336-1's
-    band (about 9 N/(mm um) for 100 x 100 teeth at 20 deg, 6 for 150 x 150). gearctl keeps the report's
-    model; for gears beyond about 100 teeth give a measured ``[dynamics] mesh_stiffness``.
+    outside it (above ``2 (h_f* - x) / (1 - cos phi)`` teeth: 42 at 20 deg, 27 at 25 deg without shift).
+    The report's own 80-tooth gear uses this branch and Table 1 is reproduced with it, but for much larger
+    gears the beam grows longer than the real tooth and the mesh stiffness per face width falls below
+    ISO 6336-1's band (about 9 N/(mm um) for 100 x 100 teeth at 20 deg, 6 for 150 x 150). gearctl keeps the
+    report's model; for gears beyond about 100 teeth give a measured ``[dynamics] mesh_stiffness``.
 
     Unless the pair gives them, the inertias are those of solid steel disks of the pitch radius and
     the face width, ``I = rho pi f r_p^4 / 2``; this is how the report's ``I1 = 1.9604e-5`` and
@@ -209,27 +472,21 @@ def pair_geometry(pair: GearPair) -> Geometry:
     References
     ----------
     Shing, Tsai & Krishnaprasad, TR 93-28, section 3.1, eqs 19, 22–28 and Figure 4.
+    ISO 21771:2007, Gears — Cylindrical involute gears and gear pairs — Concepts and geometry.
     """
-    m, phi, f = pair.module, pair.pressure_angle, pair.face_width
-    raw = _raw_geometry(pair)
-    teeth = (pair.teeth1, pair.teeth2)
-    rp = tuple(m * n / 2 for n in teeth)
-    rb = tuple(r * math.cos(phi) for r in rp)
-    ra = tuple(r + pair.addendum_coefficient * m for r in rp)
-    rd = tuple(r - pair.dedendum_coefficient * m for r in rp)
-    pb, ab, AC, AD = raw["pb"], raw["l"], raw["AC"], raw["AD"]
-    tp = math.pi * m / 2
-    tb = tuple(rb[j] * (tp / rp[j] + 2 * involute(phi)) for j in range(2))  # eq 27
-    beta = tuple(math.acos(rb[j] / ra[j]) for j in range(2))
-    ta = tuple(ra[j] * (tp / rp[j] + 2 * (involute(phi) - involute(beta[j]))) for j in range(2))  # eq 28
-    h_b, h_a = [], []
-    for j in range(2):
-        if rd[j] > rb[j]:  # eqs 24-25: dedendum circle outside the base circle
-            h_b.append(0.0)
-            h_a.append(ra[j] - rb[j])
-        else:  # eqs 22-23
-            h_b.append(rb[j] - rd[j])
-            h_a.append(ra[j] - rd[j])
+    phi, f = pair.pressure_angle, pair.face_width
+    g = _raw_geometry(pair)
+    gears = (g["g1"], g["g2"])
+
+    def both(key: str) -> tuple[float, float]:
+        return (gears[0][key], gears[1][key])
+
+    rp, rb, ra, rd, s = both("r"), both("rb"), both("ra"), both("rd"), both("s")
+    pb, ab, AC, AD = g["pb"], g["l"], g["AC"], g["AD"]
+    tb = tuple(rb[j] * (s[j] / rp[j] + 2 * involute(phi)) for j in range(2))  # eq 27
+    ta = both("sa")  # eq 28
+    heights = [_beam_heights(ra[j], rb[j], rd[j]) for j in range(2)]
+    h_a, h_b = (heights[0][0], heights[1][0]), (heights[0][1], heights[1][1])
     w = tuple((h_a[j] * tb[j] - h_b[j] * ta[j]) / (tb[j] - ta[j]) for j in range(2))  # eq 19
     disk = tuple(pair.density * math.pi * f * r**4 / 2 for r in rp)
     inertia = (
@@ -238,22 +495,28 @@ def pair_geometry(pair: GearPair) -> Geometry:
     )
     return Geometry(
         pitch_radius=rp,
+        operating_pitch_radius=(rp[0] * g["stretch"], rp[1] * g["stretch"]),
         base_radius=rb,
         addendum_radius=ra,
         dedendum_radius=rd,
+        profile_shift=(pair.x1, pair.x2),
+        operating_pressure_angle=g["alpha_w"],
+        reference_centre_distance=g["a"],
+        centre_distance=g["a_w"],
         base_pitch=pb,
         AB=ab,
         AC=AC,
         AD=AD,
         AE=AD - pb,
         AF=AC + pb,
-        AP=rb[0] * math.tan(phi),
+        AP=rb[0] * math.tan(g["alpha_w"]),
         contact_ratio=(AD - AC) / pb,
-        tooth_thickness_pitch=tp,
+        tooth_thickness_pitch=gears[0]["tp"],
+        tooth_thickness_reference=s,
         tooth_thickness_base=tb,
         tooth_thickness_addendum=ta,
-        h_a=(h_a[0], h_a[1]),
-        h_b=(h_b[0], h_b[1]),
+        h_a=h_a,
+        h_b=h_b,
         w=w,
         inertia=inertia,
         gear_ratio=pair.teeth2 / pair.teeth1,

@@ -1,20 +1,30 @@
-"""The simulation kernel: advance a gear plant over an interval of constant torque, events located.
+"""The simulation kernel: advance a gear train over an interval of constant torque, events located.
 
 Two paths with one algorithm:
 
-- compiled: ``_kernel.c`` built on first use with the system C compiler into a per-user cache and
-  called through :mod:`ctypes` (no new runtime dependency);
+- compiled: ``_kernel.c`` built on first use with the system C compiler (:mod:`gearctl.build`) and
+  called through :mod:`ctypes`;
 - pure Python: the same algorithm written out below, used where no C compiler is present (or with
   ``GEARCTL_NO_COMPILE=1``) and as the oracle the tests compare the compiled path against.
 
-The improved plant (without Coulomb friction) is affine inside each contact mode, ``x' = A x + a``, so
-its solution between events is exact: full sub-steps apply the precomputed propagators
-``Phi(h) = e^{A h}`` and ``Gamma(h) = int_0^h e^{A t} dt``; partial steps and event roots use the
-Taylor series of the same solution, summed to 1e-17. Sub-steps are short enough (``rho h <= 0.6``
-for the contact mode) that a crossing of ``|s| = b`` between grid points shows as a sign change or as
-an interior minimum of the cubic Hermite model, and is then found to machine precision on the series.
-The nonlinear plants (Yang–Sun, time-varying stiffness, Coulomb friction) use Dormand–Prince 5(4)
-with error control and locate events on its dense output.
+The dynamics are not written here: :mod:`gearctl.plant` gives them as data (the matrix of each contact
+pattern, the affine terms, the mode boundaries as linear event functions), which both paths integrate.
+The improved plant is affine inside each pattern, ``x' = A x + a``, so its solution between events is
+exact: full sub-steps apply the propagators ``Phi(h) = e^{A h}`` and ``Gamma(h) = int_0^h e^{A t} dt``,
+built the first time a pattern is visited and cached; partial steps and event roots use the Taylor series
+of the same solution, summed to 1e-17. Sub-steps are short enough (``rho h <= 0.6`` for a pattern with
+contact) that a crossing between grid points shows as a sign change or as an interior minimum of the cubic
+Hermite model, and is then found to machine precision on the series. The nonlinear plants (Yang–Sun,
+time-varying stiffness, the smooth Coulomb law) use Dormand–Prince 5(4) with error control and locate
+events on its dense output.
+
+The C structs are generated from :data:`PARAMS_FIELDS` and :data:`STATE_FIELDS` (one description, read by
+both the C source and its :mod:`ctypes` mirror).
+
+Bounded by construction: the events one :meth:`Kernel.advance` may locate are capped (``max_events``),
+so are the events of a whole run per simulated second (``max_event_rate``), and the events kept in detail
+(``max_records``; the counts per stage and flank stay exact beyond). Grazing contacts (a flank reached
+with no relative speed and no acceleration to speak of) stay on their side instead of chattering.
 """
 
 from __future__ import annotations
@@ -22,23 +32,32 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import functools
-import hashlib
 import math
-import os
-import shutil
-import subprocess
-import sys
-import sysconfig
-import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.linalg
 
-from .plant import Plant, PlantKind
+from .build import c_compiler, cache_dir, compile_disabled, shared_library
+from .errors import InputError
+from .params import ContactLaw, FrictionLaw
+from .plant import (
+    EVENT_GEOMETRIC,
+    MAX_STAGES,
+    Plant,
+    PlantKind,
+    affine_terms,
+    event_table,
+    force_coefficients,
+    input_matrix,
+    mode_matrices,
+)
+from .stiffness import yang_sun_damping_factor
 
 __all__ = [
     "Kernel", "EventKind", "compiled_available", "contact_matrices", "ZENO_VELOCITY", "cache_dir", "c_compiler",
+    "EVENT_DTYPE", "COUNT_NAMES",
 ]
 
 #: Impacts slower than this along the line of action are made perfectly plastic (the Zeno rule) [m/s].
@@ -55,53 +74,79 @@ class EventKind:
     LIFT = 3  # no_pull: contact force reached zero while the flanks still overlap
     RELOAD = 4
     PLASTIC = 5  # an impact below ZENO_VELOCITY, made perfectly plastic
+    STICK = 6  # a shaft with stick-slip friction stopped and sticks (``where`` is the shaft)
+    SLIP = 7  # a stuck shaft broke away
 
-    NAMES = {1: "impact", 2: "separation", 3: "lift", 4: "reload", 5: "plastic"}
+    NAMES = {1: "impact", 2: "separation", 3: "lift", 4: "reload", 5: "plastic", 6: "stick", 7: "slip"}
 
 
 _STATUS = {0: "ok", 2: "state became NaN or infinite", 3: "too many events (unresolved Zeno cascade)",
-           4: "step size underflow", 5: "event buffer full"}
-_BUFFER_FULL = 5
+           4: "step size underflow", 5: "event buffer full", 6: "pattern missing"}
+_ST_EVENTS, _BUFFER_FULL, _PATTERN = 3, 5, 6
 
-_EVENT_DTYPE = np.dtype([("t", "f8"), ("v", "f8"), ("kind", "i8"), ("side", "i8")])
+#: One recorded event: time, relative velocity (or the holding torque of a stick), kind, side, stage/shaft.
+EVENT_DTYPE = np.dtype([("t", "f8"), ("v", "f8"), ("kind", "i8"), ("side", "i8"), ("where", "i8")])
+
+#: Counters kept per stage by both paths (exact whatever ``max_records``).
+COUNT_NAMES = ("impacts_front", "impacts_back", "plastic_front", "plastic_back", "separations", "other")
+_NCOUNT = len(COUNT_NAMES)
+_CT_IMPACT = {1: 0, -1: 1}
+_CT_PLASTIC = {1: 2, -1: 3}
+_NX_MAX = 2 * (MAX_STAGES + 1)
+
+# --- the one description of the C structs ---------------------------------------------------------------------
+
+PARAMS_FIELDS: tuple[tuple[str, str], ...] = (
+    ("nx", "gc_int"), ("ns", "gc_int"), ("nsh", "gc_int"), ("max_events", "gc_int"),
+    ("law", "int"), ("kind", "int"), ("friction", "int"), ("exact", "int"),
+    ("zeno_v", "double"), ("rtol", "double"), ("atol_angle", "double"), ("atol_rate", "double"),
+    ("h_max", "double"), ("ws", "double"),
+    ("J", "double*"), ("d", "double*"), ("tc", "double*"),
+    ("rb1", "double*"), ("rb2", "double*"), ("b", "double*"), ("k", "double*"), ("c", "double*"),
+    ("mesh_period", "double*"), ("mesh_phase", "double*"), ("table", "double*"), ("table_off", "gc_int*"),
+    ("aff", "double*"), ("fcoef", "double*"),
+    ("ev_count", "gc_int*"), ("ev_cg", "double*"), ("ev_g0", "double*"), ("ev_target", "int*"),
+    ("ev_type", "int*"), ("ev_ssign", "double*"),
+    ("fbit", "gc_int*"), ("slot", "gc_int*"),
+    ("A", "double*"), ("Phi", "double*"), ("Gam", "double*"), ("h", "double*"), ("rho", "double*"),
+)
+STATE_FIELDS: tuple[tuple[str, str], ...] = (
+    ("x", "double*"), ("t", "double"), ("t_end", "double"), ("d_ys", "double*"), ("h_ode", "double"),
+    ("max_pen", "double*"), ("n_events", "gc_int"), ("n_steps", "gc_int"), ("events_total", "gc_int"),
+    ("mode", "int*"), ("slip", "int*"), ("need", "gc_int"), ("u1", "double"), ("u2", "double"),
+    ("ev", "gc_event*"), ("cap", "gc_int"), ("counts", "gc_int*"), ("vmax", "double*"),
+)
+_EVENT_FIELDS = (("t", "double"), ("v", "double"), ("kind", "gc_int"), ("side", "gc_int"), ("where", "gc_int"))
+_CTYPES = {"double": ctypes.c_double, "gc_int": ctypes.c_int64, "int": ctypes.c_int,
+           "double*": ctypes.POINTER(ctypes.c_double), "gc_int*": ctypes.POINTER(ctypes.c_int64),
+           "int*": ctypes.POINTER(ctypes.c_int), "gc_event*": ctypes.c_void_p}
+
+
+def c_structs() -> str:
+    """The C declarations of ``gc_params``, ``gc_state`` and ``gc_event`` (prepended to ``_kernel.c``)."""
+    def struct(name: str, fields: tuple[tuple[str, str], ...]) -> str:
+        body = "\n".join(f"    {ty.replace('*', ' *') if ty.endswith('*') else ty + ' '}{n};".replace("  ", " ")
+                         for n, ty in fields)
+        return f"typedef struct {{\n{body}\n}} {name};\n"
+
+    return ("#include <stdint.h>\ntypedef int64_t gc_int;\n"
+            f"#define GC_MAX_STAGES {MAX_STAGES}\n#define GC_NX_MAX {_NX_MAX}\n#define GC_NCOUNT {_NCOUNT}\n"
+            + struct("gc_event", _EVENT_FIELDS) + struct("gc_params", PARAMS_FIELDS) + struct("gc_state", STATE_FIELDS))
 
 
 class _Params(ctypes.Structure):
-    _fields_ = [(n, ctypes.c_double) for n in (
-        "J1", "J2", "rb1", "rb2", "b", "k", "c", "d1", "d2", "tc1", "tc2", "ws", "mesh_period",
-        "mesh_phase", "zeno_v", "rtol", "atol_angle", "atol_rate", "h_max")] + [
-        ("A", ctypes.c_double * 32), ("Phi", ctypes.c_double * 32), ("Gam", ctypes.c_double * 32),
-        ("h", ctypes.c_double * 2), ("rho", ctypes.c_double * 2),
-        ("table", ctypes.POINTER(ctypes.c_double)), ("n_table", ctypes.c_long),
-        ("max_events", ctypes.c_long), ("law", ctypes.c_int), ("kind", ctypes.c_int)]
+    _fields_ = [(n, _CTYPES[t]) for n, t in PARAMS_FIELDS]
 
 
 class _State(ctypes.Structure):
-    _fields_ = [("x", ctypes.c_double * 4), ("t", ctypes.c_double), ("d_ys", ctypes.c_double),
-                ("h_ode", ctypes.c_double), ("max_pen", ctypes.c_double), ("n_events", ctypes.c_long),
-                ("n_steps", ctypes.c_long), ("mode", ctypes.c_int),
-                ("u1", ctypes.c_double), ("u2", ctypes.c_double), ("T", ctypes.c_double),
-                ("ev", ctypes.c_void_p), ("cap", ctypes.c_long)]
+    _fields_ = [(n, _CTYPES[t]) for n, t in STATE_FIELDS]
 
 
-# --- compilation -----------------------------------------------------------------------------------------
+assert EVENT_DTYPE.itemsize == 8 * len(_EVENT_FIELDS)
+
+# --- compilation -----------------------------------------------------------------------------------------------
 
 _LIB: ctypes.CDLL | None | bool = False  # False: not tried yet
-
-
-def cache_dir() -> Path:
-    """Per-user folder of gearctl's compiled code (``$XDG_CACHE_HOME/gearctl`` or ``~/.cache/gearctl``)."""
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "gearctl"
-
-
-def c_compiler() -> str | None:
-    """The C compiler to build gearctl's compiled code with, or None where there is none."""
-    cc = os.environ.get("CC") or (sysconfig.get_config_var("CC") or "cc").split()[0]
-    for cand in (cc, "cc", "gcc", "clang"):
-        if shutil.which(cand):
-            return cand
-    return None
 
 
 def _load() -> ctypes.CDLL | None:
@@ -110,39 +155,21 @@ def _load() -> ctypes.CDLL | None:
     if _LIB is not False:
         return _LIB  # type: ignore[return-value]
     _LIB = None
-    if os.environ.get("GEARCTL_NO_COMPILE"):
+    if compile_disabled():
         return None
-    src = _SRC.read_bytes()
-    tag = hashlib.sha256(src + sys.version.encode()).hexdigest()[:16]
-    suffix = ".dll" if sys.platform == "win32" else ".so"
-    target = cache_dir() / f"kernel-{tag}{suffix}"
-    if not target.exists():
-        cc = c_compiler()
-        if cc is None:
-            return None
-        try:
-            target.parent.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-                out = Path(tmp) / target.name
-                subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(out), str(_SRC), "-lm"],
-                               check=True, capture_output=True, timeout=120)
-                os.replace(out, target)  # atomic: parallel processes may race here
-        except (OSError, subprocess.SubprocessError):
-            return None
-    try:
-        lib = ctypes.CDLL(str(target))
-    except OSError:
+    src = _SRC.read_text().replace("/* @GC_STRUCTS@ (generated by gearctl/kernel.py) */", c_structs())
+    lib = shared_library("kernel", {"_kernel.c": src.encode()})
+    if lib is None:
         return None
-    for fn in (lib.gc_advance_pwl, lib.gc_advance_ode):
+    P, S = ctypes.POINTER(_Params), ctypes.POINTER(_State)
+    for fn in (lib.gc_advance_pwl, lib.gc_advance_ode, lib.gc_step):
         fn.restype = ctypes.c_int
-        fn.argtypes = [ctypes.POINTER(_Params), ctypes.POINTER(_State), ctypes.c_double, ctypes.c_double,
-                       ctypes.c_double, ctypes.c_void_p, ctypes.c_long]
-    lib.gc_step.restype = ctypes.c_int
-    lib.gc_step.argtypes = [ctypes.POINTER(_Params), ctypes.POINTER(_State)]
+        fn.argtypes = [P, S]
     lib.gc_run.restype = ctypes.c_int
-    lib.gc_run.argtypes = [ctypes.POINTER(_Params), ctypes.POINTER(_State), ctypes.c_double, ctypes.c_double,
-                           ctypes.c_double, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
-                           ctypes.c_void_p, ctypes.c_long, ctypes.POINTER(ctypes.c_long)]
+    lib.gc_run.argtypes = [P, S, ctypes.c_double, ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p,
+                           ctypes.POINTER(ctypes.c_int64)]
+    lib.gc_force.restype = ctypes.c_double
+    lib.gc_force.argtypes = [P, ctypes.c_int64, ctypes.c_int, ctypes.c_double, ctypes.c_void_p]
     _LIB = lib
     return lib
 
@@ -152,43 +179,41 @@ def compiled_available() -> bool:
     return _load() is not None
 
 
-# --- linear data of the improved plant -----------------------------------------------------------------
+# --- linear data of the improved plant ------------------------------------------------------------------------
 
 
 def contact_matrices(plant: Plant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """State matrices of the improved plant: ``(A_contact, A_free, B)``.
+    """State matrices of the improved plant: ``(A_contact, A_free, B)`` (every stage in contact / none).
 
-    ``x' = A x + B u + e`` in each mode, with ``e`` the constant ``+-k b`` term of the contact modes.
-    Shared by the kernel and :mod:`gearctl.modes`.
+    ``x' = A x + B u + e`` in each mode, with ``e`` the constant ``+-k b`` term of the contact modes. A
+    thin view of :func:`gearctl.plant.mode_matrices`.
     """
-    p = plant
-    k, c = p.k, p.c
-    A_free = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [0, 0, -p.d1 / p.J1, 0], [0, 0, 0, -p.d2 / p.J2]], float)
-    A_contact = A_free.copy()
-    A_contact[2] += np.array([-k * p.rb1**2, k * p.rb1 * p.rb2, -c * p.rb1**2, c * p.rb1 * p.rb2]) / p.J1
-    A_contact[3] += np.array([k * p.rb1 * p.rb2, -k * p.rb2**2, c * p.rb1 * p.rb2, -c * p.rb2**2]) / p.J2
-    B = np.array([[0, 0], [0, 0], [1 / p.J1, 0], [0, 1 / p.J2]], float)
-    return A_contact, A_free, B
+    n = plant.n_stages
+    return mode_matrices(plant, [True] * n), mode_matrices(plant, [False] * n), input_matrix(plant)
 
 
 def _propagators(A: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """``Phi(h) = e^{A h}`` and ``Gamma(h) = int_0^h e^{A t} dt`` (cached: a bench builds the same ones often)."""
-    return _propagators_cached(A.tobytes(), h)
+    return _propagators_cached(A.tobytes(), A.shape[0], h)
 
 
-@functools.lru_cache(maxsize=256)
-def _propagators_cached(A_bytes: bytes, h: float) -> tuple[np.ndarray, np.ndarray]:
-    M = np.zeros((8, 8))
-    M[:4, :4] = np.frombuffer(A_bytes).reshape(4, 4)
-    M[:4, 4:] = np.eye(4)
+@functools.lru_cache(maxsize=512)
+def _propagators_cached(A_bytes: bytes, n: int, h: float) -> tuple[np.ndarray, np.ndarray]:
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = np.frombuffer(A_bytes).reshape(n, n)
+    M[:n, n:] = np.eye(n)
     E = scipy.linalg.expm(M * h)
-    Phi, Gam = E[:4, :4].copy(), E[:4, 4:].copy()
+    Phi, Gam = E[:n, :n].copy(), E[:n, n:].copy()
     Phi.flags.writeable = False
     Gam.flags.writeable = False
     return Phi, Gam
 
 
-# --- the kernel object ----------------------------------------------------------------------------------
+def _ptr(a: np.ndarray, ctype: Any) -> Any:
+    return a.ctypes.data_as(ctypes.POINTER(ctype))
+
+
+# --- the kernel object ----------------------------------------------------------------------------------------
 
 
 @dataclasses.dataclass
@@ -198,9 +223,9 @@ class Kernel:
     Parameters
     ----------
     plant : Plant
-        The plant.
-    x0 : array_like, shape (4,)
-        Initial state ``[theta1, theta2, omega1, omega2]``.
+        The plant (a pair or a train).
+    x0 : array_like, shape (nx,)
+        Initial state ``[theta_0..theta_n, omega_0..omega_n]``.
     dt : float
         The usual interval of one :meth:`advance` call [s] (a controller's sample time, an output
         step); sub-steps are chosen to divide it.
@@ -214,6 +239,11 @@ class Kernel:
         Impacts slower than this are made perfectly plastic [m/s].
     t0 : float
         Initial time [s].
+    max_event_rate : float
+        Events a whole run may locate per simulated second, on top of ``max_events`` [1/s]: a cascade
+        that never settles ends the run instead of eating the machine.
+    max_records : int
+        Events kept in detail (:attr:`event_log`); later ones are only counted (:attr:`counts`).
     """
 
     plant: Plant
@@ -224,82 +254,158 @@ class Kernel:
     max_events: int = 200_000
     zeno_velocity: float = ZENO_VELOCITY
     t0: float = 0.0
+    max_event_rate: float = 2e5
+    max_records: int = 1_000_000
 
     def __post_init__(self) -> None:
         p = self.plant
+        n, w = p.n_stages, len(p.shafts)
+        nx = 2 * w
+        x0 = np.asarray(self.x0, dtype=float)
+        if x0.shape != (nx,) or not np.all(np.isfinite(x0)):
+            raise InputError(f"x0 = {x0.tolist()!r} is not an initial state: expected {nx} finite numbers "
+                             f"[rad x {w}, rad/s x {w}]", field="x0")
+        if not (self.dt > 0 and math.isfinite(self.dt)):
+            raise InputError(f"dt = {self.dt!r} is out of range: expected a number > 0 [s]", field="dt")
         self.exact = p.is_piecewise_linear
         lib = _load() if self.compiled in (None, True) else None
         if self.compiled and lib is None:
             raise RuntimeError("the compiled kernel is not available (no C compiler?)")
         self._lib = lib
+        self.nx, self.ns, self.nsh = nx, n, w
+        f64 = np.float64
+        # -- parameter arrays (kept alive here; the C struct points at them)
+        self._J = np.array([s.J for s in p.shafts], f64)
+        self._d = np.array([s.d for s in p.shafts], f64)
+        self._tc = np.array([s.tc for s in p.shafts], f64)
+        self._rb1 = np.array([s.rb1 for s in p.stages], f64)
+        self._rb2 = np.array([s.rb2 for s in p.stages], f64)
+        self._b = np.array([s.backlash for s in p.stages], f64)
+        self._k = np.array([s.k for s in p.stages], f64)
+        self._c = np.array([s.c for s in p.stages], f64)
+        self._period = np.array([s.mesh_period for s in p.stages], f64)
+        self._phase = np.array([s.mesh_phase for s in p.stages], f64)
+        tables = [s.kv_table if s.kv_table is not None else np.zeros(1) for s in p.stages]
+        self._table = np.ascontiguousarray(np.concatenate(tables), f64)
+        self._table_off = np.cumsum([0] + [t.size for t in tables]).astype(np.int64)
+        self._aff = np.ascontiguousarray(affine_terms(p).reshape(-1))
+        fco = np.zeros((n, 2, nx + 1))
+        for i in range(n):
+            for sg in (-1, 1):
+                fc, f0 = force_coefficients(p, i, sg)
+                fco[i, int(sg > 0), :nx], fco[i, int(sg > 0), nx] = fc, f0
+        self._fcoef = np.ascontiguousarray(fco.reshape(-1))
+        ev = event_table(p)
+        self._ev_count = ev["count"].astype(np.int64)
+        self._ev_cg = np.ascontiguousarray(ev["cg"])
+        self._ev_g0 = ev["g0"]
+        self._ev_target = ev["target"].astype(np.intc)
+        self._ev_type = ev["type"].astype(np.intc)
+        self._ev_ssign = ev["ssign"]
+        stick = p.friction_law is FrictionLaw.STICK_SLIP and p.has_coulomb
+        self.friction = 1 if stick else (2 if p.has_coulomb else 0)
+        fshafts = [j for j in range(w) if stick and p.shafts[j].tc > 0]
+        self._fbit = np.full(w, -1, np.int64)
+        for q, j in enumerate(fshafts):
+            self._fbit[j] = n + q
+        self._slot = np.full(1 << (n + len(fshafts)), -1, np.int64)
+        self._pool_cap = 0
+        self._n_slots = 0
+        # -- tolerances of the nonlinear solver: 1e-9 of the backlash (or of 1 um) in s, carried to the
+        #    angles and rates
+        scale = min(max(s.backlash, 1e-6) * 1e-9 / max(s.rb1, s.rb2) for s in p.stages)
+        h_max = min(0.25 * 2 * math.pi / math.sqrt(s.k * (s.rb1**2 / p.shafts[i].J + s.rb2**2 / p.shafts[i + 1].J))
+                    for i, s in enumerate(p.stages))
         prm = _Params()
-        for name, val in (("J1", p.J1), ("J2", p.J2), ("rb1", p.rb1), ("rb2", p.rb2), ("b", p.backlash),
-                          ("k", p.k), ("c", p.c), ("d1", p.d1), ("d2", p.d2), ("tc1", p.tc1), ("tc2", p.tc2),
-                          ("ws", p.coulomb_velocity), ("mesh_period", p.mesh_period),
-                          ("mesh_phase", p.mesh_phase), ("zeno_v", self.zeno_velocity), ("rtol", self.rtol)):
-            setattr(prm, name, float(val))
-        # absolute tolerances: 1e-9 of the backlash (or of 1 um) in s, carried to the angles and rates
-        scale = max(p.backlash, 1e-6) * 1e-9 / max(p.rb1, p.rb2)
-        prm.atol_angle = scale
-        prm.atol_rate = scale * p.natural_frequency
-        prm.h_max = 0.25 * 2 * math.pi / math.sqrt(p.k * (p.rb1**2 / p.J1 + p.rb2**2 / p.J2))
-        Ac, Af, self.B = contact_matrices(p)
-        self._A = (Ac, Af)
-        self._h = [0.0, 0.0]
-        self._rho = [0.0, 0.0]
-        for i, (A, lim) in enumerate(((Ac, 0.6), (Af, 0.5))):
-            rho = float(np.max(np.abs(np.linalg.eigvals(A))))
-            hmax = lim / rho if rho > 0 else math.inf
-            n = max(1, math.ceil(self.dt / hmax - 1e-9))
-            h = self.dt / n
-            Phi, Gam = _propagators(A, h)
-            prm.A[16 * i:16 * i + 16] = A.ravel().tolist()
-            prm.Phi[16 * i:16 * i + 16] = Phi.ravel().tolist()
-            prm.Gam[16 * i:16 * i + 16] = Gam.ravel().tolist()
-            prm.h[i] = h
-            prm.rho[i] = rho
-            self._h[i], self._rho[i] = h, rho
-            if i == 0:
-                self._Phi, self._Gam = [Phi, None], [Gam, None]
-            else:
-                self._Phi[1], self._Gam[1] = Phi, Gam
-        self._table = np.ascontiguousarray(p.kv_table if p.kv_table is not None else np.zeros(1))
-        prm.table = self._table.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-        prm.n_table = self._table.size
-        prm.max_events = self.max_events
-        prm.law = 1 if p.contact_law.value == "no_pull" else 0
+        prm.nx, prm.ns, prm.nsh = nx, n, w
+        prm.law = 1 if p.contact_law is ContactLaw.NO_PULL else 0
         prm.kind = {PlantKind.IMPROVED: 0, PlantKind.YANG_SUN: 1, PlantKind.TVMS: 2}[p.kind]
+        prm.friction, prm.exact = self.friction, int(self.exact)
+        prm.zeno_v, prm.rtol = float(self.zeno_velocity), float(self.rtol)
+        prm.atol_angle, prm.atol_rate, prm.h_max = scale, scale * p.natural_frequency, h_max
+        prm.ws = p.coulomb_velocity
+        for name in ("J", "d", "tc", "rb1", "rb2", "b", "k", "c", "table", "aff", "fcoef", "ev_cg", "ev_g0",
+                     "ev_ssign"):
+            setattr(prm, name, _ptr(getattr(self, "_" + name), ctypes.c_double))
+        prm.mesh_period, prm.mesh_phase = _ptr(self._period, ctypes.c_double), _ptr(self._phase, ctypes.c_double)
+        for name in ("table_off", "ev_count", "fbit", "slot"):
+            setattr(prm, name, _ptr(getattr(self, "_" + name), ctypes.c_int64))
+        prm.ev_target, prm.ev_type = _ptr(self._ev_target, ctypes.c_int), _ptr(self._ev_type, ctypes.c_int)
         self._prm = prm
+        # the patterns every run meets: all stages free and all in contact (a pair has no other)
+        if self.exact:
+            self._ensure_pattern(0)
+            self._ensure_pattern((1 << n) - 1)
+        # -- state arrays
+        self._x = x0.copy()
+        self._mode = np.zeros(n, np.intc)
+        self._slip = np.full(w, 2, np.intc)
+        self._dys = np.zeros(n)
+        self._max_pen = np.full(n, -np.inf)
+        self._counts = np.zeros(n * _NCOUNT, np.int64)
+        self._vmax = np.zeros(n)
         st = _State()
-        x0 = np.asarray(self.x0, dtype=float)
-        if x0.shape != (4,) or not np.all(np.isfinite(x0)):
-            from .errors import InputError
-
-            raise InputError(f"x0 = {x0.tolist()!r} is not an initial state: expected 4 finite numbers "
-                             f"[rad, rad, rad/s, rad/s]", field="x0")
-        st.x[:] = x0.tolist()
-        st.t = self.t0
+        st.x = _ptr(self._x, ctypes.c_double)
+        st.d_ys, st.max_pen, st.vmax = (_ptr(a, ctypes.c_double) for a in (self._dys, self._max_pen, self._vmax))
+        st.mode, st.slip = _ptr(self._mode, ctypes.c_int), _ptr(self._slip, ctypes.c_int)
+        st.counts = _ptr(self._counts, ctypes.c_int64)
+        st.t = st.t_end = float(self.t0)
         st.h_ode = 0.0
-        st.mode = self.classify(x0)
-        if not self.exact and st.mode != 0:  # a run that starts in contact: Yang-Sun's d from zero speed
-            st.d_ys = _ys_damping(p, 0.0)
         self._st = st
+        self._mode[:] = self.classify_all(self._x)
+        if not self.exact:  # a run that starts in contact: Yang-Sun's d from zero speed
+            for i in range(n):
+                if self._mode[i] != 0:
+                    self._dys[i] = yang_sun_damping_factor(p.stages[i].k, 0.0)
+        self._classify_slip(0.0, 0.0)
         self._cap = 4096
-        self._ev = np.zeros(self._cap, dtype=_EVENT_DTYPE)
-        self.events: list[tuple[float, int, int, float]] = []
+        self._ev = np.zeros(self._cap, dtype=EVENT_DTYPE)
+        st.ev, st.cap = self._ev.ctypes.data, self._cap
+        self._chunks: list[np.ndarray] = []
+        self._n_recorded = 0
+        self.dropped_events = 0
         self._fn = None
         if lib is not None:
-            self._fn = lib.gc_advance_pwl if self.exact else lib.gc_advance_ode
-            self._step = lib.gc_step
+            self._fn = lib.gc_step
             self._pp, self._sp = ctypes.byref(prm), ctypes.byref(st)
-            self._evp = self._ev.ctypes.data
-            st.ev, st.cap = self._evp, self._cap
+
+    # -- patterns
+    def _ensure_pattern(self, pat: int) -> None:
+        """Build (once) the propagators of pattern ``pat`` (loaded-stage and stuck-shaft bits)."""
+        if self._slot[pat] >= 0:
+            return
+        p = self.plant
+        n, nx = self.ns, self.nx
+        loaded = [bool(pat >> i & 1) for i in range(n)]
+        stuck = [bool(self._fbit[j] >= 0 and pat >> int(self._fbit[j]) & 1) for j in range(self.nsh)]
+        A = mode_matrices(p, loaded, stuck)
+        rho = float(np.max(np.abs(np.linalg.eigvals(A))))
+        lim = 0.6 if any(loaded) else 0.5
+        hmax = lim / rho if rho > 0 else math.inf
+        m = max(1, math.ceil(self.dt / hmax - 1e-9))
+        h = self.dt / m
+        Phi, Gam = _propagators(A, h)
+        if self._n_slots == self._pool_cap:  # grow the pool (the C struct's pointers follow)
+            cap = max(4, 2 * self._pool_cap)
+            for name, shape in (("_A", (cap, nx, nx)), ("_Phi", (cap, nx, nx)), ("_Gam", (cap, nx, nx)),
+                                ("_h", (cap,)), ("_rho", (cap,))):
+                new = np.zeros(shape)
+                if self._pool_cap:
+                    new[: self._pool_cap] = getattr(self, name)
+                setattr(self, name, new)
+            self._pool_cap = cap
+            for name in ("A", "Phi", "Gam", "h", "rho"):
+                setattr(self._prm, name, _ptr(getattr(self, "_" + name), ctypes.c_double))
+        q = self._n_slots
+        self._A[q], self._Phi[q], self._Gam[q], self._h[q], self._rho[q] = A, Phi, Gam, h, rho
+        self._n_slots += 1
+        self._slot[pat] = q
 
     # -- state access
     @property
     def x(self) -> np.ndarray:
-        """Current state ``[theta1, theta2, omega1, omega2]``."""
-        return np.array(self._st.x[:])
+        """Current state."""
+        return self._x.copy()
 
     @property
     def t(self) -> float:
@@ -308,13 +414,33 @@ class Kernel:
 
     @property
     def mode(self) -> int:
-        """Current solver mode: -2, -1, 0, 1, 2 (±2: flanks overlapping without load, no_pull law)."""
-        return self._st.mode
+        """Solver mode of the first stage: -2, -1, 0, 1, 2 (±2: flanks overlapping without load, no_pull)."""
+        return int(self._mode[0])
+
+    @property
+    def modes(self) -> tuple[int, ...]:
+        """Solver mode of every stage."""
+        return tuple(int(m) for m in self._mode)
+
+    @property
+    def slip(self) -> tuple[int, ...]:
+        """Per shaft: -1 / +1 slipping, 0 stuck (stick-slip friction), 2 without Coulomb friction."""
+        return tuple(int(s) for s in self._slip)
+
+    @property
+    def d_ys(self) -> np.ndarray:
+        """Yang–Sun damping factor of each stage's current contact [N s/m^2]."""
+        return self._dys.copy()
 
     @property
     def max_penetration(self) -> float:
-        """Largest ``|s| - b`` so far [m] (0 if never in contact)."""
-        return max(0.0, self._st.max_pen)
+        """Largest ``|s| - b`` of any stage so far [m] (0 if never in contact)."""
+        return max(0.0, float(np.max(self._max_pen)))
+
+    @property
+    def stage_penetration(self) -> np.ndarray:
+        """Largest ``|s| - b`` of each stage so far [m]."""
+        return np.maximum(self._max_pen, 0.0)
 
     @property
     def steps(self) -> int:
@@ -322,202 +448,256 @@ class Kernel:
         return self._st.n_steps
 
     @property
+    def events_total(self) -> int:
+        """Events located so far (recorded or not)."""
+        return self._st.events_total
+
+    @property
     def path(self) -> str:
         """``"compiled"`` or ``"python"``."""
         return "compiled" if self._fn is not None else "python"
 
-    def classify(self, x: np.ndarray) -> int:
-        """Contact mode of a state (``no_pull`` unloaded overlap as ±2 for the exact solver)."""
+    @property
+    def counts(self) -> dict[str, np.ndarray]:
+        """Exact event counts per stage: :data:`COUNT_NAMES` -> array of length n, plus ``max_impact_velocity``."""
+        c = self._counts.reshape(self.ns, _NCOUNT)
+        return {**{k: c[:, j].copy() for j, k in enumerate(COUNT_NAMES)}, "max_impact_velocity": self._vmax.copy()}
+
+    @property
+    def event_log(self) -> np.ndarray:
+        """The recorded events, a structured array (:data:`EVENT_DTYPE`) in time order."""
+        if not self._chunks:
+            return np.zeros(0, dtype=EVENT_DTYPE)
+        if len(self._chunks) > 1:
+            self._chunks = [np.concatenate(self._chunks)]
+        return self._chunks[0]
+
+    @property
+    def events(self) -> list[tuple[float, int, int, float]]:
+        """The recorded mesh events as ``(t, kind, side, v)`` tuples (:attr:`event_log` has the stage too)."""
+        log = self.event_log
+        log = log[log["kind"] <= EventKind.PLASTIC]
+        return list(zip(log["t"].tolist(), log["kind"].tolist(), log["side"].tolist(), log["v"].tolist(),
+                        strict=True))
+
+    def classify_all(self, x: np.ndarray) -> list[int]:
+        """Contact mode of every stage for state ``x`` (``no_pull`` unloaded overlap as ±2 for the exact solver)."""
         p = self.plant
-        s = p.rb1 * x[0] - p.rb2 * x[1]
-        v = p.rb1 * x[2] - p.rb2 * x[3]
-        b = p.backlash
-        side = 1 if (s > b or (b == 0.0 and s == 0.0 and v >= 0.0)) else (-1 if (s < -b or (b == 0 and s == 0))
-                                                                           else 0)
-        if side and self.exact and p.contact_law.value == "no_pull":
-            F = p.k * (side * s - b) + p.c * side * v
-            if F <= 0.0:
-                return 2 * side
-        return side
+        w = self.nsh
+        out = []
+        for i, st in enumerate(p.stages):
+            s = st.rb1 * x[i] - st.rb2 * x[i + 1]
+            v = st.rb1 * x[w + i] - st.rb2 * x[w + i + 1]
+            b = st.backlash
+            side = 1 if (s > b or (b == 0.0 and s == 0.0 and v >= 0.0)) else (
+                -1 if (s < -b or (b == 0 and s == 0)) else 0)
+            if side and self.exact and p.contact_law is ContactLaw.NO_PULL:
+                F = st.k * (side * s - b) + st.c * side * v
+                if F <= 0.0:
+                    side = 2 * side
+            out.append(side)
+        return out
+
+    def classify(self, x: np.ndarray) -> int:
+        """Contact mode of the first stage for state ``x`` (a pair's mode)."""
+        return self.classify_all(x)[0]
+
+    def _hold_torque(self, j: int, x: np.ndarray, u1: float, u2: float) -> float:
+        """Torque shaft ``j`` needs from friction to stay at rest (everything but Coulomb's) [N m]."""
+        p, w = self.plant, self.nsh
+        T = -p.shafts[j].d * x[w + j] + (u1 if j == 0 else 0.0) + (u2 if j == self.ns else 0.0)
+        modes = self._mode
+        if j >= 1 and modes[j - 1] in (1, -1):
+            fc, f0 = force_coefficients(p, j - 1, int(modes[j - 1]))
+            T += p.stages[j - 1].rb2 * (float(fc @ x) + f0)
+        if j < self.ns and modes[j] in (1, -1):
+            fc, f0 = force_coefficients(p, j, int(modes[j]))
+            T -= p.stages[j].rb1 * (float(fc @ x) + f0)
+        return T
+
+    def _classify_slip(self, u1: float, u2: float) -> None:
+        """Slip state of each shaft from its speed (and, at rest, from the torque friction must hold)."""
+        w = self.nsh
+        for j in range(w):
+            if self.friction != 1 or self.plant.shafts[j].tc <= 0.0:
+                self._slip[j] = 2
+                continue
+            om = self._x[w + j]
+            if om != 0.0:
+                self._slip[j] = 1 if om > 0 else -1
+            else:
+                T = self._hold_torque(j, self._x, u1, u2)
+                tc = self.plant.shafts[j].tc
+                self._slip[j] = 0 if abs(T) <= tc else (1 if T > 0 else -1)
 
     def set_state(self, x: np.ndarray) -> None:
-        """Replace the state (e.g. a disturbance); the mode is re-classified."""
-        self._st.x[:] = [float(v) for v in x]
-        self._st.mode = self.classify(np.asarray(x, float))
+        """Replace the state (e.g. a disturbance); the modes are re-classified."""
+        self._x[:] = np.asarray(x, dtype=float)
+        self._mode[:] = self.classify_all(self._x)
+        self._classify_slip(0.0, 0.0)
+
+    # -- advancing
+    def _budget(self, t_end: float) -> int:
+        """Events this call may still locate: per call, and for the run per simulated second."""
+        run = self.max_event_rate * max(t_end - self.t0, 0.0) + self.max_events - self._st.events_total
+        return int(max(0, min(self.max_events, run)))
 
     def advance(self, u1: float, u2: float, T: float) -> int:
-        """Advance by ``T`` seconds with constant torques ``u1``, ``u2`` [N m]; return a status code.
+        """Advance by ``T`` seconds with constant torques ``u1`` (motor), ``u2`` (load) [N m]; return a status.
 
-        0 is success; events are appended to :attr:`events` as ``(t, kind, side, v)``.
+        0 is success; events are recorded in :attr:`event_log`.
         """
-        if self._fn is not None:
-            st = self._st
-            t_end = st.t + T
-            st.u1, st.u2, st.T = u1, u2, T
-            status = self._step(self._pp, self._sp)  # two pointer arguments: the cheapest ctypes call
-            while True:
-                if st.n_events:
-                    self._drain(min(st.n_events, self._cap))
-                if status != _BUFFER_FULL:
-                    return status
-                st.T = t_end - st.t
-                status = self._step(self._pp, self._sp)
-        if self.exact:
-            return _py_advance_pwl(self, u1, u2, T)
-        return _py_advance_ode(self, u1, u2, T)
+        st = self._st
+        st.u1, st.u2 = u1, u2
+        st.t_end = st.t + T
+        if self._fn is None:
+            return self._py_advance()
+        budget = self._budget(st.t_end)
+        self._prm.max_events = budget
+        status = self._fn(self._pp, self._sp)  # two pointer arguments: the cheapest ctypes call
+        if status == 0 and st.n_events == 0:
+            return 0
+        used = 0
+        while True:
+            if st.n_events:
+                used += st.n_events
+                self._drain(min(st.n_events, self._cap))
+            if status == _PATTERN:
+                self._ensure_pattern(st.need)
+            elif status == _BUFFER_FULL:
+                if used > budget:
+                    return _ST_EVENTS
+            else:
+                return status
+            self._prm.max_events = max(budget - used, 0)
+            status = self._fn(self._pp, self._sp)
 
     def _drain(self, n: int) -> None:
-        ev = self._ev[:n]
-        self.events.extend(zip(ev["t"].tolist(), ev["kind"].tolist(), ev["side"].tolist(), ev["v"].tolist(),
-                               strict=True))
+        room = self.max_records - self._n_recorded
+        keep = min(n, max(room, 0))
+        if keep:
+            self._chunks.append(self._ev[:keep].copy())
+            self._n_recorded += keep
+        self.dropped_events += n - keep
 
     def run(self, u1: float, u2: float, dt: float, n: int) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-        """Advance ``n`` intervals of ``dt`` with constant torques; return ``(status, x, mode, d_ys)``.
+        """Advance ``n`` intervals of ``dt`` with constant torques; return ``(status, x, modes, d_ys)``.
 
-        ``x`` has shape ``(4, m)`` with the state after each completed interval (``m <= n``; fewer on
-        failure). One call into the compiled kernel for the whole run where available.
+        ``x`` has shape ``(nx, m)`` with the state after each completed interval (``m <= n``; fewer on
+        failure or divergence), ``modes`` and ``d_ys`` shape ``(n_stages, m)``. The compiled path runs
+        stretches of intervals in one call.
         """
-        if self._fn is None:
-            xs, modes, dys = np.empty((4, n)), np.empty(n, dtype=int), np.empty(n)
-            status = 0
-            for i in range(n):
-                status = self.advance(u1, u2, dt)
-                xs[:, i], modes[i], dys[i] = self._st.x, self._st.mode, self._st.d_ys
-                if status or abs(xs[2, i]) > 1e6 or abs(xs[3, i]) > 1e6:
-                    return status, xs[:, : i + 1], modes[: i + 1], dys[: i + 1]
-            return status, xs, modes, dys
-        out = np.empty((n, 4))
-        modes = np.empty(n, dtype=np.intc)
-        dys = np.empty(n)
-        done = ctypes.c_long(0)
-        m, t0 = 0, self._st.t
-        status = 0
+        nx, ns, w = self.nx, self.ns, self.nsh
+        xs = np.empty((n, nx))
+        modes = np.empty((n, ns), dtype=np.intc)
+        dys = np.empty((n, ns))
+        st = self._st
+        st.u1, st.u2 = u1, u2
+        m, status = 0, 0
+        done = ctypes.c_int64(0)
         while m < n:
-            status = self._lib.gc_run(self._pp, self._sp, u1, u2, dt, n - m, out[m:].ctypes.data,
-                                      modes[m:].ctypes.data, dys[m:].ctypes.data, self._evp, self._cap,
+            if self._fn is None:
+                status = self.advance(u1, u2, dt)
+                xs[m], modes[m], dys[m] = self._x, self._mode, self._dys
+                m += 1
+                if status != 0 or not np.all(np.abs(self._x[w:]) <= 1e6):
+                    break
+                continue
+            budget = self._budget(st.t + dt * (n - m))
+            self._prm.max_events = budget
+            before = self._dys.copy()
+            status = self._lib.gc_run(self._pp, self._sp, dt, n - m, xs[m:].ctypes.data, modes[m:].ctypes.data,
                                       ctypes.byref(done))
-            self._drain(min(self._st.n_events, self._cap))
-            m += done.value
-            if status != _BUFFER_FULL:
-                break
-            # the buffer filled inside interval m: finish it event by event, then go on
-            status = self.advance(u1, u2, t0 + (m + 1) * dt - self._st.t)
-            out[m], modes[m], dys[m] = self._st.x[:], self._st.mode, self._st.d_ys
-            m += 1
+            k = int(done.value)
+            if k:  # d_ys changes only at a contact onset, and only the last interval of a call has events
+                dys[m:m + k - 1] = before
+                dys[m + k - 1] = self._dys
+            m += k
+            used = st.n_events
+            if used:
+                self._drain(min(used, self._cap))
+            if status == 0:
+                if k and not np.all(np.abs(xs[m - 1, w:]) <= 1e6):
+                    break
+                continue
+            while status in (_PATTERN, _BUFFER_FULL):  # finish the interrupted interval (st.t_end is set)
+                if status == _PATTERN:
+                    self._ensure_pattern(st.need)
+                elif used > budget:
+                    status = _ST_EVENTS
+                    break
+                self._prm.max_events = max(budget - used, 0)
+                status = self._fn(self._pp, self._sp)
+                if st.n_events:
+                    used += st.n_events
+                    self._drain(min(st.n_events, self._cap))
             if status != 0:
                 break
-        return status, out[:m].T.copy(), modes[:m].astype(int), dys[:m]
+            xs[m], modes[m], dys[m] = self._x, self._mode, self._dys
+            m += 1
+            if not np.all(np.abs(self._x[w:]) <= 1e6):
+                break
+        return status, xs[:m].T.copy(), modes[:m].T.astype(int), dys[:m].T.copy()
 
     @staticmethod
     def status_message(status: int) -> str:
         """Words for a status code of :meth:`advance`."""
         return _STATUS.get(status, f"status {status}")
 
+    def c_force(self, i: int, mode: int, d_ys: float, x: np.ndarray) -> float:
+        """The C kernel's force law for stage ``i`` (for the test that it agrees with :func:`mesh_force`)."""
+        if self._lib is None:
+            raise RuntimeError("the compiled kernel is not available")
+        xa = np.ascontiguousarray(x, dtype=float)
+        return float(self._lib.gc_force(ctypes.byref(self._prm), i, mode, d_ys, xa.ctypes.data))
 
-def _ys_damping(p: Plant, v: float) -> float:
-    from .stiffness import yang_sun_damping_factor
+    # -- the pure-Python mirror -----------------------------------------------------------------------------
+    def _py_advance(self) -> int:
+        budget = self._budget(self._st.t_end)
+        mirror = _Mirror(self, budget)
+        status = mirror.advance_pwl() if self.exact else mirror.advance_ode()
+        mirror.finish()
+        return status
 
-    return yang_sun_damping_factor(p.k, v)
 
-
-# --- the pure-Python mirror of _kernel.c ------------------------------------------------------------------
+# --- the pure-Python mirror of _kernel.c -------------------------------------------------------------------------
 # Written to follow the C line by line, so both paths give the same answers (tests compare them).
 
 _NTAY = 48
+_BREAKAWAY = 1e-9  # see _kernel.c
 
 
-def _mv(M: np.ndarray, x: list[float]) -> list[float]:
-    return [M[i, 0] * x[0] + M[i, 1] * x[1] + M[i, 2] * x[2] + M[i, 3] * x[3] for i in range(4)]
-
-
-def _event_functions(kn: Kernel, mode: int) -> list[tuple[list[float], float, int]]:
-    p = kn.plant
-    sv = [p.rb1, -p.rb2, 0.0, 0.0]
-    vv = [0.0, 0.0, p.rb1, -p.rb2]
-    no_pull = kn._prm.law == 1
-    k, c, b = p.k, p.c, p.backlash
-    if mode == 0:
-        return [([-x for x in sv], b, 1), (sv[:], b, -1)]
-    out = []
-    if mode in (1, 2):
-        out.append((sv[:], -b, 0))
-        if no_pull:
-            sg = 1.0 if mode == 1 else -1.0
-            out.append(([sg * (k * sv[i] + c * vv[i]) for i in range(4)], -sg * k * b, 2 if mode == 1 else 1))
-    else:
-        out.append(([-x for x in sv], -b, 0))
-        if no_pull:
-            sg = 1.0 if mode == -1 else -1.0
-            out.append(([-sg * (k * sv[i] + c * vv[i]) for i in range(4)], -sg * k * b, -2 if mode == -1 else -1))
-    return out
-
-
-def _transition(kn: Kernel, mode: int, target: int, x: list[float], t: float) -> int:
-    p = kn.plant
-    v = p.rb1 * x[2] - p.rb2 * x[3]
-    side = int(math.copysign(1, mode if mode != 0 else target))
-    if target == 0:
-        if p.backlash > 0.0 or p.k <= 0.0:
-            kn.events.append((t, EventKind.SEPARATION, side, v))
-            return 0
-        if kn._prm.law == 1:
-            s = p.rb1 * x[0] - p.rb2 * x[1]
-            fb = -side * (p.k * s + p.c * v)
-            return -side if fb > 0.0 else -2 * side
-        return -side
-    if mode == 0:
-        if abs(v) < kn.zeno_velocity:
-            inv_m = p.rb1**2 / p.J1 + p.rb2**2 / p.J2
-            P = v / inv_m
-            x[2] -= p.rb1 * P / p.J1
-            x[3] += p.rb2 * P / p.J2
-            kn.events.append((t, EventKind.PLASTIC, side, v))
-        else:
-            kn.events.append((t, EventKind.IMPACT, side, v))
-        return target
-    kn.events.append((t, EventKind.RELOAD if target in (1, -1) else EventKind.LIFT, side, v))
-    return target
-
-
-def _affine(kn: Kernel, mode: int, u1: float, u2: float) -> list[float]:
-    p = kn.plant
-    a = [0.0, 0.0, u1 / p.J1, u2 / p.J2]
-    if mode in (1, -1):
-        a[2] += p.rb1 * p.k * mode * p.backlash / p.J1
-        a[3] -= p.rb2 * p.k * mode * p.backlash / p.J2
-    return a
-
-
-def _taylor(A: np.ndarray, rho: float, x0: list[float], a: list[float], tmax: float) -> list[list[float]]:
+def _taylor(A: list[list[float]], rho: float, x0: list[float], a: list[float], tmax: float) -> list[list[float]]:
+    n = len(x0)
     D = [list(x0)]
-    t = _mv(A, x0)
-    D.append([t[i] + a[i] for i in range(4)])
+    t = [sum(A[i][j] * x0[j] for j in range(n)) for i in range(n)]
+    D.append([t[i] + a[i] for i in range(n)])
     bound = rho * tmax
     term = bound
-    for n in range(2, _NTAY):
-        t = _mv(A, D[n - 1])
-        D.append([v / n for v in t])
-        term *= bound / n
-        if term < 1e-18 and n >= 4:
+    for k in range(2, _NTAY):
+        prev = D[k - 1]
+        D.append([sum(A[i][j] * prev[j] for j in range(n)) / k for i in range(n)])
+        term *= bound / k
+        if term < 1e-18 and k >= 4:
             break
     return D
 
 
 def _taylor_eval(D: list[list[float]], tau: float) -> list[float]:
     out = []
-    for i in range(4):
+    for i in range(len(D[0])):
         acc = D[-1][i]
-        for n in range(len(D) - 2, -1, -1):
-            acc = acc * tau + D[n][i]
+        for k in range(len(D) - 2, -1, -1):
+            acc = acc * tau + D[k][i]
         out.append(acc)
     return out
 
 
 def _poly(q: list[float], tau: float) -> tuple[float, float]:
     acc, dacc = q[-1], 0.0
-    for n in range(len(q) - 2, -1, -1):
+    for k in range(len(q) - 2, -1, -1):
         dacc = dacc * tau + acc
-        acc = acc * tau + q[n]
+        acc = acc * tau + q[k]
     return acc, dacc
 
 
@@ -540,7 +720,7 @@ def _poly_root(q: list[float], lo: float, hi: float) -> float:
 
 def _first_root(q: list[float], h: float, g1: float, dg0: float, dg1: float) -> float:
     if dg0 < 0.0 and dg1 > 0.0:
-        dq = [(n + 1) * q[n + 1] for n in range(len(q) - 1)]
+        dq = [(k + 1) * q[k + 1] for k in range(len(q) - 1)]
         lo, hi = 0.0, h
         for _ in range(200):
             if hi - lo <= 1e-15 * h:
@@ -558,97 +738,8 @@ def _first_root(q: list[float], h: float, g1: float, dg0: float, dg1: float) -> 
     return _poly_root(q, 0.0, h) if g1 <= 0.0 else -1.0
 
 
-def _py_advance_pwl(kn: Kernel, u1: float, u2: float, T: float) -> int:
-    st, p = kn._st, kn.plant
-    x = list(st.x)
-    t = st.t
-    mode = st.mode
-    t_end = t + T
-    n_before = len(kn.events)
-    guard = 0
-    max_pen = st.max_pen
-    steps = 0
-    status = 0
-    while t < t_end:
-        dyn = 0 if mode in (1, -1) else 1
-        A = kn._A[dyn]
-        a = _affine(kn, mode, u1, u2)
-        x0 = x
-        remaining = t_end - t
-        h = kn._h[dyn]
-        lands = abs(remaining - h) <= 1e-9 * h
-        D = None
-        if lands or remaining > h:
-            x1 = [u + w for u, w in zip(_mv(kn._Phi[dyn], x0), _mv(kn._Gam[dyn], a), strict=True)]
-        else:
-            h = remaining
-            lands = True
-            D = _taylor(A, kn._rho[dyn], x0, a, h)
-            x1 = _taylor_eval(D, h)
-        dx0 = [u + w for u, w in zip(_mv(A, x0), a, strict=True)]
-        dx1 = [u + w for u, w in zip(_mv(A, x1), a, strict=True)]
-        best, which, target = -1.0, -1, 0
-        no_events = p.backlash == 0.0 and kn._prm.law == 0  # one linear system on both flanks
-        for cg, g0, tgt in ([] if no_events else _event_functions(kn, mode)):
-            ga = g0 + sum(cg[i] * x0[i] for i in range(4))
-            gb = g0 + sum(cg[i] * x1[i] for i in range(4))
-            da = sum(cg[i] * dx0[i] for i in range(4))
-            db = sum(cg[i] * dx1[i] for i in range(4))
-            ga = max(ga, 0.0)
-            if ga == 0.0 and abs(da) <= 1e-12 * sum(abs(cg[i] * dx0[i]) for i in range(4)):
-                da = 0.0  # zero up to cancellation (see _kernel.c)
-            if not (gb <= 0.0 or (da < 0.0 and db > 0.0) or (ga == 0.0 and da <= 0.0)):
-                continue
-            if ga == 0.0 and (da < 0.0 or (da == 0.0 and db < 0.0)):
-                tau = 0.0
-            else:
-                if D is None:
-                    D = _taylor(A, kn._rho[dyn], x0, a, h)
-                q = [sum(cg[i] * Dn[i] for i in range(4)) for Dn in D]
-                q[0] = ga
-                tau = _first_root(q, h, gb, da, db)
-            if tau >= 0.0 and (which < 0 or tau < best - 1e-12 * h):
-                best, which, target = tau, 1, tgt
-        steps += 1
-        if which < 0:
-            x = x1
-            t = t_end if lands else t + h
-            if no_events:
-                mode = 1 if p.rb1 * x[0] - p.rb2 * x[1] >= 0.0 else -1
-        else:
-            if D is None:
-                D = _taylor(A, kn._rho[dyn], x0, a, h)
-            x = _taylor_eval(D, best)
-            t = min(t + best, t_end)
-            new = _transition(kn, mode, target, x, t)
-            if len(kn.events) - n_before > kn.max_events or (guard := guard + 1) > 4 * kn.max_events:
-                mode = new
-                status = 3
-                break
-            if mode in (1, -1):
-                max_pen = max(max_pen, abs(p.rb1 * x[0] - p.rb2 * x[1]) - p.backlash)
-            mode = new
-            continue
-        if mode in (1, -1):
-            s1 = p.rb1 * x1[0] - p.rb2 * x1[1]
-            max_pen = max(max_pen, abs(s1) - p.backlash)
-            va, vb = p.rb1 * x0[2] - p.rb2 * x0[3], p.rb1 * x1[2] - p.rb2 * x1[3]
-            if va * vb < 0.0:
-                sa = p.rb1 * x0[0] - p.rb2 * x0[1]
-                th = va / (va - vb)
-                h00, h10 = 2 * th**3 - 3 * th**2 + 1, th**3 - 2 * th**2 + th
-                h01, h11 = -2 * th**3 + 3 * th**2, th**3 - th**2
-                sm = h00 * sa + h10 * h * va + h01 * s1 + h11 * h * vb
-                max_pen = max(max_pen, abs(sm) - p.backlash)
-        if not all(math.isfinite(v) for v in x):
-            status = 2
-            break
-    st.x[:] = x
-    st.t = t
-    st.mode = mode
-    st.max_pen = max_pen
-    st.n_steps += steps
-    return status
+def _mv(M: list[list[float]], x: list[float]) -> list[float]:
+    return [sum(row[j] * x[j] for j in range(len(x))) for row in M]
 
 
 # Dormand–Prince 5(4)
@@ -663,161 +754,515 @@ _D1, _D3, _D4 = -12715105075 / 11282082432, 87487479700 / 32700410799, -10690763
 _D5, _D6, _D7 = 701980252875 / 199316789632, -1453857185 / 822651844, 69997945 / 29380423
 
 
-def _force(kn: Kernel, mode: int, d_ys: float, x: list[float]) -> float:
-    p = kn.plant
-    if mode == 0:
-        return 0.0
-    s = p.rb1 * x[0] - p.rb2 * x[1]
-    v = p.rb1 * x[2] - p.rb2 * x[3]
-    sigma = 1.0 if mode > 0 else -1.0
-    delta, ddelta = sigma * s - p.backlash, sigma * v
-    if kn._prm.kind == 1:
-        F = (d_ys * ddelta + p.k) * delta
-    else:
-        kk = float(p.stiffness_at(x[0])) if kn._prm.kind == 2 else p.k
-        F = kk * delta + p.c * ddelta
-    if kn._prm.law == 1 and F < 0.0:
-        F = 0.0
-    return sigma * F
+@dataclasses.dataclass
+class _EvFun:
+    cg: list[float]
+    g0: float
+    type: int  # 0 geometric, 1 force (no_pull), 2 slip reaches zero speed, 3 stuck shaft breaks away
+    target: int
+    idx: int
+    ssign: float
 
 
-def _rhs(kn: Kernel, mode: int, d_ys: float, u1: float, u2: float, x: list[float]) -> list[float]:
-    p = kn.plant
-    F = _force(kn, mode, d_ys, x)
-    f1 = p.d1 * x[2]
-    f2 = p.d2 * x[3]
-    if p.tc1 > 0.0:
-        f1 += p.tc1 * math.tanh(x[2] / p.coulomb_velocity)
-    if p.tc2 > 0.0:
-        f2 += p.tc2 * math.tanh(x[3] / p.coulomb_velocity)
-    return [x[2], x[3], (u1 - p.rb1 * F - f1) / p.J1, (u2 + p.rb2 * F - f2) / p.J2]
+class _Mirror:
+    """One :meth:`Kernel.advance` call on the Python path (the C's locals as attributes)."""
 
+    def __init__(self, kn: Kernel, budget: int) -> None:
+        self.kn, self.p, self.budget = kn, kn.plant, budget
+        st = kn._st
+        self.u1, self.u2, self.t_end = st.u1, st.u2, st.t_end
+        self.t = st.t
+        self.x = kn._x.tolist()
+        self.mode = kn._mode.tolist()
+        self.slip = kn._slip.tolist()
+        self.dys = kn._dys.tolist()
+        self.max_pen = kn._max_pen.tolist()
+        self.n_events = 0
+        self.steps = 0
+        self.events: list[tuple[float, float, int, int, int]] = []
+        self.w, self.ns, self.nx = kn.nsh, kn.ns, kn.nx
+        self.rb1, self.rb2, self.b = kn._rb1.tolist(), kn._rb2.tolist(), kn._b.tolist()
+        self.k, self.c = kn._k.tolist(), kn._c.tolist()
+        self.J, self.d, self.tc = kn._J.tolist(), kn._d.tolist(), kn._tc.tolist()
+        self.law = kn._prm.law
+        self.zeno_v = kn.zeno_velocity
 
-def _py_advance_ode(kn: Kernel, u1: float, u2: float, T: float) -> int:
-    st, p, prm = kn._st, kn.plant, kn._prm
-    y = list(st.x)
-    t = st.t
-    mode = 1 if st.mode > 0 else (-1 if st.mode < 0 else 0)
-    d_ys = st.d_ys
-    t_end = t + T
-    n_before = len(kn.events)
-    h = st.h_ode if st.h_ode > 0.0 else prm.h_max * 0.1
-    k1 = None
-    rejects = 0
-    steps = 0
-    max_pen = st.max_pen
-    sv = [p.rb1, -p.rb2, 0.0, 0.0]
-    status = 0
+    def finish(self) -> None:
+        kn, st = self.kn, self.kn._st
+        kn._x[:] = self.x
+        kn._mode[:] = self.mode
+        kn._slip[:] = self.slip
+        kn._dys[:] = self.dys
+        kn._max_pen[:] = self.max_pen
+        st.t = self.t
+        st.n_steps += self.steps
+        st.events_total += self.n_events
+        if self.events:
+            n = len(self.events)
+            room = max(kn.max_records - kn._n_recorded, 0)
+            keep = min(n, room)
+            if keep:
+                arr = np.array(self.events[:keep], dtype=EVENT_DTYPE)
+                kn._chunks.append(arr)
+                kn._n_recorded += keep
+            kn.dropped_events += n - keep
 
-    def stage(coefs: list[tuple[float, list[float]]]) -> list[float]:
-        return [y[i] + h * sum(c * k[i] for c, k in coefs) for i in range(4)]
+    # -- shared pieces
+    def s_of(self, i: int, x: list[float]) -> float:
+        return self.rb1[i] * x[i] - self.rb2[i] * x[i + 1]
 
-    while t < t_end:
-        if k1 is None:
-            k1 = _rhs(kn, mode, d_ys, u1, u2, y)
-        h = min(h, prm.h_max)
-        last = False
-        if t + h >= t_end - 1e-15 * abs(t_end):
-            h = t_end - t
-            last = True
-        k2 = _rhs(kn, mode, d_ys, u1, u2, stage([(_A21, k1)]))
-        k3 = _rhs(kn, mode, d_ys, u1, u2, stage([(_A31, k1), (_A32, k2)]))
-        k4 = _rhs(kn, mode, d_ys, u1, u2, stage([(_A41, k1), (_A42, k2), (_A43, k3)]))
-        k5 = _rhs(kn, mode, d_ys, u1, u2, stage([(_A51, k1), (_A52, k2), (_A53, k3), (_A54, k4)]))
-        k6 = _rhs(kn, mode, d_ys, u1, u2, stage([(_A61, k1), (_A62, k2), (_A63, k3), (_A64, k4), (_A65, k5)]))
-        y1 = stage([(_A71, k1), (_A73, k3), (_A74, k4), (_A75, k5), (_A76, k6)])
-        k7 = _rhs(kn, mode, d_ys, u1, u2, y1)
-        err = 0.0
-        for i in range(4):
-            sk = (prm.atol_angle if i < 2 else prm.atol_rate) + prm.rtol * max(abs(y[i]), abs(y1[i]))
-            ei = h * (_E1 * k1[i] + _E3 * k3[i] + _E4 * k4[i] + _E5 * k5[i] + _E6 * k6[i] + _E7 * k7[i]) / sk
-            err += ei * ei
-        err = math.sqrt(err / 4.0)
-        if not math.isfinite(err):
-            status = 2
-            break
-        fac = min(5.0, 0.9 * err**-0.2) if err > 0.0 else 5.0
-        if err > 1.0:
-            h *= max(fac, 0.2)
-            rejects += 1
-            if rejects > 100000 or h < 1e-16 * (abs(t) + 1e-9):
-                status = 4
-                break
-            continue
-        steps += 1
+    def v_of(self, i: int, x: list[float]) -> float:
+        return self.rb1[i] * x[self.w + i] - self.rb2[i] * x[self.w + i + 1]
+
+    def record(self, t: float, kind: int, side: int, v: float, where: int) -> None:
+        self.events.append((t, v, kind, side, where))
+        self.n_events += 1
+
+    def count(self, i: int, slot: int, v: float) -> None:
+        kn = self.kn
+        kn._counts[_NCOUNT * i + slot] += 1
+        if slot <= 3 and abs(v) > kn._vmax[i]:
+            kn._vmax[i] = abs(v)
+
+    def force(self, i: int, mode: int, d_ys: float, x: list[float]) -> float:
         if mode == 0:
-            evs = [([-v for v in sv], p.backlash, 1), (sv, p.backlash, -1)]
+            return 0.0
+        p = self.p
+        s, v = self.s_of(i, x), self.v_of(i, x)
+        sigma = 1.0 if mode > 0 else -1.0
+        delta, ddelta = sigma * s - self.b[i], sigma * v
+        if p.kind is PlantKind.YANG_SUN:
+            F = (d_ys * ddelta + self.k[i]) * delta
         else:
-            evs = [([mode * v for v in sv], -p.backlash, 0)]
-        best, which, target = 2.0, -1, 0
-        r = None
-        for cg, g0, tgt in evs:
-            ga = g0 + sum(cg[i] * y[i] for i in range(4))
-            gb = g0 + sum(cg[i] * y1[i] for i in range(4))
-            if not gb <= 0.0 or ga < 0.0:
+            kk = float(p.stiffness_at(x[i], i)) if p.kind is PlantKind.TVMS else self.k[i]
+            F = kk * delta + self.c[i] * ddelta
+        if self.law == 1 and F < 0.0:
+            F = 0.0
+        return sigma * F
+
+    def free_gap_accel(self, i: int, x: list[float]) -> float:
+        w = self.w
+        acc = []
+        for q in (0, 1):
+            j = i + q
+            if self.kn.friction == 1 and self.slip[j] == 0:
+                acc.append(0.0)
                 continue
-            if r is None:
-                r1 = [y1[i] - y[i] for i in range(4)]
-                r2 = [h * k1[i] - r1[i] for i in range(4)]
-                r3 = [r1[i] - h * k7[i] - r2[i] for i in range(4)]
-                r4 = [h * (_D1 * k1[i] + _D3 * k3[i] + _D4 * k4[i] + _D5 * k5[i] + _D6 * k6[i] + _D7 * k7[i])
-                      for i in range(4)]
-                r = (y, r1, r2, r3, r4)
+            T = -self.d[j] * x[w + j]
+            if j == 0:
+                T += self.u1
+            if j == self.ns:
+                T += self.u2
+            if self.kn.friction == 1 and self.slip[j] in (1, -1):
+                T -= self.tc[j] * self.slip[j]
+            if j >= 1 and j - 1 != i:
+                T += self.rb2[j - 1] * self.force(j - 1, self.mode[j - 1], self.dys[j - 1], x)
+            if j < self.ns and j != i:
+                T -= self.rb1[j] * self.force(j, self.mode[j], self.dys[j], x)
+            acc.append(T / self.J[j])
+        return self.rb1[i] * acc[0] - self.rb2[i] * acc[1]
 
-            def dense(th: float, r=r) -> list[float]:
-                return [r[0][i] + th * (r[1][i] + (1 - th) * (r[2][i] + th * (r[3][i] + (1 - th) * r[4][i])))
-                        for i in range(4)]
+    def grazing_leaves(self, f: _EvFun, x: list[float], h: float) -> bool:
+        return f.ssign * self.free_gap_accel(f.idx, x) < -(1e-3 * self.zeno_v / h)
 
-            lo, hi, flo, fhi = 0.0, 1.0, ga, gb
-            if ga == 0.0:
-                lo = 1e-12
-                flo = g0 + sum(cg[i] * v for i, v in enumerate(dense(lo)))
-                if flo <= 0.0:
-                    best, which, target = 0.0, 1, tgt
-                    break
-            it = 0
-            while it < 200 and hi - lo > 1e-15:
-                th = hi - fhi * (hi - lo) / (fhi - flo)
-                if not (lo < th < hi):
-                    th = 0.5 * (lo + hi)
-                ft = g0 + sum(cg[i] * v for i, v in enumerate(dense(th)))
-                if ft > 0.0:
-                    lo, flo, fhi = th, ft, fhi * 0.5
+    def hold_coef(self, j: int) -> tuple[list[float], float]:
+        p, nx = self.p, self.nx
+        cg = [0.0] * nx
+        g0 = 0.0
+        cg[self.w + j] = -self.d[j]
+        if j == 0:
+            g0 += self.u1
+        if j == self.ns:
+            g0 += self.u2
+        if j >= 1 and self.mode[j - 1] in (1, -1):
+            fc, f0 = force_coefficients(p, j - 1, self.mode[j - 1])
+            cg = [cg[q] + self.rb2[j - 1] * fc[q] for q in range(nx)]
+            g0 += self.rb2[j - 1] * f0
+        if j < self.ns and self.mode[j] in (1, -1):
+            fc, f0 = force_coefficients(p, j, self.mode[j])
+            cg = [cg[q] - self.rb1[j] * fc[q] for q in range(nx)]
+            g0 -= self.rb1[j] * f0
+        return cg, g0
+
+    def collect(self, ode: bool) -> list[_EvFun]:
+        kn, out = self.kn, []
+        for i in range(self.ns):
+            if self.b[i] == 0.0 and self.law == 0:
+                continue
+            slot = 5 * i + self.mode[i] + 2
+            for e in range(int(kn._ev_count[slot])):
+                row = 2 * slot + e
+                if ode and kn._ev_type[row] != EVENT_GEOMETRIC:
+                    continue
+                out.append(_EvFun(kn._ev_cg[row].tolist(), float(kn._ev_g0[row]), int(kn._ev_type[row]),
+                                  int(kn._ev_target[row]), i, float(kn._ev_ssign[row])))
+        if kn.friction == 1:
+            for j in range(self.w):
+                sl = self.slip[j]
+                if sl in (1, -1):
+                    cg = [0.0] * self.nx
+                    cg[self.w + j] = float(sl)
+                    out.append(_EvFun(cg, 0.0, 2, 0, j, 0.0))
+                elif sl == 0:
+                    cg, g0 = self.hold_coef(j)
+                    for sd in (1, -1):
+                        out.append(_EvFun([-sd * c for c in cg], self.tc[j] * (1.0 + _BREAKAWAY) - sd * g0, 3, sd,
+                                          j, 0.0))
+        return out
+
+    def plastic(self, i: int, x: list[float]) -> None:
+        w = self.w
+        v = self.v_of(i, x)
+        inv_m = self.rb1[i] * self.rb1[i] / self.J[i] + self.rb2[i] * self.rb2[i] / self.J[i + 1]
+        P = v / inv_m
+        x[w + i] -= self.rb1[i] * P / self.J[i]
+        x[w + i + 1] += self.rb2[i] * P / self.J[i + 1]
+
+    def transition(self, f: _EvFun, x: list[float], t: float) -> None:
+        i = f.idx
+        if f.type == 2:
+            x[self.w + i] = 0.0
+            cg, g0 = self.hold_coef(i)
+            T = g0 + sum(cg[q] * x[q] for q in range(self.nx))
+            if abs(T) <= self.tc[i]:
+                self.slip[i] = 0
+                self.record(t, EventKind.STICK, 0, T, i)
+            else:
+                self.slip[i] = 1 if T > 0.0 else -1
+            return
+        if f.type == 3:
+            self.slip[i] = f.target
+            self.record(t, EventKind.SLIP, f.target, 0.0, i)
+            return
+        mode, target = self.mode[i], f.target
+        v = self.v_of(i, x)
+        side = int(math.copysign(1, mode if mode != 0 else target))
+        if target == 0:
+            if self.b[i] > 0.0 or self.k[i] <= 0.0:
+                self.record(t, EventKind.SEPARATION, side, v, i)
+                self.count(i, 4, v)
+                self.mode[i] = 0
+                return
+            if self.law == 1:
+                fb = -side * (self.k[i] * self.s_of(i, x) + self.c[i] * v)
+                self.mode[i] = -side if fb > 0.0 else -2 * side
+                return
+            self.mode[i] = -side
+            return
+        if mode == 0:
+            if abs(v) < self.zeno_v:
+                self.plastic(i, x)
+                self.record(t, EventKind.PLASTIC, side, v, i)
+                self.count(i, _CT_PLASTIC[side], v)
+            else:
+                self.record(t, EventKind.IMPACT, side, v, i)
+                self.count(i, _CT_IMPACT[side], v)
+            self.mode[i] = target
+            return
+        self.record(t, EventKind.RELOAD if target in (1, -1) else EventKind.LIFT, side, v, i)
+        self.count(i, 5, v)
+        self.mode[i] = target
+
+    def affine(self) -> list[float]:
+        kn, w = self.kn, self.w
+        a = [0.0] * self.nx
+        a[w] = self.u1 / self.J[0]
+        a[w + self.ns] += self.u2 / self.J[self.ns]
+        aff = kn._aff
+        for i in range(self.ns):
+            m = self.mode[i]
+            if m in (1, -1):
+                base = (2 * i + (m > 0)) * 2
+                a[w + i] += float(aff[base])
+                a[w + i + 1] += float(aff[base + 1])
+        if kn.friction == 1:
+            for j in range(w):
+                sl = self.slip[j]
+                if sl == 0:
+                    a[w + j] = 0.0
+                elif sl in (1, -1):
+                    a[w + j] -= self.tc[j] * sl / self.J[j]
+        return a
+
+    def pattern(self) -> int:
+        kn = self.kn
+        pat = 0
+        for i in range(self.ns):
+            if self.mode[i] in (1, -1):
+                pat |= 1 << i
+        if kn.friction == 1:
+            for j in range(self.w):
+                if kn._fbit[j] >= 0 and self.slip[j] == 0:
+                    pat |= 1 << int(kn._fbit[j])
+        return pat
+
+    # -- the exact solver
+    def advance_pwl(self) -> int:
+        kn, nx = self.kn, self.nx
+        guard = 0
+        cached, have_dx = False, False
+        a = gam_a = dx0 = dx1 = None
+        while self.t < self.t_end:
+            pat = self.pattern()
+            kn._ensure_pattern(pat)
+            q = int(kn._slot[pat])
+            A, Phi, Gam = kn._A[q].tolist(), kn._Phi[q].tolist(), kn._Gam[q].tolist()
+            rho, h_pat = float(kn._rho[q]), float(kn._h[q])
+            if not cached:
+                a = self.affine()
+                gam_a = _mv(Gam, a)
+                cached, have_dx = True, False
+            x0 = self.x
+            if not have_dx:
+                dx0 = [u + v for u, v in zip(_mv(A, x0), a, strict=True)]
+            remaining = self.t_end - self.t
+            h = h_pat
+            lands = abs(remaining - h) <= 1e-9 * h
+            D = None
+            if lands or remaining > h:
+                x1 = [u + v for u, v in zip(_mv(Phi, x0), gam_a, strict=True)]
+                dx1 = _mv(Phi, dx0)
+            else:
+                h = remaining
+                lands = True
+                D = _taylor(A, rho, x0, a, h)
+                x1 = _taylor_eval(D, h)
+                dx1 = [u + v for u, v in zip(_mv(A, x1), a, strict=True)]
+            fns = self.collect(False)
+            best, which = -1.0, -1
+            for e, f in enumerate(fns):
+                cg = f.cg
+                ga = f.g0 + sum(cg[i] * x0[i] for i in range(nx))
+                gb = f.g0 + sum(cg[i] * x1[i] for i in range(nx))
+                da = sum(cg[i] * dx0[i] for i in range(nx))
+                db = sum(cg[i] * dx1[i] for i in range(nx))
+                dscale = sum(abs(cg[i] * dx0[i]) for i in range(nx))
+                if f.type == 3 and ga < 0.0:
+                    tau = 0.0
                 else:
-                    hi, fhi, flo = th, ft, flo * 0.5
-                it += 1
-            if hi < best:
-                best, which, target = hi, 1, tgt
-        if which >= 0:
-            th = best
-            y = [r[0][i] + th * (r[1][i] + (1 - th) * (r[2][i] + th * (r[3][i] + (1 - th) * r[4][i])))
-                 for i in range(4)]
-            t += best * h
-            nm = _transition(kn, mode, target, y, t)
-            nm = 1 if nm > 0 else (-1 if nm < 0 else 0)
-            if prm.kind == 1 and nm != 0:
-                d_ys = _ys_damping(p, abs(p.rb1 * y[2] - p.rb2 * y[3]))
-            mode = nm
-            k1 = None
-            if len(kn.events) - n_before > kn.max_events:
-                status = 3
-                break
-        else:
-            y = y1
-            k1 = k7
-            t = t_end if last else t + h
-            if not last:
-                st.h_ode = h * fac
-            h *= fac
-        if mode != 0:
-            max_pen = max(max_pen, abs(p.rb1 * y[0] - p.rb2 * y[1]) - p.backlash)
-        if not all(math.isfinite(v) for v in y):
-            status = 2
-            break
-    st.x[:] = y
-    st.t = t
-    st.mode = mode
-    st.d_ys = d_ys
-    st.max_pen = max_pen
-    st.n_steps += steps
-    return status
+                    ga = max(ga, 0.0)
+                    if ga == 0.0 and abs(da) <= 1e-12 * dscale:
+                        da = 0.0
+                    if not (gb <= 0.0 or (da < 0.0 and db > 0.0) or (ga == 0.0 and da <= 0.0)):
+                        continue
+                    if ga == 0.0 and da == 0.0 and f.type == EVENT_GEOMETRIC:
+                        if self.grazing_leaves(f, x0, h_pat):
+                            tau = 0.0
+                        else:
+                            gscale = sum(abs(cg[i] * x0[i]) for i in range(nx))
+                            acc_tol = 1e-3 * self.zeno_v / h_pat
+                            if not (gb < -(0.5 * acc_tol * h * h + 4e-16 * gscale)):
+                                continue
+                            tau = 0.0
+                    elif ga == 0.0 and (da < 0.0 or (da == 0.0 and db < 0.0)):
+                        tau = 0.0
+                    else:
+                        if D is None:
+                            D = _taylor(A, rho, x0, a, h)
+                        qp = [sum(cg[i] * Dn[i] for i in range(nx)) for Dn in D]
+                        qp[0] = ga
+                        tau = _first_root(qp, h, gb, da, db)
+                if tau >= 0.0 and (which < 0 or tau < best - 1e-12 * h):
+                    best, which = tau, e
+            self.steps += 1
+            was = list(self.mode)
+            if which < 0:
+                self.x = x1
+                dx0 = dx1
+                have_dx = True
+                self.t = self.t_end if lands else self.t + h
+                for i in range(self.ns):
+                    if self.b[i] == 0.0 and self.law == 0:
+                        self.mode[i] = 1 if self.s_of(i, x1) >= 0.0 else -1
+            else:
+                have_dx = False
+                cached = False
+                if D is None:
+                    D = _taylor(A, rho, x0, a, h)
+                self.x = _taylor_eval(D, best)
+                self.t = min(self.t + best, self.t_end)
+                self.transition(fns[which], self.x, self.t)
+                guard += 1
+                if self.n_events > self.budget or guard > 4 * max(self.budget, 1):
+                    return _ST_EVENTS
+            for i in range(self.ns):
+                if was[i] not in (1, -1):
+                    continue
+                self.max_pen[i] = max(self.max_pen[i], abs(self.s_of(i, self.x)) - self.b[i])
+                va, vb = self.v_of(i, x0), self.v_of(i, x1)
+                if which < 0 and va * vb < 0.0:
+                    sa, sb = self.s_of(i, x0), self.s_of(i, x1)
+                    th = va / (va - vb)
+                    h00, h10 = 2 * th**3 - 3 * th**2 + 1, th**3 - 2 * th**2 + th
+                    h01, h11 = -2 * th**3 + 3 * th**2, th**3 - th**2
+                    sm = h00 * sa + h10 * h * va + h01 * sb + h11 * h * vb
+                    self.max_pen[i] = max(self.max_pen[i], abs(sm) - self.b[i])
+            if not all(math.isfinite(v) for v in self.x):
+                return 2
+        return 0
+
+    # -- the nonlinear solver
+    def rhs(self, x: list[float]) -> list[float]:
+        w, ns = self.w, self.ns
+        F = [self.force(i, self.mode[i], self.dys[i], x) for i in range(ns)]
+        dx = [0.0] * self.nx
+        fr_kind = self.kn.friction
+        for j in range(w):
+            dx[j] = x[w + j]
+            if fr_kind == 1 and self.slip[j] == 0:
+                dx[j] = 0.0
+                dx[w + j] = 0.0
+                continue
+            T = self.u1 if j == 0 else (self.u2 if j == ns else 0.0)
+            if j < ns:
+                T = T - self.rb1[j] * F[j]
+            if j >= 1:
+                T = T + self.rb2[j - 1] * F[j - 1]
+            fr = self.d[j] * x[w + j]
+            if fr_kind == 2 and self.tc[j] > 0.0:
+                fr += self.tc[j] * math.tanh(x[w + j] / self.p.coulomb_velocity)
+            if fr_kind == 1 and self.slip[j] in (1, -1):
+                fr += self.tc[j] * self.slip[j]
+            dx[w + j] = (T - fr) / self.J[j]
+        return dx
+
+    def ode_g(self, f: _EvFun, x: list[float]) -> float:
+        if f.type != 3:
+            return f.g0 + sum(f.cg[i] * x[i] for i in range(self.nx))
+        j = f.idx
+        T = -self.d[j] * x[self.w + j] + (self.u1 if j == 0 else 0.0) + (self.u2 if j == self.ns else 0.0)
+        if j >= 1:
+            T += self.rb2[j - 1] * self.force(j - 1, self.mode[j - 1], self.dys[j - 1], x)
+        if j < self.ns:
+            T -= self.rb1[j] * self.force(j, self.mode[j], self.dys[j], x)
+        return self.tc[j] * (1.0 + _BREAKAWAY) - f.target * T
+
+    def advance_ode(self) -> int:
+        kn, prm, nx, w = self.kn, self.kn._prm, self.nx, self.w
+        st = kn._st
+        h = st.h_ode if st.h_ode > 0.0 else prm.h_max * 0.1
+        k1 = None
+        rejects = 0
+        while self.t < self.t_end:
+            y = self.x
+            if k1 is None:
+                k1 = self.rhs(y)
+            h = min(h, prm.h_max)
+            last = False
+            if self.t + h >= self.t_end - 1e-15 * abs(self.t_end):
+                h = self.t_end - self.t
+                last = True
+
+            def stage(coefs: list[tuple[float, list[float]]], h: float = h, y: list[float] = y) -> list[float]:
+                return [y[i] + h * sum(c * k[i] for c, k in coefs) for i in range(nx)]
+
+            k2 = self.rhs(stage([(_A21, k1)]))
+            k3 = self.rhs(stage([(_A31, k1), (_A32, k2)]))
+            k4 = self.rhs(stage([(_A41, k1), (_A42, k2), (_A43, k3)]))
+            k5 = self.rhs(stage([(_A51, k1), (_A52, k2), (_A53, k3), (_A54, k4)]))
+            k6 = self.rhs(stage([(_A61, k1), (_A62, k2), (_A63, k3), (_A64, k4), (_A65, k5)]))
+            y1 = stage([(_A71, k1), (_A73, k3), (_A74, k4), (_A75, k5), (_A76, k6)])
+            k7 = self.rhs(y1)
+            err = 0.0
+            for i in range(nx):
+                sk = (prm.atol_angle if i < w else prm.atol_rate) + prm.rtol * max(abs(y[i]), abs(y1[i]))
+                ei = h * (_E1 * k1[i] + _E3 * k3[i] + _E4 * k4[i] + _E5 * k5[i] + _E6 * k6[i] + _E7 * k7[i]) / sk
+                err += ei * ei
+            err = math.sqrt(err / nx)
+            if not math.isfinite(err):
+                return 2
+            fac = min(5.0, 0.9 * err**-0.2) if err > 0.0 else 5.0
+            if err > 1.0:
+                h *= max(fac, 0.2)
+                rejects += 1
+                if rejects > 100000 or h < 1e-16 * (abs(self.t) + 1e-9):
+                    return 4
+                continue
+            self.steps += 1
+            fns = self.collect(True)
+            best, which = 2.0, -1
+            r = None
+
+            def dense_of(r: tuple[list[float], ...], th: float) -> list[float]:
+                return [r[0][i] + th * (r[1][i] + (1 - th) * (r[2][i] + th * (r[3][i] + (1 - th) * r[4][i])))
+                        for i in range(nx)]
+
+            def make_dense(h: float = h, y: list[float] = y, y1: list[float] = y1, k1: list[float] = k1,
+                           k3: list[float] = k3, k4: list[float] = k4, k5: list[float] = k5, k6: list[float] = k6,
+                           k7: list[float] = k7) -> tuple[list[float], ...]:
+                r1 = [y1[i] - y[i] for i in range(nx)]
+                r2 = [h * k1[i] - r1[i] for i in range(nx)]
+                r3 = [r1[i] - h * k7[i] - r2[i] for i in range(nx)]
+                r4 = [h * (_D1 * k1[i] + _D3 * k3[i] + _D4 * k4[i] + _D5 * k5[i] + _D6 * k6[i] + _D7 * k7[i])
+                      for i in range(nx)]
+                return (y, r1, r2, r3, r4)
+
+            for e, f in enumerate(fns):
+                ga, gb = self.ode_g(f, y), self.ode_g(f, y1)
+                if f.type == 3 and ga < 0.0:
+                    best, which = 0.0, e
+                    break
+                if f.type == EVENT_GEOMETRIC and ga >= 0.0 and gb <= 0.0:
+                    da = sum(f.cg[i] * k1[i] for i in range(nx))
+                    dscale = sum(abs(f.cg[i] * k1[i]) for i in range(nx))
+                    gscale = sum(abs(f.cg[i] * y[i]) for i in range(nx))
+                    if ga <= 4e-16 * gscale and abs(da) <= 1e-12 * dscale:
+                        if self.grazing_leaves(f, y, h):
+                            best, which = 0.0, e
+                            break
+                        acc_tol = 1e-3 * self.zeno_v / h
+                        if gb >= -(0.5 * acc_tol * h * h + 4e-16 * gscale):
+                            continue
+                if not gb <= 0.0 or ga < 0.0:
+                    continue
+                if r is None:
+                    r = make_dense()
+                lo, hi, flo, fhi = 0.0, 1.0, ga, gb
+                if ga == 0.0:
+                    lo = 1e-12
+                    flo = self.ode_g(f, dense_of(r, lo))
+                    if flo <= 0.0:
+                        best, which = 0.0, e
+                        break
+                it = 0
+                while it < 200 and hi - lo > 1e-15:
+                    th = hi - fhi * (hi - lo) / (fhi - flo)
+                    if not (lo < th < hi):
+                        th = 0.5 * (lo + hi)
+                    ft = self.ode_g(f, dense_of(r, th))
+                    if ft > 0.0:
+                        lo, flo, fhi = th, ft, fhi * 0.5
+                    else:
+                        hi, fhi, flo = th, ft, flo * 0.5
+                    it += 1
+                if hi < best:
+                    best, which = hi, e
+            if which >= 0:
+                if best > 0.0:
+                    if r is None:
+                        r = make_dense()
+                    self.x = dense_of(r, best)
+                    self.t += best * h
+                f = fns[which]
+                self.transition(f, self.x, self.t)
+                if f.type <= 1:
+                    i = f.idx
+                    self.mode[i] = 1 if self.mode[i] > 0 else (-1 if self.mode[i] < 0 else 0)
+                    if self.p.kind is PlantKind.YANG_SUN and self.mode[i] != 0:
+                        self.dys[i] = yang_sun_damping_factor(self.k[i], abs(self.v_of(i, self.x)))
+                k1 = None
+                if self.n_events > self.budget:
+                    return _ST_EVENTS
+            else:
+                self.x = y1
+                k1 = k7
+                self.t = self.t_end if last else self.t + h
+                if not last:
+                    st.h_ode = h * fac
+                h *= fac
+            for i in range(self.ns):
+                if self.mode[i] != 0:
+                    self.max_pen[i] = max(self.max_pen[i], abs(self.s_of(i, self.x)) - self.b[i])
+            if not all(math.isfinite(v) for v in self.x):
+                return 2
+        return 0

@@ -1,13 +1,16 @@
 """Linear models of the gear plant per contact mode, as python-control objects.
 
 In contact (front or back) the improved plant is exactly linear about any operating point, and both flanks
-share the same dynamics; in separation it is two free inertias. These models are built analytically from
-the plant's parameters (the same matrices the exact simulator integrates), not by finite differences
-across the backlash kink.
+share the same dynamics; in separation a stage is two free inertias. These models are built from the
+plant's own matrices (:func:`gearctl.plant.mode_matrices`, the ones the exact simulator integrates), not by
+finite differences across the backlash kink. A train has a model per mode combination: every stage in
+contact, every stage separated, each stage separated alone.
 
-State ``[theta1, theta2, omega1, omega2]`` (deviations from the operating point); inputs ``xi1`` (motor
-torque) and ``xi2`` (load torque) [N m]; outputs ``theta1`` (motor angle), ``theta2`` (load angle) [rad],
-``s`` (relative displacement along the line of action) [m] and ``force`` (contact force) [N].
+A pair's signals: state ``[theta1, theta2, omega1, omega2]`` (deviations from the operating point); inputs
+``xi1`` (motor torque) and ``xi2`` (load torque) [N m]; outputs ``theta1`` (motor angle), ``theta2`` (load
+angle) [rad], ``s`` (relative displacement along the line of action) [m] and ``force`` (contact force) [N].
+A train's: ``theta0..thetan``, ``omega0..omegan``; ``xi0``, ``xin``; ``theta0``, ``thetan``, ``s1..sn``,
+``force1..forcen``.
 """
 
 from __future__ import annotations
@@ -19,8 +22,7 @@ from typing import Any
 import control as ct
 import numpy as np
 
-from .kernel import contact_matrices
-from .plant import INPUTS, STATES, Plant
+from .plant import Plant, input_matrix, mode_matrices, signal_names
 
 __all__ = [
     "ContactModes",
@@ -30,77 +32,112 @@ __all__ = [
     "rigid_model",
     "linearize_modes",
     "mesh_mode",
+    "mode_model",
     "loop_margins",
     "OUTPUTS",
+    "output_names",
 ]
 
 OUTPUTS = ("theta1", "theta2", "s", "force")
 
 
-def _outputs(plant: Plant, contact: bool) -> tuple[np.ndarray, np.ndarray]:
-    p = plant
-    C = np.zeros((4, 4))
+def output_names(plant: Plant) -> list[str]:
+    """Output names of the linear models: the pair's :data:`OUTPUTS`, or a train's."""
+    n = plant.n_stages
+    if n == 1:
+        return list(OUTPUTS)
+    return ["theta0", f"theta{n}"] + [f"s{i + 1}" for i in range(n)] + [f"force{i + 1}" for i in range(n)]
+
+
+def _outputs(plant: Plant, loaded: list[bool]) -> tuple[np.ndarray, np.ndarray]:
+    n, w = plant.n_stages, len(plant.shafts)
+    C = np.zeros((2 + 2 * n, 2 * w))
     C[0, 0] = 1.0
-    C[1, 1] = 1.0
-    C[2, :2] = [p.rb1, -p.rb2]
-    if contact:  # F = k (s - b) + c s' about the operating point: k ds + c dv
-        C[3] = [p.k * p.rb1, -p.k * p.rb2, p.c * p.rb1, -p.c * p.rb2]
-    return C, np.zeros((4, 2))
+    C[1, w - 1] = 1.0
+    for i, st in enumerate(plant.stages):
+        C[2 + i, [i, i + 1]] = [st.rb1, -st.rb2]
+        if loaded[i]:  # F = k (s - b) + c s' about the operating point: k ds + c dv
+            C[2 + n + i, [i, i + 1, w + i, w + i + 1]] = [st.k * st.rb1, -st.k * st.rb2, st.c * st.rb1, -st.c * st.rb2]
+    return C, np.zeros((2 + 2 * n, 2))
 
 
-def contact_mode_model(plant: Plant, *, name: str = "contact") -> ct.StateSpace:
-    """Linear model of the plant in contact (front or back: the same dynamics), eqs 1–5 and 8–12.
+def mode_model(plant: Plant, loaded: list[bool] | tuple[bool, ...], *, name: str = "mode") -> ct.StateSpace:
+    """Linear model with the stages ``loaded`` in contact (front or back alike) and the others separated.
 
     Parameters
     ----------
     plant : Plant
         The (improved) plant; motor/load inertias and viscous friction of a ``[servo]`` are included.
+    loaded : sequence of bool
+        Per stage, whether it is in contact.
     name : str
         System name.
 
     Returns
     -------
     control.StateSpace
-        Named states ``theta1, theta2, omega1, omega2``, inputs ``xi1, xi2``, outputs
-        ``theta1, theta2, s, force``; deviations about the operating point (the ``+-k b`` offset of the
-        contact law only shifts the operating point).
+        Named states, inputs and outputs (see the module docstring); deviations about the operating point
+        (the ``+-k b`` offset of the contact law only shifts the operating point).
     """
-    A, _, B = contact_matrices(plant)
-    C, D = _outputs(plant, True)
-    return ct.ss(A, B, C, D, states=list(STATES), inputs=list(INPUTS), outputs=list(OUTPUTS), name=name)
+    loaded = list(loaded)
+    states, inputs = signal_names(plant)
+    C, D = _outputs(plant, loaded)
+    return ct.ss(mode_matrices(plant, loaded), input_matrix(plant), C, D, states=states, inputs=inputs,
+                 outputs=output_names(plant), name=name)
+
+
+def contact_mode_model(plant: Plant, *, name: str = "contact") -> ct.StateSpace:
+    """Linear model of the plant with every stage in contact (front or back: the same dynamics), eqs 1–5 and 8–12.
+
+    See :func:`mode_model`.
+    """
+    return mode_model(plant, [True] * plant.n_stages, name=name)
 
 
 def separation_model(plant: Plant, *, name: str = "separation") -> ct.StateSpace:
-    """Linear model in separation: two free inertias with their viscous friction (eqs 6–7).
+    """Linear model with every stage separated: free inertias with their viscous friction (eqs 6–7).
 
-    Same signals as :func:`contact_mode_model`; the ``force`` output is identically zero.
+    Same signals as :func:`contact_mode_model`; the ``force`` outputs are identically zero.
     """
-    _, A, B = contact_matrices(plant)
-    C, D = _outputs(plant, False)
-    return ct.ss(A, B, C, D, states=list(STATES), inputs=list(INPUTS), outputs=list(OUTPUTS), name=name)
+    return mode_model(plant, [False] * plant.n_stages, name=name)
 
 
 def rigid_model(plant: Plant, *, name: str = "rigid") -> ct.StateSpace:
-    """Infinitely stiff mesh: the limit ``k -> inf`` of the contact model, seen from the motor shaft.
+    """Infinitely stiff meshes: the limit ``k -> inf`` of the contact model, seen from the motor shaft.
 
-    ``J_eq theta1'' = xi1 + xi2 / N - d_eq theta1'`` with ``N = r_b2 / r_b1``, ``J_eq = J1 + J2 / N^2``,
-    ``d_eq = d1 + d2 / N^2``; ``theta2 = theta1 / N``, ``s = 0``. States ``theta1, omega1``; inputs
-    ``xi1, xi2``; outputs ``theta1, theta2, s, force`` (the force the stiff mesh transmits).
+    ``J_eq theta1'' = xi1 + xi2 / N - d_eq theta1'`` with ``N`` the overall ratio, ``J_eq = sum_j J_j / N_j^2``,
+    ``d_eq = sum_j d_j / N_j^2`` (``N_j``: ratio from the motor to shaft j); every shaft follows the motor,
+    ``s = 0``. States ``theta1, omega1`` (``theta0, omega0`` for a train); the force outputs are the forces the
+    stiff meshes transmit.
     """
     p = plant
-    N = p.gear_ratio
-    J = p.J1 + p.J2 / N**2
-    d = p.d1 + p.d2 / N**2
+    n, w = p.n_stages, len(p.shafts)
+    ratio_to = [math.prod(s.ratio for s in p.stages[:j]) for j in range(w)]
+    N = ratio_to[-1]
+    J = sum(p.shafts[j].J / ratio_to[j] ** 2 for j in range(w))
+    d = sum(p.shafts[j].d / ratio_to[j] ** 2 for j in range(w))
     A = np.array([[0.0, 1.0], [0.0, -d / J]])
     B = np.array([[0.0, 0.0], [1.0 / J, 1.0 / (N * J)]])
-    # force from gear 2's equation: r_b2 F = J2 theta2'' - xi2 + d2 omega2, with theta2 = theta1 / N
+    # shaft j: angle theta1 / N_j, acceleration (acc_row x + acc_in u) / N_j. The force of stage i balances
+    # what is downstream of it, from the load back: r_b2 F_i = J_(i+1) theta'' + d omega - u_load + r_b1 F_(i+1)
     acc_row = np.array([0.0, -d / J])
     acc_in = np.array([1.0 / J, 1.0 / (N * J)])
-    C = np.array([[1.0, 0.0], [1.0 / N, 0.0], [0.0, 0.0],
-                  (p.J2 / N * acc_row + np.array([0.0, p.d2 / N])) / p.rb2])
-    D = np.zeros((4, 2))
-    D[3] = (p.J2 / N * acc_in - np.array([0.0, 1.0])) / p.rb2
-    return ct.ss(A, B, C, D, states=["theta1", "omega1"], inputs=list(INPUTS), outputs=list(OUTPUTS), name=name)
+    C = np.zeros((2 + 2 * n, 2))
+    D = np.zeros((2 + 2 * n, 2))
+    C[0, 0] = 1.0
+    C[1, 0] = 1.0 / N
+    Fc, Fd = np.zeros(2), np.zeros(2)  # the force of the stage after the current one
+    for i in reversed(range(n)):
+        j = i + 1
+        sh = p.shafts[j]
+        rc = sh.J / ratio_to[j] * acc_row + np.array([0.0, sh.d / ratio_to[j]])
+        rd = sh.J / ratio_to[j] * acc_in - (np.array([0.0, 1.0]) if j == n else 0.0)
+        if j < n:
+            rc, rd = rc + p.stages[j].rb1 * Fc, rd + p.stages[j].rb1 * Fd
+        Fc, Fd = rc / p.stages[i].rb2, rd / p.stages[i].rb2
+        C[2 + n + i], D[2 + n + i] = Fc, Fd
+    states = ["theta1", "omega1"] if n == 1 else ["theta0", "omega0"]
+    return ct.ss(A, B, C, D, states=states, inputs=signal_names(p)[1], outputs=output_names(p), name=name)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -182,9 +219,14 @@ class ContactModes:
     motor_angle, load_angle : control.TransferFunction
         Contact-mode transfer functions from motor torque ``xi1`` to motor angle and to load angle.
     mesh : MeshMode
-        Resonance and anti-resonance of the mesh mode.
+        Resonance and anti-resonance of the mesh mode (a train's: its highest resonance).
     plant : Plant
         The plant they come from.
+    resonances_hz : tuple of float
+        Undamped natural frequencies of every oscillatory mode with all stages in contact [Hz] (one per
+        stage: the train's resonances), lowest first.
+    stage_separated : tuple of control.StateSpace
+        For a train, the model with stage ``i`` separated and the others in contact (empty for a pair).
     """
 
     contact: ct.StateSpace
@@ -194,6 +236,18 @@ class ContactModes:
     load_angle: ct.TransferFunction
     mesh: MeshMode
     plant: Plant
+    resonances_hz: tuple[float, ...] = ()
+    stage_separated: tuple[ct.StateSpace, ...] = ()
+
+    @property
+    def lost_motion(self) -> float:
+        """Lost motion at the load shaft, ``sum_i 2 b_i / (r_b2,i prod_(j > i) N_j)`` [rad]."""
+        return self.plant.lost_motion
+
+    @property
+    def equivalent_stiffness(self) -> float:
+        """Torsional stiffness of the train in contact at the load shaft [N m/rad]."""
+        return self.plant.equivalent_stiffness
 
     def mode(self, name: str) -> ct.StateSpace:
         """The model of ``"contact"``, ``"separation"`` or ``"rigid"``."""
@@ -218,11 +272,19 @@ def linearize_modes(plant: Plant) -> ContactModes:
     scale = plant.natural_frequency
     tf_motor = _siso_tf(contact, 0, 0, scale)
     tf_load = _siso_tf(contact, 1, 0, scale)
+    outs = output_names(plant)
+    xi = signal_names(plant)[1][0]
+    poles = contact.poles()
+    osc = poles[poles.imag > 1e-9 * np.max(np.abs(poles))]
+    n = plant.n_stages
+    separated = tuple(mode_model(plant, [j != i for j in range(n)], name=f"stage{i + 1}_separated")
+                      for i in range(n)) if n > 1 else ()
     return ContactModes(
         contact=contact, separation=separation_model(plant), rigid=rigid_model(plant),
-        motor_angle=ct.tf(tf_motor.num, tf_motor.den, inputs="xi1", outputs="theta1", name="motor_angle"),
-        load_angle=ct.tf(tf_load.num, tf_load.den, inputs="xi1", outputs="theta2", name="load_angle"),
+        motor_angle=ct.tf(tf_motor.num, tf_motor.den, inputs=xi, outputs=outs[0], name="motor_angle"),
+        load_angle=ct.tf(tf_load.num, tf_load.den, inputs=xi, outputs=outs[1], name="load_angle"),
         mesh=mesh_mode(plant), plant=plant,
+        resonances_hz=tuple(sorted(float(abs(p)) / (2 * math.pi) for p in osc)), stage_separated=separated,
     )
 
 

@@ -1,19 +1,32 @@
 """Dynamic and servo data of a gear model: mesh dynamics, servo extension, sensors.
 
-These are the ``[dynamics]``, ``[servo]`` and ``[sensors]`` tables of a model file. Defaults leave the
-report's bare gear pair unchanged (no motor, no load, no friction, no torque limit, ideal sensors).
+These are the ``[dynamics]``, ``[servo]`` and ``[sensors]`` tables of a model file (and, for a train,
+the dynamics keys of each ``[[stage]]``). Defaults leave the report's bare gear pair unchanged (no motor,
+no load, no friction, no torque limit, ideal sensors). Units and ranges come from :mod:`gearctl.units`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import enum
-import math
 
 from .errors import InputError
-from .units import quantity, validate_fields
+from .units import (
+    ADDED_INERTIA,
+    COULOMB_FRICTION,
+    COULOMB_VELOCITY,
+    DAMPING_RATIO,
+    ENCODER_CPR,
+    ENCODER_NOISE,
+    LOAD_TORQUE,
+    MESH_DAMPING,
+    MESH_STIFFNESS,
+    TORQUE_LIMIT,
+    VISCOUS_FRICTION,
+    validate_fields,
+)
 
-__all__ = ["ContactLaw", "MeshDynamics", "Servo", "Sensors"]
+__all__ = ["ContactLaw", "FrictionLaw", "MeshDynamics", "Servo", "Sensors"]
 
 
 class ContactLaw(enum.StrEnum):
@@ -29,9 +42,36 @@ class ContactLaw(enum.StrEnum):
     NO_PULL = "no_pull"
 
 
+class FrictionLaw(enum.StrEnum):
+    """How Coulomb friction acts at standstill.
+
+    ``STICK_SLIP`` (default): ``T_c sign(omega)`` while the shaft slips; at zero speed the shaft sticks
+    and friction holds any torque up to ``T_c`` (Karnopp's model with equal static and kinetic
+    friction). Sticking and breaking away are located events, and a stuck shaft has one degree of
+    freedom less, so the improved plant stays piecewise affine and is solved exactly: a standstill
+    costs nothing.
+    ``SMOOTH``: ``T_c tanh(omega / omega_s)``, a regularised law without events, integrated by the
+    nonlinear solver (the first wave's law; near standstill it is a very stiff damper ``T_c / omega_s``).
+    """
+
+    STICK_SLIP = "stick_slip"
+    SMOOTH = "smooth"
+
+
+def _enum_field(obj: object, name: str, cls: type[enum.Enum]) -> None:
+    """Turn a string field into its enum member, or raise naming the allowed values."""
+    value = getattr(obj, name)
+    try:
+        object.__setattr__(obj, name, cls(value))
+    except ValueError:
+        allowed = ", ".join(repr(c.value) for c in cls)
+        rule = f"is not allowed: expected one of {allowed}"
+        raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule) from None
+
+
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class MeshDynamics:
-    """Mesh stiffness and damping of the plant (the ``[dynamics]`` table).
+    """Mesh stiffness and damping of a stage (the ``[dynamics]`` table, or a stage's own keys).
 
     Notes
     -----
@@ -42,65 +82,64 @@ class MeshDynamics:
     microseconds of each contact.
     """
 
-    damping_ratio: float = quantity(unit="1", doc="damping ratio of the mesh mode", low=0.0, high=2.0)
-    mesh_stiffness: float | None = quantity(
-        unit="N/m", doc="mesh stiffness k replacing the computed mean", low=0.0, high=1e13,
-        low_open=True, optional=True, default=None,
-    )
-    damping_coefficient: float | None = quantity(
-        unit="N s/m", doc="mesh damping c replacing eq 38", low=0.0, high=1e8, optional=True, default=None
-    )
+    damping_ratio: float = DAMPING_RATIO.field()
+    mesh_stiffness: float | None = MESH_STIFFNESS.field(
+        default=None, optional=True, doc="mesh stiffness k replacing the computed mean")
+    damping_coefficient: float | None = MESH_DAMPING.field(
+        default=None, optional=True, doc="mesh damping c replacing eq 38")
     contact_law: ContactLaw = ContactLaw.LINEAR
 
     def __post_init__(self) -> None:
         validate_fields(self)
-        try:
-            object.__setattr__(self, "contact_law", ContactLaw(self.contact_law))
-        except ValueError:
-            allowed = ", ".join(repr(c.value) for c in ContactLaw)
-            rule = f"is not a contact law: expected one of {allowed}"
-            raise InputError(f"contact_law = {self.contact_law!r} {rule}", field="contact_law", rule=rule) from None
+        _enum_field(self, "contact_law", ContactLaw)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class Servo:
-    """The gear pair as part of a servo: motor, load, friction, torque limit (the ``[servo]`` table).
+    """The gear train as part of a servo: motor, load, friction, torque limit (the ``[servo]`` table).
 
-    Signs follow the report: torques and angles of shaft 1 positive clockwise, of shaft 2 positive
-    counter-clockwise, so a load torque that resists a positive motion of gear 2 is negative.
+    Signs follow the report: every shaft angle is positive in the direction the train moves forward
+    (shaft 1 clockwise, shaft 2 counter-clockwise for a pair), so a load torque that resists a forward
+    motion is negative. ``1`` is the motor shaft, ``2`` the load shaft; a train's intermediate shafts
+    take the ``intermediate_*`` lists (one value per intermediate shaft, motor side first).
 
     Notes
     -----
-    Coulomb friction ``T_c sign(omega)`` is regularised as ``T_c tanh(omega / omega_s)`` with
-    ``omega_s = coulomb_velocity``: a documented smooth law instead of stick-slip events, so the
-    nonlinear integrator stays event-free on the friction side.
+    Coulomb friction follows :class:`FrictionLaw`: stick-slip by default. The smooth law
+    ``T_c tanh(omega / omega_s)`` with ``omega_s = coulomb_velocity`` is kept as ``friction_law =
+    "smooth"``.
     """
 
-    motor_inertia: float = quantity(unit="kg m^2", doc="motor rotor inertia on shaft 1", low=0.0, default=0.0)
-    load_inertia: float = quantity(unit="kg m^2", doc="load inertia on shaft 2", low=0.0, default=0.0)
-    viscous_friction1: float = quantity(
-        unit="N m s/rad", doc="viscous friction on shaft 1", low=0.0, high=1e3, default=0.0
-    )
-    viscous_friction2: float = quantity(
-        unit="N m s/rad", doc="viscous friction on shaft 2", low=0.0, high=1e3, default=0.0
-    )
-    coulomb_friction1: float = quantity(unit="N m", doc="Coulomb friction on shaft 1", low=0.0, high=1e4, default=0.0)
-    coulomb_friction2: float = quantity(unit="N m", doc="Coulomb friction on shaft 2", low=0.0, high=1e4, default=0.0)
-    coulomb_velocity: float = quantity(
-        unit="rad/s", doc="velocity scale of the smooth Coulomb law", low=0.0, low_open=True, high=10.0, default=1e-3
-    )
-    torque_limit: float = quantity(
-        unit="N m", doc="motor torque limit", low=0.0, low_open=True, default=math.inf
-    )
-    load_torque: float = quantity(unit="N m", doc="constant load torque on shaft 2", low=-1e4, high=1e4, default=0.0)
+    motor_inertia: float = ADDED_INERTIA.field(default=0.0, doc="motor rotor inertia on the motor shaft")
+    load_inertia: float = ADDED_INERTIA.field(default=0.0, doc="load inertia on the load shaft")
+    viscous_friction1: float = VISCOUS_FRICTION.field(default=0.0, doc="viscous friction on the motor shaft")
+    viscous_friction2: float = VISCOUS_FRICTION.field(default=0.0, doc="viscous friction on the load shaft")
+    coulomb_friction1: float = COULOMB_FRICTION.field(default=0.0, doc="Coulomb friction on the motor shaft")
+    coulomb_friction2: float = COULOMB_FRICTION.field(default=0.0, doc="Coulomb friction on the load shaft")
+    coulomb_velocity: float = COULOMB_VELOCITY.field(default=1e-3)
+    friction_law: FrictionLaw = FrictionLaw.STICK_SLIP
+    torque_limit: float = TORQUE_LIMIT.field(default=float("inf"))
+    load_torque: float = LOAD_TORQUE.field(default=0.0, doc="constant load torque on the load shaft")
+    intermediate_inertia: tuple[float, ...] = ADDED_INERTIA.field(
+        default=(), sequence=True, doc="inertia added to each intermediate shaft of a train")
+    intermediate_viscous_friction: tuple[float, ...] = VISCOUS_FRICTION.field(
+        default=(), sequence=True, doc="viscous friction on each intermediate shaft of a train")
+    intermediate_coulomb_friction: tuple[float, ...] = COULOMB_FRICTION.field(
+        default=(), sequence=True, doc="Coulomb friction on each intermediate shaft of a train")
 
     @property
     def has_coulomb(self) -> bool:
         """Whether any Coulomb friction is present."""
-        return self.coulomb_friction1 > 0 or self.coulomb_friction2 > 0
+        return self.coulomb_friction1 > 0 or self.coulomb_friction2 > 0 or any(
+            v > 0 for v in self.intermediate_coulomb_friction)
 
     def __post_init__(self) -> None:
+        for name in ("intermediate_inertia", "intermediate_viscous_friction", "intermediate_coulomb_friction"):
+            value = getattr(self, name)
+            if isinstance(value, list):
+                object.__setattr__(self, name, tuple(value))
         validate_fields(self)
+        _enum_field(self, "friction_law", FrictionLaw)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -111,16 +150,10 @@ class Sensors:
     standard deviation, drawn from the simulation's seeded generator.
     """
 
-    motor_encoder_cpr: int | None = quantity(
-        unit="counts/rev", doc="motor encoder resolution", low=4, high=2**40, integer=True, optional=True,
-        default=None,
-    )
-    load_encoder_cpr: int | None = quantity(
-        unit="counts/rev", doc="load encoder resolution", low=4, high=2**40, integer=True, optional=True,
-        default=None,
-    )
-    motor_noise: float = quantity(unit="rad", doc="motor encoder noise (std)", low=0.0, high=1.0, default=0.0)
-    load_noise: float = quantity(unit="rad", doc="load encoder noise (std)", low=0.0, high=1.0, default=0.0)
+    motor_encoder_cpr: int | None = ENCODER_CPR.field(default=None, optional=True, doc="motor encoder resolution")
+    load_encoder_cpr: int | None = ENCODER_CPR.field(default=None, optional=True, doc="load encoder resolution")
+    motor_noise: float = ENCODER_NOISE.field(default=0.0, doc="motor encoder noise (std)")
+    load_noise: float = ENCODER_NOISE.field(default=0.0, doc="load encoder noise (std)")
 
     def __post_init__(self) -> None:
         validate_fields(self)

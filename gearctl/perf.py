@@ -1,7 +1,7 @@
 """Speed benchmarks: gearctl's simulator against python-control's ``input_output_response``.
 
 Each figure is a ratio measured in the same run on the same plant and scenario, with each solver's
-error against an independent tight reference (:func:`gearctl.reference.reference_solution`):
+error against an independent tight reference (:func:`gearctl.oracle.reference_solution`):
 
 - ``free``: the report's free vibration (``omega1(0) = 50 rad/s``) on ``shing1993``, outputs every 10 µs;
 - ``pd``: a 1 kHz sampled PD position loop on a 1 Hz sine, on ``shing1993_servo`` (zero-order hold).
@@ -22,8 +22,8 @@ import numpy as np
 
 from .catalog import load_model
 from .kernel import Kernel
+from .oracle import reference_solution
 from .plant import Plant, build_plant, plant_nlsys
-from .reference import reference_solution
 from .simulate import simulate
 
 __all__ = ["sim_speed", "pd_gains", "mpc_timing", "bench_wall_time"]
@@ -55,14 +55,14 @@ def _run_gearctl(plant: Plant, x0: np.ndarray, n: int, dt: float,
     if ctrl is None:  # open loop: the user's path, one kernel call for the whole run
         return simulate(plant, x0, n * dt, dt=dt).x
     kn = Kernel(plant, x0, dt=dt)
-    advance, st, tl = kn.advance, kn._st, plant.load_torque
+    advance, xk, tl = kn.advance, kn._x, plant.load_torque
     xs = [list(x0)]
     for i in range(n):  # the loop of closedloop.simulate_closed_loop, with the PD law inlined
         u1, u2 = ctrl(i, xs[-1])
         status = advance(u1, u2 + tl, dt)
         if status:
             raise RuntimeError(Kernel.status_message(status))
-        xs.append(st.x[:])
+        xs.append(xk.tolist())
     return np.array(xs).T
 
 

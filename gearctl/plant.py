@@ -1,13 +1,21 @@
-"""The gear-pair plants: improved (report section 2), Yang–Sun (section 4) and time-varying stiffness.
+"""The gear plants: n stages on n + 1 shafts, improved (report section 2), Yang–Sun (section 4) and
+time-varying stiffness. A pair is the one-stage case.
 
-:func:`build_plant` turns a :class:`~gearctl.catalog.GearModel` into a :class:`Plant`: the numbers the
-simulator and the linear models need (inertias on each shaft, base radii, backlash, stiffness, damping,
-friction) and the right-hand side of the equations of motion.
+:func:`build_plant` turns a :class:`~gearctl.catalog.GearModel` into a :class:`Plant`: the shafts (inertia,
+friction), the stages (base radii, backlash, stiffness, damping) and the servo's limits. This module is
+also the one definition of the dynamics every solver and design model uses:
 
-State ``x = [theta1, theta2, omega1, omega2]`` [rad, rad, rad/s, rad/s]; input
-``u = [xi1, xi2]`` [N m]. Signs as in the report: shaft 1 clockwise positive, shaft 2
-counter-clockwise positive, so that ``s = r_b1 theta1 - r_b2 theta2`` is the relative displacement
-along the line of action; ``s > b`` is front contact, ``|s| <= b`` separation, ``s < -b`` back contact.
+- :func:`mode_matrices` and :func:`input_matrix`: ``x' = A x + B u + e`` per contact pattern;
+- :func:`force_coefficients` and :func:`mesh_force`: the contact force law;
+- :func:`affine_terms` and :func:`event_table`: the constant terms and the mode boundaries the kernel
+  integrates and locates (:mod:`gearctl.kernel` receives them as data).
+
+State ``x = [theta_0 .. theta_n, omega_0 .. omega_n]`` [rad, rad/s], shaft 0 the motor shaft, shaft n the
+load shaft; input ``u = [xi_motor, xi_load]`` [N m]. Signs as in the report: every shaft angle is positive
+in the direction the train moves forward, so that ``s_i = r_b1,i theta_(i-1) - r_b2,i theta_i`` is the
+relative displacement of stage i along its line of action; ``s > b`` is front contact, ``|s| <= b``
+separation, ``s < -b`` back contact. A pair keeps the report's names: ``theta1, theta2, omega1, omega2``
+and ``xi1, xi2``.
 """
 
 from __future__ import annotations
@@ -15,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -22,26 +31,49 @@ from numpy.typing import NDArray
 
 from .errors import InputError
 from .geometry import pair_geometry
-from .params import ContactLaw
+from .params import ContactLaw, FrictionLaw
 from .stiffness import (
     damping_coefficient,
     equivalent_mass,
     mesh_stiffness,
     mesh_stiffness_at,
+    yang_sun_damping_factor,
     yang_sun_stiffness,
+)
+from .units import (
+    BACKLASH,
+    BASE_RADIUS,
+    COULOMB_FRICTION,
+    COULOMB_VELOCITY,
+    GAP,
+    INERTIA,
+    LOAD_TORQUE,
+    MESH_DAMPING,
+    MESH_STIFFNESS,
+    TORQUE_LIMIT,
+    VISCOUS_FRICTION,
+    validate_fields,
 )
 
 if TYPE_CHECKING:
     from .catalog import GearModel
 
-__all__ = ["Mode", "PlantKind", "Plant", "build_plant", "plant_nlsys", "STATES", "INPUTS"]
+__all__ = [
+    "Mode", "PlantKind", "Shaft", "Stage", "Plant", "build_plant", "plant_nlsys", "STATES", "INPUTS",
+    "MAX_STAGES", "mode_matrices", "input_matrix", "force_coefficients", "affine_terms", "event_table",
+    "mesh_force", "signal_names",
+]
 
+#: State and input names of a pair (report eqs 1-12); a train's are ``theta0..thetan``, ``omega0..omegan``.
 STATES = ("theta1", "theta2", "omega1", "omega2")
 INPUTS = ("xi1", "xi2")
 
+#: Most stages a plant may have (the kernel's fixed-size buffers follow from it).
+MAX_STAGES = 6
+
 
 class Mode(enum.IntEnum):
-    """Contact mode of the gear pair (report section 2, cases 1–3)."""
+    """Contact mode of a stage (report section 2, cases 1–3)."""
 
     BACK = -1
     SEPARATION = 0
@@ -54,7 +86,7 @@ class Mode(enum.IntEnum):
 
 
 class PlantKind(enum.StrEnum):
-    """Which mesh law the plant uses."""
+    """Which mesh law the plant uses (every stage the same)."""
 
     IMPROVED = "improved"
     YANG_SUN = "yang-sun"
@@ -62,128 +94,547 @@ class PlantKind(enum.StrEnum):
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
-class Plant:
-    """A gear pair ready to simulate: parameters in SI along shafts 1 and 2 and the line of action.
+class Shaft:
+    """A shaft with everything on it: its gears, and the motor or the load.
 
     Attributes
     ----------
-    kind : PlantKind
-        ``improved`` (mean stiffness, linear law), ``yang-sun`` (Hertz stiffness, ``F = (d x' + k) x``)
-        or ``tvms`` (``k = K(vartheta_1)`` following the rotation).
-    J1, J2 : float
-        Inertias on shafts 1 and 2 (gear plus motor or load) [kg m^2].
+    J : float
+        Total inertia [kg m^2].
+    d : float
+        Viscous friction [N m s/rad].
+    tc : float
+        Coulomb friction [N m].
+    """
+
+    J: float = INERTIA.field(doc="inertia of the shaft (its gears plus motor or load)")
+    d: float = VISCOUS_FRICTION.field(default=0.0)
+    tc: float = COULOMB_FRICTION.field(default=0.0)
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True, eq=False)
+class Stage:
+    """One mesh: the pinion on shaft ``i`` drives the gear on shaft ``i + 1``.
+
+    Attributes
+    ----------
     rb1, rb2 : float
-        Base radii [m].
+        Base radii of the pinion and the gear [m].
     backlash : float
         Half-gap ``b`` along the line of action [m] (contact when ``|s| > b``).
     k, c : float
         Mesh stiffness [N/m] and damping [N s/m] (for ``yang-sun``, ``k`` is eq 39 and ``c`` unused).
-    contact_law : ContactLaw
-        ``linear`` or ``no_pull``.
-    d1, d2 : float
-        Viscous friction on each shaft [N m s/rad].
-    tc1, tc2, coulomb_velocity : float
-        Coulomb friction [N m] and its smoothing velocity [rad/s].
-    torque_limit : float
-        Motor torque limit [N m] (``inf``: none).
-    load_torque : float
-        Constant torque on shaft 2 [N m].
     mesh_period : float
-        Rotation of gear 1 over one mesh cycle, ``2 pi / N1`` [rad].
+        Rotation of the pinion over one mesh cycle, ``2 pi / N1`` [rad].
     mesh_phase : float
-        Mesh-cycle angle ``vartheta_1`` at ``theta1 = 0`` [rad]: the neutral position puts the contact
-        at the pitch point P, so ``mesh_phase = (AP - AC) / r_b1``.
+        Mesh-cycle angle at zero pinion angle [rad]: the neutral position puts the contact at the pitch
+        point P, so ``mesh_phase = (AP - AC) / r_b1``.
     kv_table : ndarray or None
         For ``tvms``: ``K`` sampled uniformly over one mesh cycle [N/m] (periodic, linear interpolation).
     """
 
-    kind: PlantKind
-    J1: float
-    J2: float
-    rb1: float
-    rb2: float
-    backlash: float
-    k: float
-    c: float
-    contact_law: ContactLaw
-    d1: float = 0.0
-    d2: float = 0.0
-    tc1: float = 0.0
-    tc2: float = 0.0
-    coulomb_velocity: float = 1e-3
-    torque_limit: float = math.inf
-    load_torque: float = 0.0
+    rb1: float = BASE_RADIUS.field(doc="base radius of the pinion")
+    rb2: float = BASE_RADIUS.field(doc="base radius of the gear")
+    backlash: float = GAP.field()
+    k: float = MESH_STIFFNESS.field()
+    c: float = MESH_DAMPING.field()
     mesh_period: float = 2 * math.pi
     mesh_phase: float = 0.0
     kv_table: NDArray[np.float64] | None = None
 
-    @property
-    def m_eq(self) -> float:
-        """Equivalent mass of the mesh mode along the line of action [kg]."""
-        return equivalent_mass(self.J1, self.J2, self.rb1, self.rb2)
+    def __post_init__(self) -> None:
+        validate_fields(self)
 
     @property
-    def natural_frequency(self) -> float:
-        """Undamped natural frequency of the mesh mode in contact, ``sqrt(k / m_eq)`` [rad/s]."""
-        return math.sqrt(self.k / self.m_eq)
+    def ratio(self) -> float:
+        """Kinematic ratio of the stage ``r_b2 / r_b1 = N2 / N1``."""
+        return self.rb2 / self.rb1
+
+
+# pair name -> (shaft or stage, index, attribute): the report's names of a one-stage plant
+_PAIR_SHAFT = {"J1": (0, "J"), "J2": (1, "J"), "d1": (0, "d"), "d2": (1, "d"), "tc1": (0, "tc"), "tc2": (1, "tc")}
+_PAIR_STAGE = ("rb1", "rb2", "backlash", "k", "c", "mesh_period", "mesh_phase", "kv_table")
+
+
+def _pair_attr(name: str) -> property:
+    if name in _PAIR_SHAFT:
+        j, attr = _PAIR_SHAFT[name]
+
+        def get(self: Plant) -> Any:
+            self._one_stage(name)
+            return getattr(self.shafts[j], attr)
+    else:
+        def get(self: Plant) -> Any:
+            self._one_stage(name)
+            return getattr(self.stages[0], name)
+    get.__doc__ = f"``{name}`` of a pair (one-stage plant): the report's name."
+    return property(get)
+
+
+@dataclasses.dataclass(frozen=True, slots=True, init=False, eq=False)
+class Plant:
+    """A gear train ready to simulate: shafts, stages and the servo's limits, SI units.
+
+    Parameters
+    ----------
+    kind : PlantKind
+        ``improved`` (mean stiffness, linear law), ``yang-sun`` (Hertz stiffness, ``F = (d x' + k) x``)
+        or ``tvms`` (``k = K(vartheta)`` following the rotation of each pinion).
+    shafts : sequence of Shaft
+        ``n + 1`` shafts, motor first.
+    stages : sequence of Stage
+        ``n`` stages; stage ``i`` couples shafts ``i`` and ``i + 1``.
+    contact_law : ContactLaw
+        ``linear`` or ``no_pull`` (every stage).
+    friction_law : FrictionLaw
+        ``stick_slip`` (default) or ``smooth`` Coulomb friction.
+    coulomb_velocity : float
+        Velocity scale of the smooth Coulomb law [rad/s].
+    torque_limit : float
+        Motor torque limit [N m] (``inf``: none).
+    load_torque : float
+        Constant torque on the load shaft [N m].
+    **pair
+        For a pair, the report's names may be given instead of (or on top of) ``shafts`` and ``stages``:
+        ``J1, J2, d1, d2, tc1, tc2, rb1, rb2, backlash, k, c, mesh_period, mesh_phase, kv_table``. So
+        ``dataclasses.replace(plant, k=2e8)`` works on a pair as it always did.
+
+    Raises
+    ------
+    InputError
+        For a value out of its range (named), or pair names given for a train.
+    """
+
+    kind: PlantKind
+    shafts: tuple[Shaft, ...]
+    stages: tuple[Stage, ...]
+    contact_law: ContactLaw
+    friction_law: FrictionLaw
+    coulomb_velocity: float
+    torque_limit: float
+    load_torque: float
+
+    def __init__(self, *, kind: PlantKind | str = PlantKind.IMPROVED, shafts: Sequence[Shaft] | None = None,
+                 stages: Sequence[Stage] | None = None, contact_law: ContactLaw | str = ContactLaw.LINEAR,
+                 friction_law: FrictionLaw | str = FrictionLaw.STICK_SLIP, coulomb_velocity: float = 1e-3,
+                 torque_limit: float = math.inf, load_torque: float = 0.0, **pair: Any) -> None:
+        unknown = set(pair) - set(_PAIR_SHAFT) - set(_PAIR_STAGE)
+        if unknown:
+            raise TypeError(f"Plant() got unexpected keyword arguments {sorted(unknown)}")
+        shafts = list(shafts) if shafts is not None else []
+        stages = list(stages) if stages is not None else []
+        if pair:
+            if len(stages) > 1 or len(shafts) > 2:
+                raise InputError(f"{', '.join(sorted(pair))}: the report's pair names apply to a one-stage plant; "
+                                 f"this one has {len(stages)} stages (give shafts= and stages=)", field=min(pair))
+            sh = [dataclasses.asdict(s) for s in shafts] or [{}, {}]
+            for name, (j, attr) in _PAIR_SHAFT.items():
+                if name in pair:
+                    sh[j][attr] = pair[name]
+            st = {f.name: getattr(stages[0], f.name) for f in dataclasses.fields(Stage)} if stages else {}
+            st.update({name: pair[name] for name in _PAIR_STAGE if name in pair})
+            shafts = [Shaft(**kw) for kw in sh]
+            stages = [Stage(**st)]
+        if not stages or len(shafts) != len(stages) + 1:
+            raise InputError(f"a plant needs n >= 1 stages and n + 1 shafts, got {len(stages)} stages and "
+                             f"{len(shafts)} shafts", field="stages")
+        if len(stages) > MAX_STAGES:
+            raise InputError(f"stages = {len(stages)} is out of range: expected at most {MAX_STAGES} stages",
+                             field="stages")
+        try:
+            kind = PlantKind(kind)
+        except ValueError:
+            raise InputError(f"plant = {kind!r} is not a plant: expected one of "
+                             f"{', '.join(p.value for p in PlantKind)}", field="plant") from None
+        for name, value, cls in (("contact_law", contact_law, ContactLaw), ("friction_law", friction_law,
+                                                                            FrictionLaw)):
+            try:
+                cls(value)
+            except ValueError:
+                raise InputError(f"{name} = {value!r} is not allowed: expected one of "
+                                 f"{', '.join(repr(c.value) for c in cls)}", field=name) from None
+        object.__setattr__(self, "kind", kind)
+        object.__setattr__(self, "shafts", tuple(shafts))
+        object.__setattr__(self, "stages", tuple(stages))
+        object.__setattr__(self, "contact_law", ContactLaw(contact_law))
+        object.__setattr__(self, "friction_law", FrictionLaw(friction_law))
+        object.__setattr__(self, "coulomb_velocity", COULOMB_VELOCITY.check("coulomb_velocity", coulomb_velocity))
+        object.__setattr__(self, "torque_limit", TORQUE_LIMIT.check("torque_limit", torque_limit))
+        object.__setattr__(self, "load_torque", LOAD_TORQUE.check("load_torque", load_torque))
+
+    def __repr__(self) -> str:
+        return (f"Plant(kind={self.kind.value!r}, {self.n_stages} stage(s), J={[s.J for s in self.shafts]}, "
+                f"b={list(self.backlashes)}, k={[s.k for s in self.stages]})")
+
+    # -- sizes and the pair's names
+    @property
+    def n_stages(self) -> int:
+        """Number of stages (meshes) n."""
+        return len(self.stages)
+
+    @property
+    def nx(self) -> int:
+        """Number of states, ``2 (n + 1)``."""
+        return 2 * len(self.shafts)
+
+    def _one_stage(self, name: str) -> None:
+        if len(self.stages) != 1:
+            raise AttributeError(f"{name!r} is a pair's attribute; this plant has {len(self.stages)} stages: use "
+                                 f"plant.stages[i] or plant.shafts[j]")
+
+    J1 = _pair_attr("J1")
+    J2 = _pair_attr("J2")
+    d1 = _pair_attr("d1")
+    d2 = _pair_attr("d2")
+    tc1 = _pair_attr("tc1")
+    tc2 = _pair_attr("tc2")
+    rb1 = _pair_attr("rb1")
+    rb2 = _pair_attr("rb2")
+    backlash = _pair_attr("backlash")
+    k = _pair_attr("k")
+    c = _pair_attr("c")
+    mesh_period = _pair_attr("mesh_period")
+    mesh_phase = _pair_attr("mesh_phase")
+    kv_table = _pair_attr("kv_table")
+
+    # -- derived figures
+    @property
+    def backlashes(self) -> tuple[float, ...]:
+        """Backlash of every stage [m]."""
+        return tuple(s.backlash for s in self.stages)
 
     @property
     def gear_ratio(self) -> float:
-        """Kinematic ratio ``r_b2 / r_b1 = N2 / N1``."""
-        return self.rb2 / self.rb1
+        """Overall kinematic ratio, motor angle over load angle, ``prod r_b2 / r_b1``."""
+        return math.prod(s.ratio for s in self.stages)
+
+    def ratio_after(self, i: int) -> float:
+        """Ratio of the stages after stage ``i`` (1 for the last): a gear-shaft angle over the load's."""
+        return math.prod(s.ratio for s in self.stages[i + 1:])
+
+    @property
+    def lost_motion(self) -> float:
+        """Lost motion at the load shaft, ``sum_i 2 b_i / (r_b2,i prod_(j > i) N_j)`` [rad]."""
+        return sum(2 * s.backlash / (s.rb2 * self.ratio_after(i)) for i, s in enumerate(self.stages))
+
+    def stage_m_eq(self, i: int) -> float:
+        """Equivalent mass of stage ``i``'s mesh mode between its two shafts [kg]."""
+        s = self.stages[i]
+        return equivalent_mass(self.shafts[i].J, self.shafts[i + 1].J, s.rb1, s.rb2)
+
+    @property
+    def m_eq(self) -> float:
+        """Equivalent mass of the mesh mode along the line of action [kg] (a pair)."""
+        self._one_stage("m_eq")
+        return self.stage_m_eq(0)
+
+    @property
+    def natural_frequency(self) -> float:
+        """Fastest stage mesh mode, ``max_i sqrt(k_i / m_eq,i)`` [rad/s] (a pair: its mesh mode)."""
+        return max(math.sqrt(s.k / self.stage_m_eq(i)) for i, s in enumerate(self.stages))
+
+    @property
+    def equivalent_stiffness(self) -> float:
+        """Torsional stiffness of the train in contact, seen at the load shaft [N m/rad] (stages in series)."""
+        return 1.0 / sum(1.0 / (s.k * s.rb2**2 * self.ratio_after(i) ** 2) for i, s in enumerate(self.stages))
+
+    @property
+    def has_coulomb(self) -> bool:
+        """Whether any shaft has Coulomb friction."""
+        return any(s.tc > 0 for s in self.shafts)
 
     @property
     def is_piecewise_linear(self) -> bool:
-        """Whether the dynamics are affine inside each contact mode (exact solver applies)."""
-        return self.kind is PlantKind.IMPROVED and self.tc1 == 0.0 and self.tc2 == 0.0
+        """Whether the dynamics are affine inside each pattern (the exact solver applies)."""
+        return self.kind is PlantKind.IMPROVED and not (self.has_coulomb and self.friction_law is FrictionLaw.SMOOTH)
 
-    def with_backlash(self, backlash: float) -> Plant:
-        """Copy with another backlash [m]."""
-        return dataclasses.replace(self, backlash=backlash)
+    def with_backlash(self, backlash: float | Sequence[float]) -> Plant:
+        """Copy with another backlash [m]: one value for every stage, or one per stage."""
+        bs = _per_stage(backlash, self.n_stages)
+        return dataclasses.replace(self, stages=tuple(dataclasses.replace(s, backlash=b)
+                                                      for s, b in zip(self.stages, bs, strict=True)))
 
-    def stiffness_at(self, theta1: Any) -> Any:
-        """Mesh stiffness at gear-1 angle ``theta1`` [N/m]: ``k`` except for ``tvms``."""
-        if self.kv_table is None:
-            return self.k + 0.0 * np.asarray(theta1)
-        n = self.kv_table.size
-        pos = np.mod(np.asarray(theta1, dtype=float) + self.mesh_phase, self.mesh_period) / self.mesh_period * n
+    def stiffness_at(self, theta: Any, stage: int = 0) -> Any:
+        """Mesh stiffness of ``stage`` at pinion angle ``theta`` [N/m]: ``k`` except for ``tvms``."""
+        s = self.stages[stage]
+        if s.kv_table is None:
+            return s.k + 0.0 * np.asarray(theta)
+        n = s.kv_table.size
+        pos = np.mod(np.asarray(theta, dtype=float) + s.mesh_phase, s.mesh_period) / s.mesh_period * n
         i = np.floor(pos).astype(int) % n
         frac = pos - np.floor(pos)
-        return self.kv_table[i] * (1 - frac) + self.kv_table[(i + 1) % n] * frac
+        return s.kv_table[i] * (1 - frac) + s.kv_table[(i + 1) % n] * frac
+
+    def gaps(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``s_i`` of every stage [m], shape ``(n, ...)`` for states ``x`` of shape ``(nx, ...)``."""
+        x = np.asarray(x)
+        return np.stack([s.rb1 * x[i] - s.rb2 * x[i + 1] for i, s in enumerate(self.stages)])
+
+    def gap_rates(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``s_i'`` of every stage [m/s], shape ``(n, ...)``."""
+        x = np.asarray(x)
+        w = len(self.shafts)
+        return np.stack([s.rb1 * x[w + i] - s.rb2 * x[w + i + 1] for i, s in enumerate(self.stages)])
 
     def relative_displacement(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``s = r_b1 theta1 - r_b2 theta2`` [m] for states ``x`` of shape (4, ...)."""
-        return self.rb1 * x[0] - self.rb2 * x[1]
+        """``s = r_b1 theta1 - r_b2 theta2`` [m]; for a train, every stage's (shape ``(n, ...)``)."""
+        g = self.gaps(x)
+        return g[0] if self.n_stages == 1 else g
 
     def mode_of(self, s: Any) -> Any:
-        """Contact mode(s) for relative displacement(s) ``s`` (as :class:`Mode` values)."""
+        """Contact mode(s) for relative displacement(s) ``s`` (as :class:`Mode` values; one row per stage)."""
         s = np.asarray(s)
-        return np.where(s > self.backlash, 1, np.where(s < -self.backlash, -1, 0))
+        b = np.array(self.backlashes).reshape((-1,) + (1,) * (s.ndim - 1)) if self.n_stages > 1 else self.backlash
+        return np.where(s > b, 1, np.where(s < -b, -1, 0))
 
     def energy(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Kinetic plus mesh-spring energy [J] (the improved plant's ``k``; state shape (4, ...))."""
-        s = self.relative_displacement(x)
-        pen = np.maximum(np.abs(s) - self.backlash, 0.0)
-        return 0.5 * self.J1 * x[2] ** 2 + 0.5 * self.J2 * x[3] ** 2 + 0.5 * self.k * pen**2
+        """Kinetic plus mesh-spring energy [J] (the improved plant's ``k``; states ``(nx, ...)``)."""
+        x = np.asarray(x)
+        w = len(self.shafts)
+        E = sum(0.5 * sh.J * x[w + j] ** 2 for j, sh in enumerate(self.shafts))
+        for i, st in enumerate(self.stages):
+            s = st.rb1 * x[i] - st.rb2 * x[i + 1]
+            pen = np.maximum(np.abs(s) - st.backlash, 0.0)
+            E = E + 0.5 * st.k * pen**2
+        return E
+
+    def equivalent_pair(self) -> Plant:
+        """The one-gap pair a controller designs on: the plant itself for a pair.
+
+        For a train: the load shaft as gear 2, everything upstream reflected to the motor shaft as gear 1
+        (inertia ``J_0 + sum_j J_j / N_(0->j)^2``, friction likewise), one gap of the train's whole lost
+        motion at the output and the stages' series stiffness, on the last stage's line of action
+        (``r_b2`` of the last stage, ``r_b1 = r_b2 / N``).
+
+        Notes
+        -----
+        Lumping the gaps is exact for the kinematics of the lost motion (the motor turns
+        ``N sum(...)`` through all of it before the load moves) and for the rigid train; it misses the
+        order in which the stages' gaps close and the intermediate shafts' own motion in the gaps, which
+        the controllers' models neglect anyway (intermediate gears are light).
+        """
+        if self.n_stages == 1:
+            return self
+        N = self.gear_ratio
+        last = self.stages[-1]
+        rb2 = last.rb2
+        rb1 = rb2 / N
+        ratio_to = [math.prod(s.ratio for s in self.stages[:j]) for j in range(len(self.shafts))]
+        up = range(len(self.shafts) - 1)
+        J1 = sum(self.shafts[j].J / ratio_to[j] ** 2 for j in up)
+        d1 = sum(self.shafts[j].d / ratio_to[j] ** 2 for j in up)
+        tc1 = sum(self.shafts[j].tc / ratio_to[j] for j in up)
+        b = 0.5 * self.lost_motion * rb2
+        k = self.equivalent_stiffness / rb2**2
+        zeta = np.mean([s.c / (2 * math.sqrt(s.k * self.stage_m_eq(i))) for i, s in enumerate(self.stages)])
+        load = self.shafts[-1]
+        m_eq = equivalent_mass(J1, load.J, rb1, rb2)
+        return Plant(kind=PlantKind.IMPROVED, shafts=(Shaft(J=J1, d=d1, tc=tc1), load),
+                     stages=(Stage(rb1=rb1, rb2=rb2, backlash=b, k=k, c=2 * float(zeta) * math.sqrt(k * m_eq)),),
+                     contact_law=self.contact_law, friction_law=self.friction_law,
+                     coulomb_velocity=self.coulomb_velocity, torque_limit=self.torque_limit,
+                     load_torque=self.load_torque)
+
+
+def _per_stage(value: float | Sequence[float], n: int) -> tuple[float, ...]:
+    """One value for every stage, or one per stage; each checked against :data:`BACKLASH`."""
+    vals = tuple(value) if isinstance(value, Sequence) else (value,) * n
+    if len(vals) != n:
+        raise InputError(f"backlash = {list(vals)!r} has {len(vals)} values: expected 1 or one per stage ({n})",
+                         field="backlash")
+    return tuple(BACKLASH.check("backlash", v) for v in vals)
+
+
+def signal_names(plant: Plant) -> tuple[list[str], list[str]]:
+    """State and input names: the report's for a pair, ``theta0..thetan``, ``xi0, xin`` for a train."""
+    if plant.n_stages == 1:
+        return list(STATES), list(INPUTS)
+    w = len(plant.shafts)
+    return [f"theta{j}" for j in range(w)] + [f"omega{j}" for j in range(w)], ["xi0", f"xi{w - 1}"]
+
+
+# --- the dynamics, once -----------------------------------------------------------------------------------
+
+
+def force_coefficients(plant: Plant, i: int, sigma: int) -> tuple[NDArray[np.float64], float]:
+    """The improved law's force of stage ``i`` on flank ``sigma`` as ``F = fc . x + f0`` [N].
+
+    ``F = k (s - sigma b) + c s'`` (eqs 3 and 10, signed as the front flank's force), linear in the state.
+    """
+    st = plant.stages[i]
+    w = len(plant.shafts)
+    fc = np.zeros(2 * w)
+    fc[i], fc[i + 1] = st.k * st.rb1, -st.k * st.rb2
+    fc[w + i], fc[w + i + 1] = st.c * st.rb1, -st.c * st.rb2
+    return fc, -sigma * st.k * st.backlash
+
+
+def mode_matrices(plant: Plant, loaded: Sequence[bool], stuck: Sequence[bool] | None = None) -> NDArray[np.float64]:
+    """``A`` of ``x' = A x + B u + e`` with the stages ``loaded`` in contact and the shafts ``stuck``.
+
+    Front and back contact share ``A`` (they differ only in ``e``, see :func:`affine_terms`); a stuck
+    shaft (stick-slip friction holding it) has ``omega' = 0``. Eqs 1-2, 6-9 of the report per stage,
+    with the viscous friction of each shaft.
+    """
+    w = len(plant.shafts)
+    A = np.zeros((2 * w, 2 * w))
+    A[:w, w:] = np.eye(w)
+    for j, sh in enumerate(plant.shafts):
+        A[w + j, w + j] = -sh.d / sh.J
+    for i, st in enumerate(plant.stages):
+        if not loaded[i]:
+            continue
+        k, c, r1, r2 = st.k, st.c, st.rb1, st.rb2
+        J1, J2 = plant.shafts[i].J, plant.shafts[i + 1].J
+        cols = [i, i + 1, w + i, w + i + 1]
+        A[w + i, cols] += np.array([-k * r1**2, k * r1 * r2, -c * r1**2, c * r1 * r2]) / J1
+        A[w + i + 1, cols] += np.array([k * r1 * r2, -k * r2**2, c * r1 * r2, -c * r2**2]) / J2
+    for j, flag in enumerate(stuck or ()):
+        if flag:
+            A[w + j] = 0.0
+    return A
+
+
+def input_matrix(plant: Plant) -> NDArray[np.float64]:
+    """``B``: motor torque on shaft 0, load torque on the last shaft."""
+    w = len(plant.shafts)
+    B = np.zeros((2 * w, 2))
+    B[w, 0] = 1 / plant.shafts[0].J
+    B[2 * w - 1, 1] = 1 / plant.shafts[-1].J
+    return B
+
+
+def affine_terms(plant: Plant) -> NDArray[np.float64]:
+    """The constant part of each loaded stage's force on its two shafts' accelerations.
+
+    Returns an array ``(n, 2, 2)``: ``[i, sigma > 0]`` holds the terms added to ``omega_i'`` and
+    ``omega_(i+1)'`` by stage ``i`` in contact on flank ``sigma`` (``F``'s ``-sigma k b``, eqs 3 and 10).
+    """
+    out = np.zeros((plant.n_stages, 2, 2))
+    for i, st in enumerate(plant.stages):
+        J1, J2 = plant.shafts[i].J, plant.shafts[i + 1].J
+        for sigma in (-1, 1):
+            # written as the kernel always has: rb1 k sigma b / J1, and minus rb2 k sigma b / J2
+            out[i, int(sigma > 0)] = (st.rb1 * st.k * sigma * st.backlash / J1,
+                                      -(st.rb2 * st.k * sigma * st.backlash / J2))
+    return out
+
+
+#: event-function types in :func:`event_table`
+EVENT_GEOMETRIC, EVENT_FORCE = 0, 1
+
+
+def event_table(plant: Plant) -> dict[str, NDArray[Any]]:
+    """The boundaries of every stage's modes as linear functions ``g = cg . x + g0 > 0`` inside the mode.
+
+    Returns
+    -------
+    dict
+        Arrays over ``slot = 5 i + (mode + 2)`` (modes -2 .. 2, see :mod:`gearctl.kernel`) with up to two
+        functions each, ``row = 2 slot + e``: ``count`` (per slot), ``cg`` (rows x nx), ``g0``,
+        ``target`` (the mode entered), ``type`` (0: ``|s| = b``, 1: the no_pull law's zero force) and
+        ``ssign`` (``g = ssign s + g0`` for type 0).
+    """
+    n, w = plant.n_stages, len(plant.shafts)
+    nx = 2 * w
+    count = np.zeros(5 * n, dtype=np.int64)
+    cg = np.zeros((10 * n, nx))
+    g0 = np.zeros(10 * n)
+    target = np.zeros(10 * n, dtype=np.intc)
+    typ = np.zeros(10 * n, dtype=np.intc)
+    ssign = np.zeros(10 * n)
+    no_pull = plant.contact_law is ContactLaw.NO_PULL
+    for i, st in enumerate(plant.stages):
+        sv = np.zeros(nx)
+        vv = np.zeros(nx)
+        sv[i], sv[i + 1] = st.rb1, -st.rb2
+        vv[w + i], vv[w + i + 1] = st.rb1, -st.rb2
+        kk, cc, b = st.k, st.c, st.backlash
+        for mode in (-2, -1, 0, 1, 2):
+            slot = 5 * i + mode + 2
+            rows: list[tuple[NDArray[np.float64], float, int, int, float]] = []
+            if mode == 0:  # separation: b - s > 0 (front next), s + b > 0 (back next)
+                rows = [(-sv, b, 1, EVENT_GEOMETRIC, -1.0), (sv.copy(), b, -1, EVENT_GEOMETRIC, 1.0)]
+            elif mode > 0:  # front: s - b > 0; loaded F > 0 / unloaded -F > 0
+                rows = [(sv.copy(), -b, 0, EVENT_GEOMETRIC, 1.0)]
+                if no_pull:
+                    sg = 1.0 if mode == 1 else -1.0
+                    rows.append((sg * (kk * sv + cc * vv), -sg * kk * b, 2 if mode == 1 else 1, EVENT_FORCE, 0.0))
+            else:  # back: -s - b > 0; loaded F_B = k(-s-b) - c v > 0
+                rows = [(-sv, -b, 0, EVENT_GEOMETRIC, -1.0)]
+                if no_pull:
+                    sg = 1.0 if mode == -1 else -1.0
+                    rows.append((-sg * (kk * sv + cc * vv), -sg * kk * b, -2 if mode == -1 else -1, EVENT_FORCE,
+                                 0.0))
+            count[slot] = len(rows)
+            for e, (c_, g, t, ty, ss) in enumerate(rows):
+                cg[2 * slot + e], g0[2 * slot + e] = c_, g
+                target[2 * slot + e], typ[2 * slot + e], ssign[2 * slot + e] = t, ty, ss
+    return {"count": count, "cg": cg, "g0": g0, "target": target, "type": typ, "ssign": ssign}
+
+
+def mesh_force(plant: Plant, x: NDArray[np.float64], modes: NDArray[np.int_],
+               d_ys: NDArray[np.float64] | float = 0.0) -> NDArray[np.float64]:
+    """Contact force of every stage along its line of action [N], signed as the front flank's.
+
+    Parameters
+    ----------
+    plant : Plant
+    x : ndarray, shape (nx, ...)
+        States.
+    modes : ndarray, shape (n, ...)
+        Modes per stage (the sign is what counts: 0 in the gap).
+    d_ys : float or ndarray, shape (n, ...)
+        Yang–Sun damping factor of each stage's current contact [N s/m^2].
+
+    Returns
+    -------
+    ndarray, shape (n, ...)
+        Zero in separation; the report's law (eqs 3, 10), its no-pull clamp, or Yang–Sun's
+        ``(d x' + k) x``. The C kernel's ``force()`` is the same law (a test checks that they agree).
+    """
+    x = np.asarray(x, dtype=float)
+    modes = np.asarray(modes)
+    d_ys = np.broadcast_to(np.asarray(d_ys, dtype=float), (plant.n_stages, *x.shape[1:]))
+    s, v = plant.gaps(x), plant.gap_rates(x)
+    out = np.empty_like(s)
+    for i, st in enumerate(plant.stages):
+        sigma = np.sign(modes[i]).astype(float)
+        delta = sigma * s[i] - st.backlash
+        ddelta = sigma * v[i]
+        if plant.kind is PlantKind.YANG_SUN:
+            F = (d_ys[i] * ddelta + st.k) * delta
+        else:
+            F = plant.stiffness_at(x[i], i) * delta + st.c * ddelta
+        if plant.contact_law is ContactLaw.NO_PULL:
+            F = np.maximum(F, 0.0)
+        out[i] = np.where(sigma != 0, sigma * F, 0.0)
+    return out
+
+
+# --- building a plant from a model --------------------------------------------------------------------------
 
 
 def build_plant(
     model: GearModel,
     kind: PlantKind | str = PlantKind.IMPROVED,
     *,
-    backlash: float | None = None,
+    backlash: float | Sequence[float] | None = None,
     table_points: int = 512,
 ) -> Plant:
-    """Build the plant of a gear model.
+    """Build the plant of a gear model (a pair or a train).
 
     Parameters
     ----------
     model : GearModel
-        Catalog entry (gear pair, dynamics, servo).
+        Catalog entry (stages, servo).
     kind : PlantKind or str
         ``"improved"``, ``"yang-sun"`` or ``"tvms"``.
-    backlash : float, optional
-        Replaces the model's backlash [m] (0: backlash-free plant).
+    backlash : float or sequence of float, optional
+        Replaces the model's backlash [m]: one value for every stage or one per stage (0: backlash-free).
     table_points : int
         Samples of ``K`` over one mesh cycle for ``tvms``.
 
@@ -193,16 +644,17 @@ def build_plant(
 
     Notes
     -----
-    The improved plant uses ``[dynamics] mesh_stiffness`` if given, else the mean of eq 21 over the
-    mesh cycle; ``c`` is ``[dynamics] damping_coefficient`` if given, else
-    ``2 zeta sqrt(k m_eq)`` (eq 38, consistent form) with ``m_eq`` of the *total* inertias on each
-    shaft: the damping ratio is the modal damping of the mesh mode, and with rigid shafts (the report's
-    assumption) a motor rotor or a load on a shaft moves with its gear and belongs to that mode. For the
-    bare pair this is the report's ``m_eq``; for ``shing1993_servo`` it keeps the mesh mode at
-    ``zeta = 0.05`` (with the gear inertias alone it would drop to 0.017 and every impact would be
-    nearly elastic).
-    The time-varying plant uses ``K(vartheta_1)`` scaled so that its mean equals the improved plant's
-    ``k`` (so an override of ``k`` carries over), with the same ``c``.
+    Each stage uses ``mesh_stiffness`` from its dynamics if given, else the mean of eq 21 over the mesh
+    cycle; ``c`` is the given ``damping_coefficient``, else ``2 zeta sqrt(k m_eq)`` (eq 38, consistent
+    form) with ``m_eq`` of the *total* inertias of the stage's two shafts: the damping ratio is the modal
+    damping of the mesh mode, and with rigid shafts (the report's assumption) a motor rotor or a load on a
+    shaft moves with its gear and belongs to that mode. For the bare pair this is the report's ``m_eq``;
+    for ``shing1993_servo`` it keeps the mesh mode at ``zeta = 0.05`` (with the gear inertias alone it
+    would drop to 0.017 and every impact would be nearly elastic).
+    A shaft's inertia is the sum of its gears' (a train's intermediate shaft carries one stage's gear
+    and the next stage's pinion), the motor's or the load's and any ``intermediate_inertia``.
+    The time-varying plant uses ``K(vartheta)`` scaled so that its mean equals the stage's ``k`` (so an
+    override of ``k`` carries over), with the same ``c``.
     """
     try:
         kind = PlantKind(kind)
@@ -211,54 +663,50 @@ def build_plant(
             f"plant = {kind!r} is not a plant: expected one of {', '.join(p.value for p in PlantKind)}",
             field="plant",
         ) from None
-    pair, dyn, servo = model.pair, model.dynamics, model.servo
-    geo = pair_geometry(pair)
-    rb1, rb2 = geo.base_radius
-    I1, I2 = geo.inertia
-    ms = None
-    if dyn.mesh_stiffness is not None:
-        k = dyn.mesh_stiffness
-    else:
-        ms = mesh_stiffness(pair, points=table_points)
-        k = ms.mean
-    c = dyn.damping_coefficient
-    J1, J2 = I1 + servo.motor_inertia, I2 + servo.load_inertia
-    if c is None:
-        c = damping_coefficient(k, dyn.damping_ratio, equivalent_mass(J1, J2, rb1, rb2))
-    kv = None
-    if kind is PlantKind.YANG_SUN:
-        k = yang_sun_stiffness(pair)
-    elif kind is PlantKind.TVMS:
-        th = np.linspace(0.0, geo.mesh_period_angle, table_points, endpoint=False)
-        Kth = mesh_stiffness_at(pair, th, geo)
-        mean = ms.mean if ms is not None else mesh_stiffness(pair).mean
-        kv = Kth * (k / mean)
-    if backlash is not None:
-        if not (0.0 <= backlash <= 0.01):
-            raise InputError(
-                f"backlash = {backlash!r} is out of range: expected a number with 0 <= value <= 0.01 [m]",
-                field="backlash",
-            )
+    servo = model.servo
+    n = len(model.stages)
+    geos = [pair_geometry(sm.pair) for sm in model.stages]
+    inter = servo.intermediate_inertia or (0.0,) * (n - 1)
+    J = [geos[0].inertia[0] + servo.motor_inertia]
+    for j in range(1, n):
+        J.append(geos[j - 1].inertia[1] + geos[j].inertia[0] + inter[j - 1])
+    J.append(geos[-1].inertia[1] + servo.load_inertia)
+    d = [servo.viscous_friction1, *(servo.intermediate_viscous_friction or (0.0,) * (n - 1)), servo.viscous_friction2]
+    tc = [servo.coulomb_friction1, *(servo.intermediate_coulomb_friction or (0.0,) * (n - 1)),
+          servo.coulomb_friction2]
+    bs = _per_stage(backlash, n) if backlash is not None else tuple(sm.pair.backlash for sm in model.stages)
+    stages = []
+    for i, (sm, geo) in enumerate(zip(model.stages, geos, strict=True)):
+        pair, dyn = sm.pair, sm.dynamics
+        rb1, rb2 = geo.base_radius
+        ms = None
+        if dyn.mesh_stiffness is not None:
+            k = dyn.mesh_stiffness
+        else:
+            ms = mesh_stiffness(pair, points=table_points)
+            k = ms.mean
+        c = dyn.damping_coefficient
+        if c is None:
+            c = damping_coefficient(k, dyn.damping_ratio, equivalent_mass(J[i], J[i + 1], rb1, rb2))
+        kv = None
+        if kind is PlantKind.YANG_SUN:
+            k = yang_sun_stiffness(pair)
+        elif kind is PlantKind.TVMS:
+            th = np.linspace(0.0, geo.mesh_period_angle, table_points, endpoint=False)
+            Kth = mesh_stiffness_at(pair, th, geo)
+            mean = ms.mean if ms is not None else mesh_stiffness(pair).mean
+            kv = Kth * (k / mean)
+        stages.append(Stage(rb1=rb1, rb2=rb2, backlash=float(bs[i]), k=k, c=c, mesh_period=geo.mesh_period_angle,
+                            mesh_phase=(geo.AP - geo.AC) / rb1, kv_table=kv))
     return Plant(
         kind=kind,
-        J1=J1,
-        J2=J2,
-        rb1=rb1,
-        rb2=rb2,
-        backlash=pair.backlash if backlash is None else float(backlash),
-        k=k,
-        c=c,
-        contact_law=dyn.contact_law,
-        d1=servo.viscous_friction1,
-        d2=servo.viscous_friction2,
-        tc1=servo.coulomb_friction1,
-        tc2=servo.coulomb_friction2,
+        shafts=tuple(Shaft(J=J[j], d=d[j], tc=tc[j]) for j in range(n + 1)),
+        stages=tuple(stages),
+        contact_law=model.stages[0].dynamics.contact_law,
+        friction_law=servo.friction_law,
         coulomb_velocity=servo.coulomb_velocity,
         torque_limit=servo.torque_limit,
         load_torque=servo.load_torque,
-        mesh_period=geo.mesh_period_angle,
-        mesh_phase=(geo.AP - geo.AC) / rb1,
-        kv_table=kv,
     )
 
 
@@ -268,70 +716,76 @@ def plant_nlsys(plant: Plant, *, name: str | None = None) -> Any:
     Parameters
     ----------
     plant : Plant
-        The plant.
+        The plant (a pair or a train).
     name : str, optional
         System name (default ``"gear_<kind>"``).
 
     Returns
     -------
     control.NonlinearIOSystem
-        States ``theta1, theta2, omega1, omega2`` (and ``v_impact`` for Yang–Sun); inputs ``xi1, xi2``
-        [N m]; outputs ``theta1, theta2, omega1, omega2, s, force``. The update function has
+        States as :func:`signal_names` (plus ``v_impact`` per stage for Yang–Sun: ``v_impact`` for a pair,
+        ``v_impact1..n`` for a train); inputs motor and load torque [N m]; outputs the states, then ``s``
+        and ``force`` (``s1..sn``, ``force1..forcen`` for a train). The update function has
         python-control's ``(t, x, u, params)`` signature; ``params`` may override ``backlash``, ``k`` and
-        ``c``. The servo's ``load_torque`` is added to ``xi2``.
+        ``c`` of a pair. The servo's ``load_torque`` is added to the load torque input.
 
     Notes
     -----
     This is for interconnection with the user's own blocks; it has no event location, so
     ``input_output_response`` steps across the contact switches at whatever accuracy its tolerances
-    give. gearctl's own :func:`~gearctl.simulate.simulate` is the exact, fast path.
+    give. gearctl's own :func:`~gearctl.simulate.simulate` is the exact, fast path. Coulomb friction is
+    the smooth law here (a continuous-time system cannot stick).
 
     Yang–Sun's damping factor is fixed at each contact onset from the impact speed; a continuous-time
-    system cannot hold a sample, so the Yang–Sun ``nlsys`` carries a fifth state ``v_impact`` that
+    system cannot hold a sample, so the Yang–Sun ``nlsys`` carries a state ``v_impact`` per stage that
     follows ``|s'|`` with a 1 µs time constant while the flanks are apart and is frozen in contact.
     """
     import control as ct
 
-    from .stiffness import yang_sun_damping_factor
-
     p = plant
+    n, w = p.n_stages, len(p.shafts)
     ys = p.kind is PlantKind.YANG_SUN
-    states = [*STATES, "v_impact"] if ys else list(STATES)
+    states, inputs = signal_names(p)
+    suffix = [""] if n == 1 else [str(i + 1) for i in range(n)]
+    if ys:
+        states = states + [f"v_impact{sfx}" for sfx in suffix]
 
-    def force(x: NDArray[np.float64], params: dict[str, Any]) -> tuple[float, int]:
-        b = params.get("backlash", p.backlash)
-        k = params.get("k", p.k)
-        c = params.get("c", p.c)
-        s = p.rb1 * x[0] - p.rb2 * x[1]
-        v = p.rb1 * x[2] - p.rb2 * x[3]
-        side = 1 if s > b else (-1 if s < -b else 0)
-        if side == 0:
-            return 0.0, 0
-        delta, ddelta = side * s - b, side * v
-        if ys:
-            F = (yang_sun_damping_factor(k, x[4]) * ddelta + k) * delta
-        else:
-            kk = float(p.stiffness_at(x[0])) if p.kv_table is not None else k
-            F = kk * delta + c * ddelta
-        if p.contact_law is ContactLaw.NO_PULL and F < 0.0:
-            F = 0.0
-        return side * F, side
+    def with_params(params: dict[str, Any]) -> Plant:
+        over = {k: params[k] for k in ("backlash", "k", "c") if k in params}
+        return dataclasses.replace(p, **over) if over else p
+
+    def forces(q: Plant, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int_]]:
+        s = q.gaps(x[:2 * w])
+        modes = np.array([1 if s[i] > st.backlash else (-1 if s[i] < -st.backlash else 0)
+                          for i, st in enumerate(q.stages)])
+        d_ys = [yang_sun_damping_factor(st.k, x[2 * w + i]) for i, st in enumerate(q.stages)] if ys else 0.0
+        return mesh_force(q, x[:2 * w], modes, d_ys), modes
 
     def updfcn(t: float, x: NDArray[np.float64], u: NDArray[np.float64], params: dict[str, Any]) -> Any:
-        F, side = force(x, params)
-        f1 = p.d1 * x[2] + (p.tc1 * math.tanh(x[2] / p.coulomb_velocity) if p.tc1 else 0.0)
-        f2 = p.d2 * x[3] + (p.tc2 * math.tanh(x[3] / p.coulomb_velocity) if p.tc2 else 0.0)
-        dx = [x[2], x[3], (u[0] - p.rb1 * F - f1) / p.J1, (u[1] + p.load_torque + p.rb2 * F - f2) / p.J2]
+        q = with_params(params)
+        F, modes = forces(q, x)
+        dx = np.zeros_like(x)
+        dx[:w] = x[w:2 * w]
+        T = np.zeros(w)
+        T[0] += u[0]
+        T[-1] += u[1] + q.load_torque
+        for i, st in enumerate(q.stages):
+            T[i] -= st.rb1 * F[i]
+            T[i + 1] += st.rb2 * F[i]
+        for j, sh in enumerate(q.shafts):
+            fr = sh.d * x[w + j] + (sh.tc * math.tanh(x[w + j] / q.coulomb_velocity) if sh.tc else 0.0)
+            dx[w + j] = (T[j] - fr) / sh.J
         if ys:
-            v = abs(p.rb1 * x[2] - p.rb2 * x[3])
-            dx.append(0.0 if side else (v - x[4]) / 1e-6)
-        return np.array(dx)
+            v = np.abs(q.gap_rates(x[:2 * w]))
+            for i in range(n):
+                dx[2 * w + i] = 0.0 if modes[i] else (v[i] - x[2 * w + i]) / 1e-6
+        return dx
 
     def outfcn(t: float, x: NDArray[np.float64], u: NDArray[np.float64], params: dict[str, Any]) -> Any:
-        F, _ = force(x, params)
-        return np.array([x[0], x[1], x[2], x[3], p.rb1 * x[0] - p.rb2 * x[1], F])
+        q = with_params(params)
+        F, _ = forces(q, x)
+        return np.concatenate([x[:2 * w], q.gaps(x[:2 * w]), F])
 
-    return ct.nlsys(
-        updfcn, outfcn, states=states, inputs=list(INPUTS),
-        outputs=[*STATES, "s", "force"], name=name or f"gear_{p.kind.value.replace('-', '_')}",
-    )
+    outputs = signal_names(p)[0] + [f"s{sfx}" for sfx in suffix] + [f"force{sfx}" for sfx in suffix]
+    return ct.nlsys(updfcn, outfcn, states=states, inputs=inputs, outputs=outputs,
+                    name=name or f"gear_{p.kind.value.replace('-', '_')}")

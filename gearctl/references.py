@@ -98,13 +98,16 @@ class Reference:
     kind: str
     amplitude: float = quantity(unit="rad", doc="amplitude / distance", low=-100.0, high=100.0, default=0.1)
     frequency: float = quantity(unit="Hz", doc="sine frequency", low=0.0, high=1e3, low_open=True, default=1.0)
-    start: float = quantity(unit="s", doc="start time", low=0.0, default=0.0)
-    rate: float = quantity(unit="rad/s", doc="ramp rate / cruise velocity", low=0.0, low_open=True, default=0.5)
-    accel: float = quantity(unit="rad/s^2", doc="move acceleration", low=0.0, low_open=True, default=5.0)
+    start: float = quantity(unit="s", doc="start time", low=0.0, high=1e5, default=0.0)
+    rate: float = quantity(unit="rad/s", doc="ramp rate / cruise velocity", low=0.0, low_open=True, high=1e4,
+                           default=0.5)
+    accel: float = quantity(unit="rad/s^2", doc="move acceleration", low=0.0, low_open=True, high=1e7, default=5.0)
     profile: str = "s-curve"
-    disturbance_time: float = quantity(unit="s", doc="load disturbance start", low=0.0, default=math.inf)
+    disturbance_time: float = quantity(unit="s", doc="load disturbance start", low=0.0, allow_inf=True,
+                                       default=math.inf)
     disturbance: float = quantity(unit="N m", doc="load disturbance", low=-1e4, high=1e4, default=0.0)
-    settle: float = quantity(unit="s", doc="start of the interval the error statistics cover", low=0.0, default=0.0)
+    settle: float = quantity(unit="s", doc="start of the interval the error statistics cover", low=0.0, high=1e5,
+                             default=0.0)
 
     def __post_init__(self) -> None:
         if self.kind not in REFERENCES:

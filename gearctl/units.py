@@ -1,8 +1,12 @@
-"""Physical fields: unit and allowed range declared once, checked everywhere.
+"""The parameter schema: every physical quantity's unit and allowed range, declared once.
 
-A dataclass field made with :func:`quantity` carries its unit, its allowed range and a one-line
-description in its metadata. :func:`validate_fields` checks an instance against them, and the TOML
-loader, error messages and plot labels read the same metadata, so a range is stated in one place.
+A :class:`Spec` states a quantity's unit, allowed range and one-line meaning. The named specs below
+(:data:`BACKLASH`, :data:`INERTIA`, ...) are the only place those ranges are written: the model and
+controller dataclasses declare their fields with :meth:`Spec.field`, :func:`validate_fields` checks an
+instance against them, and the TOML loader, the CLI, error messages and plot labels read the same
+metadata. A value valid in one place is valid everywhere.
+
+Every number must be finite unless its spec allows infinity as "none" (a torque limit).
 """
 
 from __future__ import annotations
@@ -14,7 +18,62 @@ from typing import Any
 
 from .errors import InputError
 
-__all__ = ["quantity", "validate_fields", "describe_range", "field_unit"]
+__all__ = [
+    "Spec", "quantity", "check_choice", "validate_fields", "describe_range", "field_unit", "check_number",
+    "BACKLASH", "GAP", "INERTIA", "ADDED_INERTIA", "VISCOUS_FRICTION", "COULOMB_FRICTION", "COULOMB_VELOCITY",
+    "TORQUE_LIMIT", "LOAD_TORQUE", "MESH_STIFFNESS", "MESH_DAMPING", "DAMPING_RATIO", "BASE_RADIUS",
+    "SAMPLE_TIME", "ENCODER_CPR", "ENCODER_NOISE", "DURATION", "SEED",
+]
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class Spec:
+    """Unit, allowed range and meaning of one kind of quantity.
+
+    Attributes
+    ----------
+    unit : str
+        SI unit, e.g. ``"m"``, ``"kg m^2"``; ``"1"`` for dimensionless.
+    doc : str
+        One-line description (error messages, README tables).
+    low, high : float or None
+        Bounds of the allowed range (``None``: unbounded on that side).
+    low_open, high_open : bool
+        Whether the bound itself is excluded.
+    integer : bool
+        Whether the value must be a whole number.
+    allow_inf : bool
+        Whether ``+inf`` is allowed (it means "none", e.g. no torque limit).
+    """
+
+    unit: str
+    doc: str
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    integer: bool = False
+    allow_inf: bool = False
+
+    def meta(self, *, doc: str | None = None, optional: bool = False, sequence: bool = False) -> dict[str, Any]:
+        """Field metadata of this spec (what :func:`validate_fields` reads)."""
+        return {"unit": self.unit, "doc": doc or self.doc, "low": self.low, "high": self.high,
+                "low_open": self.low_open, "high_open": self.high_open, "integer": self.integer,
+                "allow_inf": self.allow_inf, "optional": optional, "sequence": sequence}
+
+    def field(self, *, default: Any = dataclasses.MISSING, doc: str | None = None, optional: bool = False,
+              sequence: bool = False) -> Any:
+        """A dataclass field of this quantity (``sequence``: a tuple of such values)."""
+        return dataclasses.field(default=default, metadata=self.meta(doc=doc, optional=optional, sequence=sequence))
+
+    def check(self, name: str, value: Any) -> float:
+        """Return ``value`` as a float if it is allowed, else raise :class:`InputError` naming ``name``."""
+        return check_number(name, value, self.meta())
+
+    def rule(self) -> str:
+        """The allowed range in words with the unit, e.g. ``"a number with 0 <= value <= 0.01 [m]"``."""
+        unit = "" if self.unit == "1" else f" [{self.unit}]"
+        return f"{describe_range(self.meta())}{unit}"
 
 
 def quantity(
@@ -27,9 +86,10 @@ def quantity(
     high_open: bool = False,
     integer: bool = False,
     optional: bool = False,
+    allow_inf: bool = False,
     default: Any = dataclasses.MISSING,
 ) -> Any:
-    """Declare a physical dataclass field with its unit and allowed range.
+    """Declare a physical dataclass field with its unit and allowed range (a one-off :class:`Spec`).
 
     Parameters
     ----------
@@ -45,35 +105,31 @@ def quantity(
         Whether the value must be a whole number.
     optional : bool
         Whether ``None`` is allowed (meaning "compute it").
+    allow_inf : bool
+        Whether ``+inf`` is allowed ("none").
     default : optional
         Default value; without it the field is required.
     """
-    meta = {
-        "unit": unit,
-        "doc": doc,
-        "low": low,
-        "high": high,
-        "low_open": low_open,
-        "high_open": high_open,
-        "integer": integer,
-        "optional": optional,
-    }
-    return dataclasses.field(default=default, metadata=meta)
+    spec = Spec(unit=unit, doc=doc, low=low, high=high, low_open=low_open, high_open=high_open, integer=integer,
+                allow_inf=allow_inf)
+    return spec.field(default=default, optional=optional)
 
 
 def describe_range(meta: dict[str, Any]) -> str:
-    """Say the allowed range of a field in words, e.g. ``"0 < value < 0.5"``."""
+    """Say the allowed range of a field in words, e.g. ``"a number with 0 < value < 0.5"``."""
     lo, hi = meta.get("low"), meta.get("high")
     kind = "a whole number" if meta.get("integer") else "a number"
+    inf = " (or inf: none)" if meta.get("allow_inf") else ""
     if lo is None and hi is None:
-        return f"{kind}"
+        return f"a finite {kind[2:]}" if not meta.get("integer") else kind
     parts = []
     if lo is not None:
         parts.append(f"{lo:g} {'<' if meta['low_open'] else '<='} ")
     parts.append("value")
     if hi is not None:
         parts.append(f" {'<' if meta['high_open'] else '<='} {hi:g}")
-    return f"{kind} with {''.join(parts)}"
+    prefix = f"{kind} with " if meta.get("integer") else ""
+    return f"{prefix}{''.join(parts)}{inf}"
 
 
 def field_unit(cls: type, name: str) -> str:
@@ -84,8 +140,52 @@ def field_unit(cls: type, name: str) -> str:
     raise KeyError(name)
 
 
+def check_number(name: str, value: Any, meta: dict[str, Any]) -> float:
+    """Check one value against field metadata; return it as a float.
+
+    Raises
+    ------
+    InputError
+        Naming ``name``, the value, the allowed range and the unit; ``error.field`` is ``name`` and
+        ``error.rule`` the text after the value.
+    """
+    unit = "" if meta["unit"] == "1" else f" [{meta['unit']}]"
+    allowed = describe_range(meta)
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        rule = f"is out of range (not a number): expected {allowed}{unit}"
+        raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
+    v = float(value)
+    if meta["integer"] and (not math.isfinite(v) or v != int(v)):
+        rule = f"is not a whole number: expected {allowed}{unit}"
+        raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
+    lo, hi = meta["low"], meta["high"]
+    bad = not math.isfinite(v) and not (meta.get("allow_inf") and v == math.inf)
+    if math.isfinite(v):
+        if lo is not None:
+            bad = bad or (v <= lo if meta["low_open"] else v < lo)
+        if hi is not None:
+            bad = bad or (v >= hi if meta["high_open"] else v > hi)
+    if bad:
+        rule = f"is out of range: expected {allowed}{unit}"
+        raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
+    return v
+
+
+def check_choice(name: str, value: Any, allowed: tuple[Any, ...], *, what: str = "") -> Any:
+    """Return ``value`` if it is one of ``allowed``, else raise :class:`InputError` naming ``name``.
+
+    ``what`` words the kind of value (``"a QP solver"``); the default message says "is not allowed".
+    """
+    ok = any(value == a and type(value) is type(a) for a in allowed)
+    if not ok:
+        head = f"is not {what}" if what else "is not allowed"
+        rule = f"{head}: expected one of {', '.join(repr(a) for a in allowed)}"
+        raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
+    return value
+
+
 def validate_fields(obj: Any) -> None:
-    """Check every :func:`quantity` field of a dataclass instance against its declared range.
+    """Check every spec'd field of a dataclass instance against its declared range.
 
     Raises
     ------
@@ -100,21 +200,43 @@ def validate_fields(obj: Any) -> None:
         value = getattr(obj, f.name)
         if value is None and meta["optional"]:
             continue
-        unit = "" if meta["unit"] == "1" else f" [{meta['unit']}]"
-        allowed = describe_range(meta)
-        if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            rule = f"is not a number: expected {allowed}{unit}"
-            raise InputError(f"{f.name} = {value!r} {rule}", field=f.name, rule=rule)
-        if meta["integer"] and (not math.isfinite(float(value)) or float(value) != int(value)):
-            rule = f"is not whole: expected {allowed}{unit}"
-            raise InputError(f"{f.name} = {value!r} {rule}", field=f.name, rule=rule)
-        v = float(value)
-        lo, hi = meta["low"], meta["high"]
-        bad = not math.isfinite(v) and not (math.isinf(v) and hi is None and v > 0)
-        if lo is not None:
-            bad = bad or (v <= lo if meta["low_open"] else v < lo)
-        if hi is not None:
-            bad = bad or (v >= hi if meta["high_open"] else v > hi)
-        if bad:
-            rule = f"is out of range: expected {allowed}{unit}"
-            raise InputError(f"{f.name} = {value!r} {rule}", field=f.name, rule=rule)
+        if meta.get("sequence"):
+            if isinstance(value, str) or not hasattr(value, "__iter__"):
+                rule = f"is not a list: expected a list of numbers, each {describe_range(meta)}"
+                raise InputError(f"{f.name} = {value!r} {rule}", field=f.name, rule=rule)
+            for v in value:
+                try:
+                    check_number(f.name, v, meta)
+                except InputError as exc:
+                    rule = f"has an element {v!r} that {exc.rule}"
+                    raise InputError(f"{f.name} = {list(value)!r} {rule}", field=f.name, rule=rule) from None
+            continue
+        check_number(f.name, value, meta)
+
+
+# --- the named quantities: each range is written here and nowhere else ---------------------------------
+
+#: Backlash b along the line of action (half the lost motion of a stage), per stage.
+BACKLASH = Spec(unit="m", doc="backlash b along the line of action", low=0.0, high=0.01, high_open=True)
+#: Half-gap of a plant's stage (any finite physical value; gear data in files and controllers' estimates
+#: take :data:`BACKLASH`).
+GAP = Spec(unit="m", doc="half-gap along the line of action", low=0.0)
+#: Inertia of a gear or a whole shaft (strictly positive).
+INERTIA = Spec(unit="kg m^2", doc="inertia", low=0.0, low_open=True, high=1e6)
+#: Inertia added to a shaft (motor rotor, load, coupling).
+ADDED_INERTIA = Spec(unit="kg m^2", doc="inertia added to a shaft", low=0.0, high=1e6)
+VISCOUS_FRICTION = Spec(unit="N m s/rad", doc="viscous friction", low=0.0, high=1e3)
+COULOMB_FRICTION = Spec(unit="N m", doc="Coulomb friction", low=0.0, high=1e4)
+COULOMB_VELOCITY = Spec(unit="rad/s", doc="velocity scale of the smooth Coulomb law", low=0.0, low_open=True,
+                        high=10.0)
+TORQUE_LIMIT = Spec(unit="N m", doc="motor torque limit", low=0.0, low_open=True, high=1e6, allow_inf=True)
+LOAD_TORQUE = Spec(unit="N m", doc="constant load torque", low=-1e4, high=1e4)
+MESH_STIFFNESS = Spec(unit="N/m", doc="mesh stiffness", low=0.0, low_open=True, high=1e13)
+MESH_DAMPING = Spec(unit="N s/m", doc="mesh damping", low=0.0, high=1e8)
+DAMPING_RATIO = Spec(unit="1", doc="damping ratio of the mesh mode", low=0.0, high=2.0)
+BASE_RADIUS = Spec(unit="m", doc="base radius", low=0.0, low_open=True, high=10.0)
+SAMPLE_TIME = Spec(unit="s", doc="sample period", low=1e-6, high=1.0)
+ENCODER_CPR = Spec(unit="counts/rev", doc="encoder resolution", low=4, high=2**40, integer=True)
+ENCODER_NOISE = Spec(unit="rad", doc="encoder noise (std)", low=0.0, high=1.0)
+DURATION = Spec(unit="s", doc="simulated time", low=0.0, low_open=True, high=1e5)
+SEED = Spec(unit="1", doc="random seed", low=0, high=2**63 - 1, integer=True)

@@ -103,6 +103,8 @@ GEAR_PAIR_CASES = [
     ("density", 0.0),
     ("inertia1", 0.0),
     ("inertia2", -1.0),
+    ("x1", 2.0),  # above the profile-shift range 1.5
+    ("x2", -1.5),  # below the profile-shift range -1
 ]
 
 
@@ -179,6 +181,10 @@ SERVO_CASES = [
     ("coulomb_velocity", 0.0),
     ("torque_limit", 0.0),
     ("load_torque", math.nan),
+    ("friction_law", "viscous"),
+    ("intermediate_inertia", (1e-4, -1e-4)),
+    ("intermediate_viscous_friction", (math.inf,)),
+    ("intermediate_coulomb_friction", 0.1),  # not a list
 ]
 
 

@@ -6,7 +6,7 @@ Three kinds of oracle (TR 93-28 section 2, eqs 1-12, and section 5.1):
    (5.1.1); under constant load the impacts occur on both sides first and then on one side only
    (5.1.2); Yang-Sun's stiffer mesh penetrates less;
 2. independent computations: a fine fixed-step RK4 integration of eqs 1-12 written here with plain
-   floats; :func:`gearctl.reference.reference_solution` (solve_ivp with terminal events); closed forms
+   floats; :func:`gearctl.oracle.reference_solution` (solve_ivp with terminal events); closed forms
    of one contact of the linear law (duration pi / omega_d, restitution exp(-zeta pi / sqrt(1 - zeta^2)),
    peak penetration) and of the static deflection under constant load; python-control's
    ``input_output_response`` of :func:`gearctl.plant.plant_nlsys`;
@@ -31,8 +31,8 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from gearctl import ContactLaw, GearModel, InputError, Plant, PlantKind, SimulationError, build_plant, load_model
+from gearctl.oracle import reference_solution
 from gearctl.plant import plant_nlsys
-from gearctl.reference import reference_solution
 from gearctl.simulate import CASES, SimulationResult, contact_force, report_case, simulate
 
 KERNELS = [pytest.param(True, id="compiled"), pytest.param(False, id="python")]

@@ -18,15 +18,33 @@ last flank is held (a load stopped by friction rests on the flank that drove it)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
+from ..controller import ReferenceLike
 from ..errors import InputError
-from ..references import Reference
+from ..units import BACKLASH, check_choice, quantity, validate_fields
 from .base import Controller
 from .pid import PID
 
-__all__ = ["DeadzoneInverse"]
+__all__ = ["DeadzoneInverse", "InverseSettings"]
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class InverseSettings:
+    """The inverse's own keys of a ``deadzone_inverse`` file."""
+
+    rule: str = "torque"
+    width: float | None = quantity(unit="N m or rad/s", doc="transition width of the smooth sign (torque rule: "
+                                   "N m; velocity rule: rad/s)", low=0.0, low_open=True, high=1e3, optional=True,
+                                   default=None)
+    backlash: float | None = BACKLASH.field(default=None, optional=True, doc="backlash estimate (default: the "
+                                            "model's)")
+
+    def __post_init__(self) -> None:
+        check_choice("rule", self.rule, ("torque", "velocity"))
+        validate_fields(self)
 
 
 class DeadzoneInverse(Controller):
@@ -56,11 +74,8 @@ class DeadzoneInverse(Controller):
     def __init__(self, pid: PID, *, backlash: float, rule: str = "torque", width: float | None = None,
                  name: str = "deadzone_inverse") -> None:
         super().__init__()
-        if rule not in ("torque", "velocity"):
-            raise InputError(f"rule = {rule!r}: expected 'torque' or 'velocity'", field="rule")
-        if not (0.0 <= backlash < 0.01):
-            raise InputError(f"backlash = {backlash!r} is out of range: expected 0 <= value < 0.01 [m]",
-                             field="backlash")
+        check_choice("rule", rule, ("torque", "velocity"))
+        BACKLASH.check("backlash", backlash)
         self.pid, self.backlash, self.rule, self.name = pid, backlash, rule, name
         self.width = width if width is not None else (5e-4 if rule == "torque" else 1e-2)
         if not (self.width > 0 and math.isfinite(self.width)):
@@ -79,7 +94,7 @@ class DeadzoneInverse(Controller):
         self._sigma = 0.0
         self.solve_times, self.fallbacks = [], []
 
-    def flank(self, t: float, ref: Reference) -> float:
+    def flank(self, t: float, ref: ReferenceLike) -> float:
         """Smooth sign in [-1, 1] of the flank that must carry the load (+1 front, -1 back).
 
         While the reference is at rest (``r' = r'' = 0``) the last value is held: a load that friction
@@ -97,7 +112,7 @@ class DeadzoneInverse(Controller):
         self._sigma = math.tanh(drive / self.width)
         return self._sigma
 
-    def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
         r, rd, rdd = ref.at(t)
         target = r + self.flank(t, ref) * self._offset
         ym = y_motor / self.pid.N

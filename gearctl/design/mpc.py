@@ -113,11 +113,8 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import gc
-import hashlib
 import math
 import os
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -127,11 +124,13 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from ..build import CompileError, c_compiler, compile_disabled, shared_library
+from ..controller import ReferenceLike
 from ..errors import InputError, SolverError
-from ..kernel import c_compiler, cache_dir
-from ..references import Reference
+from ..files import Layout, build_dataclass, spec_values
+from ..plant import input_matrix, mode_matrices
+from ..units import BACKLASH, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
-from .registry import number
 
 __all__ = ["MPC", "MPCSettings", "build_mpc", "SOLVERS", "installed_solvers"]
 
@@ -200,50 +199,40 @@ class MPCSettings:
         ``landing_velocity``, ``relative_velocity``, ``smoothing``) are then unused.
     """
 
-    horizon: int = 20
+    horizon: int = quantity(unit="samples", doc="prediction and control horizon", low=1, high=200, integer=True,
+                            default=20)
     solver: str = "daqp"
     feedback: str = "load"
-    tracking: float = 1e8
-    torque: float = 1e-2
-    torque_rate: float = 300.0
-    relative_velocity: float = 1e7
-    terminal: float = 10.0
+    tracking: float = quantity(unit="1/rad^2", doc="load-angle error weight", low=0.0, low_open=True, high=1e15,
+                               default=1e8)
+    torque: float = quantity(unit="1/(N m)^2", doc="torque weight", low=0.0, high=1e15, default=1e-2)
+    torque_rate: float = quantity(unit="1/(N m)^2", doc="torque-rate weight", low=0.0, high=1e15, default=300.0)
+    relative_velocity: float = quantity(unit="s^2/m^2", doc="landing-speed weight", low=0.0, high=1e15, default=1e7)
+    terminal: float = quantity(unit="1", doc="terminal weight over tracking", low=0.0, high=1e6, default=10.0)
     soft_landing: str = "bound"
-    landing_velocity: float = 2e-4
-    max_solve_time: float = 1e-3
-    smoothing: float = 2e-3
-    process_noise: float = 1e-4
-    measurement_noise: float = 2e-6
-    backlash: float = 5e-5
+    landing_velocity: float = quantity(unit="m/s", doc="closing speed of a planned landing", low=0.0,
+                                       low_open=True, high=1.0, default=2e-4)
+    max_solve_time: float = quantity(unit="s", doc="solve-time budget of a step", low=0.0, low_open=True, high=1.0,
+                                     default=1e-3)
+    smoothing: float = quantity(unit="N m", doc="mesh torque left on a flank after a landing", low=0.0, high=1e3,
+                                default=2e-3)
+    process_noise: float = quantity(unit="N m", doc="observer process noise", low=0.0, low_open=True, high=1e3,
+                                    default=1e-4)
+    measurement_noise: float = quantity(unit="rad", doc="observer measurement noise", low=0.0, low_open=True,
+                                        high=1.0, default=2e-6)
+    backlash: float = BACKLASH.field(default=5e-5, doc="backlash estimate (0: a backlash-free train)")
 
     def __post_init__(self) -> None:
-        def bad(field: str, rule: str) -> InputError:
-            return InputError(f"{field} = {getattr(self, field)!r} is out of range: expected {rule}", field=field)
-
-        if isinstance(self.horizon, bool) or not isinstance(self.horizon, int) or not 1 <= self.horizon <= 200:
-            raise bad("horizon", "an integer with 1 <= value <= 200 [samples]")
-        if self.solver not in SOLVERS:
-            raise InputError(f"solver = {self.solver!r} is not a QP solver: expected one of "
-                             f"{', '.join(repr(s) for s in SOLVERS)}", field="solver")
-        if self.feedback not in FEEDBACK:
-            raise InputError(f"feedback = {self.feedback!r}: expected one of "
-                             f"{', '.join(repr(s) for s in FEEDBACK)}", field="feedback")
-        if self.soft_landing not in SOFT_LANDING:
-            raise InputError(f"soft_landing = {self.soft_landing!r}: expected one of "
-                             f"{', '.join(repr(s) for s in SOFT_LANDING)}", field="soft_landing")
-        for f in ("torque", "torque_rate", "relative_velocity", "terminal", "smoothing"):
-            v = getattr(self, f)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise bad(f, "a finite number >= 0")
-        for f in ("tracking", "landing_velocity", "max_solve_time", "process_noise", "measurement_noise"):
-            v = getattr(self, f)
-            if not (math.isfinite(v) and v > 0.0):
-                raise bad(f, "a finite number > 0")
+        if isinstance(self.soft_landing, bool):  # true/false in a file: the penalty alone / off
+            object.__setattr__(self, "soft_landing", "penalty" if self.soft_landing else "off")
+        validate_fields(self)
+        object.__setattr__(self, "horizon", int(self.horizon))
+        check_choice("solver", self.solver, SOLVERS, what="a QP solver")
+        check_choice("feedback", self.feedback, FEEDBACK)
+        check_choice("soft_landing", self.soft_landing, SOFT_LANDING)
         if self.torque == 0.0 and self.torque_rate == 0.0:
             raise InputError("torque = 0 and torque_rate = 0: at least one torque weight must be > 0 "
                              "(the QP needs a positive definite Hessian)", field="torque")
-        if not (0.0 <= self.backlash < 0.01):  # also rejects NaN
-            raise bad("backlash", "a number with 0 <= value < 0.01 [m] (0: a backlash-free train)")
 
 
 # --- reading a controller file ---------------------------------------------------------------------------
@@ -300,69 +289,39 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         For a value out of range (naming ``file: key``) or an unknown or not installed solver. (A
         ``[design]`` table is rejected by the registry: the MPC is tuned by its ``[weights]``.)
     """
-
-    def choice(key: str, default: Any, allowed: tuple[Any, ...]) -> Any:
-        v = spec.get(key, default)
-        if v not in allowed or isinstance(v, bool) != isinstance(default, bool):
-            raise InputError(f"{path}: {key} = {v!r} is not allowed: expected one of "
-                             f"{', '.join(repr(a) for a in allowed)}", field=key)
-        return v
-
-    d = MPCSettings()
-    horizon = number(path, spec, "horizon", d.horizon, 1, 200, unit="[samples]")
-    if horizon != int(horizon):
-        raise InputError(f"{path}: horizon = {spec['horizon']!r} is not a whole number of samples: expected an "
-                         f"integer in [1, 200]", field="horizon")
-    solver = spec.get("solver", d.solver)
-    if solver not in SOLVERS:
-        raise InputError(f"{path}: solver = {solver!r} is not a QP solver: expected one of "
-                         f"{', '.join(repr(s) for s in SOLVERS)}", field="solver")
-    if not _plugin_loads(solver):
-        raise InputError(f"{path}: solver = {solver!r} is not installed in this CasADi: installed are "
-                         f"{', '.join(repr(s) for s in installed_solvers())}", field="solver")
-    soft = spec.get("soft_landing", d.soft_landing)
-    if soft is True:
-        soft = "penalty"
-    elif soft is False:
-        soft = "off"
-    if soft not in SOFT_LANDING:
-        raise InputError(f"{path}: soft_landing = {spec['soft_landing']!r} is not allowed: expected one of "
-                         f"{', '.join(repr(s) for s in SOFT_LANDING)} (or true/false)", field="soft_landing")
-    plant = info.plant
-    if backlash is not None:
-        b = backlash
-    else:
-        b = number(path, spec, "backlash", plant.backlash, 0.0, 0.01, unit="[m]")
-    if not (0.0 <= b < 0.01):  # also rejects NaN
-        raise InputError(f"{path}: backlash = {b!r} is out of range: expected 0 <= value < 0.01 [m] "
-                         f"(0: a backlash-free train)", field="backlash")
-    fields = dict(
-        horizon=int(horizon),
-        solver=solver,
-        feedback=choice("feedback", d.feedback, FEEDBACK),
-        tracking=number(path, spec, "tracking", d.tracking, 0.0, 1e15, section="weights", unit="[1/rad^2]",
-                        lo_open=True),
-        torque=number(path, spec, "torque", d.torque, 0.0, 1e15, section="weights", unit="[1/(N m)^2]"),
-        torque_rate=number(path, spec, "torque_rate", d.torque_rate, 0.0, 1e15, section="weights",
-                           unit="[1/(N m)^2]"),
-        relative_velocity=number(path, spec, "relative_velocity", d.relative_velocity, 0.0, 1e15,
-                                 section="weights", unit="[s^2/m^2]"),
-        terminal=number(path, spec, "terminal", d.terminal, 0.0, 1e6, section="weights"),
-        soft_landing=soft,
-        landing_velocity=number(path, spec, "landing_velocity", d.landing_velocity, 0.0, 1.0, unit="[m/s]",
-                                lo_open=True),
-        max_solve_time=number(path, spec, "max_solve_time", Ts, 0.0, 1.0, unit="[s]", lo_open=True),
-        smoothing=number(path, spec, "smoothing", d.smoothing, 0.0, 1e3, unit="[N m]"),
-        process_noise=number(path, spec, "process_noise", d.process_noise, 0.0, 1e3, section="observer",
-                             unit="[N m]", lo_open=True),
-        measurement_noise=number(path, spec, "measurement_noise", d.measurement_noise, 0.0, 1.0,
-                                 section="observer", unit="[rad]", lo_open=True),
-        backlash=b,
-    )
-    try:  # the checks across keys (MPCSettings) and of the sample time (MPC), restated with the file
-        return MPC(info, MPCSettings(**fields), Ts=Ts, name=name)
+    values = spec_values(path, spec, MPC_LAYOUT, kind="mpc")
+    vals = values.get(MPCSettings, {})
+    vals.pop("_sample_time", None)  # the sample time is Ts (checked by the registry)
+    if "solver" in vals:
+        try:
+            check_choice("solver", vals["solver"][1], SOLVERS, what="a QP solver")
+        except InputError as exc:
+            raise InputError(f"{path}: {exc}", field="solver", rule=exc.rule) from None
+        if not _plugin_loads(vals["solver"][1]):
+            raise InputError(f"{path}: solver = {vals['solver'][1]!r} is not installed in this CasADi: installed "
+                             f"are {', '.join(repr(s) for s in installed_solvers())}", field="solver")
+    if backlash is not None:  # the caller's estimate wins over the file's
+        vals["backlash"] = (None, backlash)
+    elif "backlash" not in vals:
+        vals["backlash"] = (None, info.plant.backlash)
+    if "max_solve_time" not in vals:
+        vals["max_solve_time"] = (None, Ts)
+    settings = build_dataclass(path, MPCSettings, vals)
+    try:
+        return MPC(info, settings, Ts=Ts, name=name)
     except InputError as exc:
         raise InputError(f"{path}: {exc}", field=exc.field) from None
+
+
+#: The keys of an ``mpc`` controller file and the settings fields they feed.
+MPC_LAYOUT: Layout = {
+    "": {k: (MPCSettings, k) for k in ("feedback", "horizon", "solver", "backlash", "soft_landing",
+                                       "landing_velocity", "max_solve_time", "smoothing")} | {
+        "sample_time": (MPCSettings, "_sample_time")},
+    "weights": {k: (MPCSettings, k) for k in ("tracking", "torque", "torque_rate", "relative_velocity",
+                                              "terminal")},
+    "observer": {k: (MPCSettings, k) for k in ("process_noise", "measurement_noise")},
+}
 
 
 # --- the gap model ---------------------------------------------------------------------------------------
@@ -395,8 +354,7 @@ def _zoh(A: NDArray[np.float64], B: NDArray[np.float64], Ts: float) -> tuple[NDA
 def _gap_model(info: LoopInfo, Ts: float) -> _GapModel:
     p = info.plant
     J1, J2, N, Jeq = p.J1, p.J2, info.N, info.J_eq
-    A = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [0, 0, -p.d1 / J1, 0], [0, 0, 0, -p.d2 / J2]], dtype=float)
-    B = np.array([[0, 0], [0, 0], [1 / J1, 0], [0, 1 / J2]], dtype=float)
+    A, B = mode_matrices(p, [False]), input_matrix(p)
     Ad, Bd = _zoh(A, B, Ts)  # eqs 6-7
     a1, a2 = J1 / Jeq, J2 / (N * Jeq)
     T = np.array([[a1, a2, 0, 0], [0, 0, a1, a2], [p.rb1, -p.rb2, 0, 0], [0, 0, p.rb1, -p.rb2]])
@@ -466,48 +424,38 @@ class _QP:
         self._dm: dict[tuple[int, int], Any] = {}  # CasADi path: H and A as DM, per pattern
         self.compiled = False
         self.note = ""
-        want = compiled if compiled is not None else not os.environ.get("GEARCTL_NO_COMPILE")
+        want = compiled if compiled is not None else not compile_disabled()
         if want and plugin in _COMPILABLE:
             try:
                 self._load(self._build(fname))
                 self.compiled = True
-            except (OSError, subprocess.SubprocessError, RuntimeError, AttributeError) as exc:
+            except (OSError, CompileError, RuntimeError, AttributeError) as exc:
                 if compiled:
                     raise SolverError(f"could not compile the {plugin} QP: {exc}") from exc
                 self.note = f"compiled path unavailable ({type(exc).__name__}: {exc}); calling CasADi"
         elif plugin not in _COMPILABLE:
             self.note = f"{plugin} is called through CasADi (no code generation)"
 
-    def _build(self, fname: str) -> Path:
-        """Generate C for :attr:`function`, compile it once per source into the user cache."""
+    def _build(self, fname: str) -> ctypes.CDLL:
+        """Generate C for :attr:`function` and build it (once per source) through :mod:`gearctl.build`."""
         import casadi as ca
 
-        cc = c_compiler()
-        if cc is None:
+        if c_compiler() is None:
             raise OSError("no C compiler found")
         casadi_dir = Path(ca.__file__).parent
         with tempfile.TemporaryDirectory() as tmp:
             gen = ca.CodeGenerator(f"{fname}.c", {"with_header": False})
             gen.add(self.function)
             src = Path(gen.generate(tmp + os.sep)).read_bytes()  # the prefix: a directory
-        flags = ["-O2", "-shared", "-fPIC", f"-I{casadi_dir / 'include'}"]
         libs = ["-lm"]
         if self.plugin == "daqp":  # the wheel ships libdaqp.so next to CasADi's own libraries
             libs = [f"-L{casadi_dir}", "-ldaqp", f"-Wl,-rpath,{casadi_dir}", "-lm"]
-        tag = hashlib.sha256(src + " ".join([cc, *flags, *libs, sys.version]).encode()).hexdigest()[:16]
-        target = cache_dir() / f"{fname}-{tag}.so"
-        if not target.exists():
-            target.parent.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-                c_file, out = Path(tmp) / f"{fname}.c", Path(tmp) / target.name
-                c_file.write_bytes(src)
-                subprocess.run([cc, *flags, "-o", str(out), str(c_file), *libs], check=True, capture_output=True,
-                               timeout=120)
-                os.replace(out, target)  # atomic: parallel processes may race here
-        return target
+        lib = shared_library(fname, {f"{fname}.c": src}, libs=libs, include=[casadi_dir / "include"],
+                             required=True)
+        assert lib is not None
+        return lib
 
-    def _load(self, target: Path) -> None:
-        lib = ctypes.CDLL(str(target))
+    def _load(self, lib: ctypes.CDLL) -> None:
         fname = self.function.name()
         sizes = [ctypes.c_longlong() for _ in range(4)]
         getattr(lib, f"{fname}_work")(*[ctypes.byref(s) for s in sizes])
@@ -856,11 +804,11 @@ class MPC(Controller):
         self._land: int | None = None
         self._k = 0
         self._p = np.zeros(self.n_p)
-        self._ref: Reference | None = None
+        self._ref: ReferenceLike | None = None
         self._blk_t0 = 0.0
         self._blk_len = 0
 
-    def _preview(self, t: float, ref: Reference) -> int:
+    def _preview(self, t: float, ref: ReferenceLike) -> int:
         """Index of ``t`` in the cached reference block (recomputed every few hundred samples)."""
         n = self.N
         if ref is self._ref:
@@ -1005,7 +953,7 @@ class MPC(Controller):
         x, lx, la = self._keep
         self._qp.x[:], self._qp.lam_x[:], self._qp.lam_a[:] = x, lx, la
 
-    def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
         """Motor torque for sample time ``t`` [N m] (see :class:`~gearctl.design.base.Controller`).
 
         Notes

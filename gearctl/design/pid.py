@@ -10,16 +10,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import control as ct
-
+from ..controller import ReferenceLike
 from ..errors import InputError
-from ..references import Reference
 from ..units import quantity, validate_fields
 from .base import Controller, LoopInfo
 
-__all__ = ["PIDGains", "PID", "design_pid"]
+if TYPE_CHECKING:
+    import control as ct
+
+__all__ = ["PIDGains", "PIDDesign", "PID", "design_pid"]
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -29,11 +30,11 @@ class PIDGains:
     Units: ``kp`` [N m/rad], ``ki`` [N m/(rad s)], ``kd`` [N m s/rad], ``derivative_filter_hz`` [Hz].
     """
 
-    kp: float = quantity(unit="N m/rad", doc="proportional gain", low=0.0)
-    ki: float = quantity(unit="N m/(rad s)", doc="integral gain", low=0.0, default=0.0)
-    kd: float = quantity(unit="N m s/rad", doc="derivative gain", low=0.0, default=0.0)
+    kp: float = quantity(unit="N m/rad", doc="proportional gain", low=0.0, high=1e9)
+    ki: float = quantity(unit="N m/(rad s)", doc="integral gain", low=0.0, high=1e12, default=0.0)
+    kd: float = quantity(unit="N m s/rad", doc="derivative gain", low=0.0, high=1e9, default=0.0)
     derivative_filter_hz: float = quantity(
-        unit="Hz", doc="derivative filter corner", low=0.0, low_open=True, default=1e3
+        unit="Hz", doc="derivative filter corner", low=0.0, low_open=True, high=1e6, default=1e3
     )
 
     def __post_init__(self) -> None:
@@ -41,9 +42,58 @@ class PIDGains:
 
     def tf(self) -> ct.TransferFunction:
         """The continuous PID as a transfer function (error [rad] to torque [N m])."""
+        import control as ct
+
         wf = 2 * math.pi * self.derivative_filter_hz
         s = ct.tf("s")
         return self.kp + self.ki / s + self.kd * s / (1 + s / wf)
+
+    def discrete(self, Ts: float) -> tuple[float, float, float, float]:
+        """``(kp, ki Ts, kd (1 - a) / Ts, a)``: the sampled PID :class:`PID` runs, ``a = T_f / (T_f + Ts)``.
+
+        The one statement of the discretisation: :meth:`PID.torque` runs it, :meth:`sampled_tf` and
+        :mod:`gearctl.describe` analyse it.
+        """
+        Tf = 1.0 / (2 * math.pi * self.derivative_filter_hz)
+        a = Tf / (Tf + Ts)
+        return self.kp, self.ki * Ts, self.kd * (1.0 - a) / Ts, a
+
+    def sampled_tf(self, Ts: float) -> ct.TransferFunction:
+        """The sampled PID as a discrete transfer function, error to torque (dt = ``Ts``).
+
+        ``C(z) = kp + ki Ts / (z - 1) + kd (1 - a) (z - 1) / (Ts (z - a))``, ``a = T_f / (T_f + Ts)``,
+        ``T_f = 1 / (2 pi f_d)``.
+
+        Notes
+        -----
+        Derived from :meth:`PID.torque`: the integrator adds ``Ts ki e_k`` *after* forming ``u_k`` (so
+        ``I_k = Ts ki sum_{i<k} e_i``: ``Ts ki / (z - 1)``); the derivative acts on the measurement through
+        a backward-Euler filter, ``y_f,k = a y_f,k-1 + (1 - a) y_k``, ``dy_k = (y_f,k - y_f,k-1) / Ts``:
+        ``(1 - a)(z - 1) / (Ts (z - a))``. With a constant reference the derivative of the measurement
+        is minus that of the error. Anti-windup is inactive below the torque limit.
+        """
+        import control as ct
+
+        kp, kiT, kdT, a = self.discrete(Ts)
+        z = ct.tf([1.0, 0.0], [1.0], Ts)
+        return kp + kiT / (z - 1) + kdT * (z - 1) / (z - a)
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class PIDDesign:
+    """What a PID is designed for (the ``[design]`` table): crossover, phase margin, integral zero.
+
+    The crossover must also lie below half the sample rate (checked by :func:`design_pid`).
+    """
+
+    bandwidth_hz: float = quantity(unit="Hz", doc="open-loop crossover", low=0.0, low_open=True, high=1e6,
+                                   default=20.0)
+    phase_margin_deg: float = quantity(unit="deg", doc="phase margin", low=1.0, high=79.0, default=50.0)
+    integral_ratio: float = quantity(unit="1", doc="integral zero over the crossover", low=0.0, high=1.0,
+                                     default=0.1)
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
 
 
 def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float = 50.0, Ts: float = 1e-3,
@@ -85,6 +135,8 @@ def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float =
     if not (0.0 < phase_margin_deg < 80.0):
         raise InputError(f"phase_margin_deg = {phase_margin_deg!r} is out of range: expected 0 < value < 80 "
                          f"[deg]", field="phase_margin_deg")
+    import control as ct
+
     wc = 2 * math.pi * bandwidth_hz
     wi = integral_ratio * wc
     phi = math.radians(phase_margin_deg) + math.atan(wi / wc) + wc * Ts / 2
@@ -104,14 +156,23 @@ def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float =
 
 
 def sampled_margins(info: LoopInfo, gains: PIDGains, Ts: float, *, feedback: str = "motor") -> dict[str, float]:
-    """Margins of the PID on the contact-mode model, both discretised at ``Ts`` (ZOH, Tustin)."""
+    """Design margins: the continuous PID, discretised by Tustin, on the contact-mode model with its ZOH.
+
+    Notes
+    -----
+    These are the margins of the *design* (the loop-shaping target, as a textbook discretises it); the
+    controller that runs is :meth:`PIDGains.sampled_tf`, whose phase margin is a few degrees lower at 1 kHz
+    (47.3 deg against 50.1 deg for the catalog PID on ``shing1993_servo``): :func:`gearctl.describe` and
+    ``examples/03_bode_step_margins.py`` analyse that one.
+    """
+    import control as ct
+
     from ..modes import loop_margins
 
     out = 0 if feedback == "motor" else 1
     scale = 1.0 / info.N if feedback == "motor" else 1.0
     G = ct.c2d(ct.ss(info.modes.contact[out, 0]) * scale, Ts, "zoh")
-    C = ct.c2d(gains.tf(), Ts, "tustin")
-    return loop_margins(C * G)
+    return loop_margins(ct.c2d(gains.tf(), Ts, "tustin") * G)
 
 
 class PID(Controller):
@@ -144,8 +205,7 @@ class PID(Controller):
         self.N = info.N
         self.limit = info.torque_limit
         # derivative filter (backward Euler) and anti-windup tracking time
-        Tf = 1.0 / (2 * math.pi * gains.derivative_filter_hz)
-        self._a = Tf / (Tf + Ts)
+        self._a = gains.discrete(Ts)[3]
         self._Tt = math.sqrt(gains.kd / gains.ki) if gains.ki > 0 and gains.kd > 0 else 10 * Ts
         self.reset()
 
@@ -176,7 +236,7 @@ class PID(Controller):
         self._i += self.Ts * (g.ki * e_i + (u_sat - u) / self._Tt)
         return u_sat
 
-    def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
         r, rd, rdd = ref.at(t)
         y = y_motor / self.N if self.feedback == "motor" else float(y_load)  # type: ignore[arg-type]
         return self.torque(t, r, rd, rdd, r - y, y, r - y)

@@ -1,128 +1,114 @@
 """Controller files (``controllers/*.toml``) to controller objects.
 
-A controller file has a ``kind`` (``pid``, ``deadzone_inverse``, ``mpc``), the sample time, the feedback
-sensors, the design or gains, and a ``[source]`` table. Unknown keys are rejected with a suggestion; a
+A controller file has a ``kind``, the sample time, the feedback sensors, the design or gains, and a
+``[source]`` table. Each kind's keys are a *layout*: which table and key feed which field of which settings
+dataclass; the fields declare their units and ranges (:mod:`gearctl.units`), so a controller file is read
+by the same rules as a model file (:mod:`gearctl.files`). Unknown keys are rejected with a suggestion; a
 value out of range names the file, the key and the allowed range.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
-import math
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..files import Layout, build_dataclass, check_source, spec_values
 from ..plant import Plant
+from ..units import BACKLASH, SAMPLE_TIME, check_choice, validate_fields
 from .base import Controller, LoopInfo, loop_info
-from .deadzone import DeadzoneInverse
-from .pid import PID, PIDGains, design_pid
+from .deadzone import DeadzoneInverse, InverseSettings
+from .mpc import MPC_LAYOUT, build_mpc
+from .pid import PID, PIDDesign, PIDGains, design_pid
 
-__all__ = ["build_controller", "CONTROLLER_KEYS"]
+__all__ = ["build_controller", "LoopSettings", "LAYOUTS", "CONTROLLER_KEYS"]
 
-# kind -> (top-level keys, sections with their keys)
-_PID_TOP = {"kind", "name", "sample_time", "feedback", "feedforward"}
-_PID_SECTIONS = {
-    "design": {"bandwidth_hz", "phase_margin_deg", "integral_ratio"},
-    "gains": {"kp", "ki", "kd", "derivative_filter_hz"},
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class LoopSettings:
+    """What every PID-based controller file states at its top level."""
+
+    sample_time: float = SAMPLE_TIME.field(default=1e-3)
+    feedback: str = "motor"
+    feedforward: bool = True
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+        check_choice("feedback", self.feedback, ("motor", "load"))
+        check_choice("feedforward", self.feedforward, (True, False))
+
+
+_LOOP = {"sample_time": (LoopSettings, "sample_time"), "feedback": (LoopSettings, "feedback"),
+         "feedforward": (LoopSettings, "feedforward")}
+_PID_TABLES = {"design": {f.name: (PIDDesign, f.name) for f in dataclasses.fields(PIDDesign)},
+               "gains": {f.name: (PIDGains, f.name) for f in dataclasses.fields(PIDGains)}}
+_INVERSE = {f.name: (InverseSettings, f.name) for f in dataclasses.fields(InverseSettings)}
+
+#: kind -> layout of its file
+LAYOUTS: dict[str, Layout] = {
+    "pid": {"": _LOOP, **_PID_TABLES},
+    "deadzone_inverse": {"": {**_LOOP, **_INVERSE}, **_PID_TABLES},
+    "mpc": MPC_LAYOUT,
 }
+#: kind -> (top-level keys, {table: keys}) for documentation and the README
 CONTROLLER_KEYS: dict[str, tuple[set[str], dict[str, set[str]]]] = {
-    "pid": (_PID_TOP, _PID_SECTIONS),
-    "deadzone_inverse": (_PID_TOP | {"rule", "width", "backlash"}, _PID_SECTIONS),
-    "mpc": (
-        {"kind", "name", "sample_time", "feedback", "horizon", "solver", "backlash", "soft_landing",
-         "landing_velocity", "max_solve_time", "smoothing"},
-        {"weights": {"tracking", "torque", "torque_rate", "relative_velocity", "terminal"},
-         "observer": {"process_noise", "measurement_noise"}},
-    ),
+    k: ({"kind", "name", *lay.get("", {})}, {t: set(v) for t, v in lay.items() if t}) for k, lay in LAYOUTS.items()
 }
-_SOURCE_KEYS = {"citation", "table", "notes", "url", "doi"}
+
+Values = dict[str, tuple[Any, Any]]
 
 
-def _check_keys(path: Path, spec: dict[str, Any]) -> str:
-    kind = spec.get("kind")
-    if kind not in CONTROLLER_KEYS:
-        close = difflib.get_close_matches(str(kind), list(CONTROLLER_KEYS), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise InputError(f"{path}: kind = {kind!r} is not a controller kind: expected one of "
-                         f"{', '.join(CONTROLLER_KEYS)}{hint}", field="kind")
-    top, sections = CONTROLLER_KEYS[kind]
-    for key, value in spec.items():
-        if isinstance(value, dict):
-            allowed = sections.get(key, _SOURCE_KEYS if key == "source" else None)
-            if allowed is None:
-                close = difflib.get_close_matches(key, [*sections, "source"], n=1)
-                hint = f"; did you mean [{close[0]}]?" if close else ""
-                raise InputError(f"{path}: unknown section [{key}] for kind {kind!r}: expected one of "
-                                 f"{', '.join(f'[{s}]' for s in [*sections, 'source'])}{hint}", field=key)
-            for sub in value:
-                if sub not in allowed:
-                    close = difflib.get_close_matches(sub, list(allowed), n=1)
-                    hint = f"; did you mean {close[0]!r}?" if close else ""
-                    raise InputError(f"{path}: unknown key [{key}] {sub}: expected one of "
-                                     f"{', '.join(sorted(allowed))}{hint}", field=sub)
-        elif key not in top:
-            close = difflib.get_close_matches(key, list(top), n=1)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
-            raise InputError(f"{path}: unknown key {key} for kind {kind!r}: expected one of "
-                             f"{', '.join(sorted(top))}{hint}", field=key)
-    if "source" not in spec:
-        raise InputError(f"{path}: missing section [source] (citation or notes)", field="source")
-    return kind
+def _restate(path: Path, exc: InputError, values: Mapping[type, Values]) -> InputError:
+    """An error raised by a design step, restated with the file and the key it came from."""
+    for vals in values.values():
+        if exc.field in vals:
+            b = vals[exc.field][0]
+            return InputError(f"{path}: {b.label()}: {exc}", field=exc.field, rule=exc.rule)
+    return InputError(f"{path}: {exc}", field=exc.field, rule=exc.rule)
 
 
-def number(path: Path, spec: dict[str, Any], key: str, default: float | None, lo: float, hi: float,
-           *, section: str | None = None, unit: str = "", lo_open: bool = False) -> float:
-    """Read a number from a controller spec, checking its range; ``default`` None means required."""
-    table = spec.get(section, {}) if section else spec
-    label = f"[{section}] {key}" if section else key
-    if key not in table:
-        if default is None:
-            raise InputError(f"{path}: missing key {label}: expected a number in [{lo:g}, {hi:g}] {unit}", field=key)
-        return default
-    v = table[key]
-    ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-    if ok:
-        ok = (v > lo if lo_open else v >= lo) and v <= hi
-    if not ok:
-        left = "(" if lo_open else "["
-        raise InputError(f"{path}: {label} = {v!r} is out of range: expected a number in {left}{lo:g}, {hi:g}] "
-                         f"{unit}".rstrip(), field=key)
-    return float(v)
-
-
-def _choice(path: Path, spec: dict[str, Any], key: str, default: Any, allowed: tuple[Any, ...]) -> Any:
-    v = spec.get(key, default)
-    if v not in allowed:
-        raise InputError(f"{path}: {key} = {v!r} is not allowed: expected one of "
-                         f"{', '.join(repr(a) for a in allowed)}", field=key)
-    return v
-
-
-def _pid(path: Path, spec: dict[str, Any], info: LoopInfo, Ts: float, name: str) -> PID:
-    feedback = _choice(path, spec, "feedback", "motor", ("motor", "load"))
-    feedforward = _choice(path, spec, "feedforward", True, (True, False))
-    if "gains" in spec and "design" in spec:
+def _pid(path: Path, values: dict[type, Values], info: LoopInfo, loop: LoopSettings, name: str) -> PID:
+    Ts = loop.sample_time
+    if PIDGains in values and PIDDesign in values:
         raise InputError(f"{path}: give either [gains] or [design], not both", field="gains")
-    if "gains" in spec:
-        gains = PIDGains(
-            kp=number(path, spec, "kp", None, 0.0, 1e9, section="gains", unit="[N m/rad]"),
-            ki=number(path, spec, "ki", 0.0, 0.0, 1e12, section="gains", unit="[N m/(rad s)]"),
-            kd=number(path, spec, "kd", 0.0, 0.0, 1e9, section="gains", unit="[N m s/rad]"),
-            derivative_filter_hz=number(path, spec, "derivative_filter_hz", 1e3, 0.0, 1e6, section="gains",
-                                        unit="[Hz]", lo_open=True),
-        )
+    if PIDGains in values:
+        gains = build_dataclass(path, PIDGains, values[PIDGains])
     else:
-        gains, _ = design_pid(
-            info,
-            bandwidth_hz=number(path, spec, "bandwidth_hz", 20.0, 0.0, 0.5 / Ts, section="design", unit="[Hz]",
-                                lo_open=True),
-            phase_margin_deg=number(path, spec, "phase_margin_deg", 50.0, 1.0, 79.0, section="design",
-                                    unit="[deg]"),
-            integral_ratio=number(path, spec, "integral_ratio", 0.1, 0.0, 1.0, section="design"),
-            Ts=Ts,
-        )
-    return PID(info, gains, Ts=Ts, feedback=feedback, feedforward=feedforward, name=name)
+        design = build_dataclass(path, PIDDesign, values.get(PIDDesign, {}))
+        try:
+            gains, _ = design_pid(info, bandwidth_hz=design.bandwidth_hz, phase_margin_deg=design.phase_margin_deg,
+                                  integral_ratio=design.integral_ratio, Ts=Ts)
+        except InputError as exc:
+            raise _restate(path, exc, values) from None
+    return PID(info, gains, Ts=Ts, feedback=loop.feedback, feedforward=loop.feedforward, name=name)
+
+
+def _build_pid(path: Path, spec: Mapping[str, Any], info: LoopInfo, *, name: str,
+               backlash: float | None) -> Controller:
+    values = spec_values(path, spec, LAYOUTS["pid"], kind="pid")
+    loop = build_dataclass(path, LoopSettings, values.get(LoopSettings, {}))
+    return _pid(path, values, info, loop, name)
+
+
+def _build_inverse(path: Path, spec: Mapping[str, Any], info: LoopInfo, *, name: str,
+                   backlash: float | None) -> Controller:
+    values = spec_values(path, spec, LAYOUTS["deadzone_inverse"], kind="deadzone_inverse")
+    loop = build_dataclass(path, LoopSettings, values.get(LoopSettings, {}))
+    settings = build_dataclass(path, InverseSettings, values.get(InverseSettings, {}))
+    b = backlash if backlash is not None else (settings.backlash if settings.backlash is not None
+                                               else info.plant.backlash)
+    pid = _pid(path, values, info, loop, name + "/pid")
+    try:
+        return DeadzoneInverse(pid, backlash=b, rule=settings.rule, width=settings.width, name=name)
+    except InputError as exc:
+        raise _restate(path, exc, values) from None
+
+
+Builder = Callable[..., Controller]
+_BUILDERS: dict[str, Builder] = {"pid": _build_pid, "deadzone_inverse": _build_inverse, "mpc": build_mpc}
 
 
 def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "<controller>",
@@ -135,7 +121,7 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
         The TOML document.
     plant : Plant
         The nominal plant the controller is designed on (the model's; its backlash is the default
-        estimate).
+        estimate; a train is designed on its equivalent pair).
     path : Path or str
         File name, for messages.
     backlash : float, optional
@@ -151,20 +137,28 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
         For an unknown kind or key, or a value out of range.
     """
     path = Path(path)
-    kind = _check_keys(path, spec)
-    Ts = number(path, spec, "sample_time", 1e-3, 1e-6, 1.0, unit="[s]", lo_open=True)
+    kind = spec.get("kind")
+    if kind not in LAYOUTS:
+        close = difflib.get_close_matches(str(kind), list(LAYOUTS), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise InputError(f"{path}: kind = {kind!r} is not a controller kind: expected one of "
+                         f"{', '.join(LAYOUTS)}{hint}", field="kind")
+    if "source" not in spec:
+        raise InputError(f"{path}: missing section [source] (citation or notes)", field="source")
+    check_source(path, spec["source"], required=("citation", "notes"))
+    if backlash is not None:
+        try:
+            BACKLASH.check("backlash", backlash)
+        except InputError as exc:
+            raise InputError(f"{path}: {exc}", field="backlash", rule=exc.rule) from None
     name = str(spec.get("name", path.stem))
     info = loop_info(plant)
-    if kind == "pid":
-        return _pid(path, spec, info, Ts, name)
-    if kind == "deadzone_inverse":
-        pid = _pid(path, spec, info, Ts, name + "/pid")
-        b = backlash if backlash is not None else number(path, spec, "backlash", plant.backlash, 0.0, 0.01,
-                                                          unit="[m]")
-        rule = _choice(path, spec, "rule", "torque", ("torque", "velocity"))
-        width = number(path, spec, "width", 5e-4 if rule == "torque" else 1e-2, 0.0, 1e3, lo_open=True,
-                       unit="[N m] (torque rule) or [rad/s] (velocity rule)")
-        return DeadzoneInverse(pid, backlash=b, rule=rule, width=width, name=name)
-    from .mpc import build_mpc  # CasADi is imported only when an MPC is asked for
+    if kind == "mpc":
+        ts = spec.get("sample_time", 1e-3)
+        try:
+            Ts = SAMPLE_TIME.check("sample_time", ts)
+        except InputError as exc:
+            raise InputError(f"{path}: sample_time = {ts!r} {exc.rule}", field="sample_time", rule=exc.rule) from None
+        return build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash)
+    return _BUILDERS[kind](path, spec, info, name=name, backlash=backlash)
 
-    return build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash)

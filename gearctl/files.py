@@ -1,0 +1,253 @@
+"""Catalog files: where they are, how they are read, and how their keys become validated dataclasses.
+
+Used by :mod:`gearctl.catalog` (model files) and :mod:`gearctl.design.registry` (controller files), so
+both kinds of file are read by one set of rules: a key's unit and range come from the dataclass field it
+feeds (:mod:`gearctl.units`), unknown keys get a "did you mean", and every error is one line naming the
+file, the table and the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import tomllib
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from .errors import InputError
+from .units import describe_range
+
+__all__ = ["catalog_dirs", "catalog_names", "resolve", "read_toml", "build_dataclass", "check_source",
+           "Binding", "MAX_FILE_BYTES", "spec_values", "table_values", "Layout"]
+
+_PKG = Path(__file__).resolve().parent
+
+#: Largest model or controller file read [bytes] (catalog files are a few kB).
+MAX_FILE_BYTES = 1_000_000
+
+
+def catalog_dirs(kind: str) -> list[Path]:
+    """Folders searched for catalog entries of ``kind`` (``"models"`` or ``"controllers"``), in order."""
+    return [d for d in (_PKG / kind, _PKG.parent / kind) if d.is_dir()]
+
+
+def catalog_names(kind: str) -> list[str]:
+    """Names of the catalog entries of ``kind``, sorted."""
+    names: dict[str, None] = {}
+    for d in catalog_dirs(kind):
+        for p in sorted(d.glob("*.toml")):
+            names.setdefault(p.stem, None)
+    return sorted(names)
+
+
+def resolve(name_or_path: str | Path, kind: str) -> Path:
+    """Find the TOML file of a catalog entry or path.
+
+    Raises
+    ------
+    InputError
+        If it is neither an existing file nor a catalog name; the message lists close names.
+    """
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists() or len(p.parts) > 1:
+        if p.is_file():
+            return p
+        what = "is a folder, not a file" if p.is_dir() else "does not exist"
+        raise InputError(f"{kind[:-1]} file {str(p)!r} {what}", field=kind[:-1])
+    for d in catalog_dirs(kind):
+        cand = d / f"{p.name}.toml"
+        if cand.is_file():
+            return cand
+    names = catalog_names(kind)
+    close = difflib.get_close_matches(str(name_or_path), names, n=3)
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    raise InputError(
+        f"unknown {kind[:-1]} {str(name_or_path)!r}: expected a catalog name ({', '.join(names)}) or a path "
+        f"to a .toml file{hint}",
+        field=kind[:-1],
+    )
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; a binary, non-UTF-8, oversized or invalid file is one :class:`InputError`."""
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise InputError(f"{path}: {size} bytes is too large for a model or controller file (at most "
+                             f"{MAX_FILE_BYTES} bytes): expected a TOML file")
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read: {exc.strerror}") from None
+    if b"\0" in raw:
+        raise InputError(f"{path}: is a binary file, not TOML text")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: is not UTF-8 text (byte {exc.start}): expected a TOML file") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from None
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class Binding:
+    """Where a dataclass field's value came from: ``[table] key = raw`` in ``path``."""
+
+    table: str
+    key: str
+    raw: Any
+
+    def label(self) -> str:
+        """``[table] key`` (or ``--key`` for a command-line override, ``key`` for a top-level key)."""
+        if self.table == "override":
+            return f"--{self.key.replace('_', '-')}"
+        return f"[{self.table}] {self.key}" if self.table else self.key
+
+
+def _field_meta(cls: type, name: str) -> Mapping[str, Any]:
+    for f in dataclasses.fields(cls):
+        if f.name == name:
+            return f.metadata
+    raise KeyError(name)
+
+
+def required_fields(cls: type) -> set[str]:
+    """Fields of ``cls`` without a default."""
+    return {f.name for f in dataclasses.fields(cls)
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
+
+
+def unknown_key(path: Path, table: str, key: str, known: Iterable[str], *, context: str = "") -> InputError:
+    """``file: unknown key [table] key: expected one of ...; did you mean ...?``
+
+    ``context`` follows the key (e.g. ``" for kind 'mpc'"``).
+    """
+    known = list(known)
+    close = difflib.get_close_matches(key, known, n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    where = f"[{table}] {key}" if table else key
+    return InputError(f"{path}: unknown key {where}{context}: expected one of {', '.join(known)}{hint}", field=key)
+
+
+def build_dataclass(path: Path, cls: type, values: Mapping[str, tuple[Binding, Any]]) -> Any:
+    """Build ``cls(**values)``, restating a validation error with the file, table and key the user typed.
+
+    Parameters
+    ----------
+    path : Path
+        The file (messages).
+    cls : type
+        A dataclass whose fields validate themselves (:func:`gearctl.units.validate_fields`).
+    values : mapping
+        ``field -> (binding, value)``; keys ending in ``_deg`` have been converted to radians by the caller.
+
+    Raises
+    ------
+    InputError
+        ``file: [table] key = raw <rule>``; a missing required field names the table and key to add.
+    """
+    for fname in sorted(required_fields(cls) - set(values)):
+        meta = _field_meta(cls, fname)
+        unit = "" if meta.get("unit") in (None, "1") else f" [{meta['unit']}]"
+        raise InputError(f"{path}: missing key {fname}: {meta.get('doc', '')}, {describe_range(meta)}{unit}",
+                         field=fname)
+    try:
+        return cls(**{f: v for f, (_, v) in values.items()})
+    except InputError as exc:
+        b = values.get(exc.field or "", (None, None))[0]
+        if b is not None and exc.rule:
+            rule = exc.rule
+            if b.key.endswith("_deg"):
+                meta = _field_meta(cls, exc.field)
+                rule = (f"is out of range: expected a number with {math.degrees(meta['low']):g} <= value <= "
+                        f"{math.degrees(meta['high']):g} [deg]")
+            raise InputError(f"{path}: {b.label()} = {b.raw!r} {rule}", field=b.key, rule=rule) from None
+        raise InputError(f"{path}: {exc}", field=exc.field, rule=exc.rule) from None
+    except TypeError as exc:  # a value of a type the dataclass cannot take at all
+        raise InputError(f"{path}: {exc}") from None
+
+
+_SOURCE_KEYS = {"citation": False, "table": False, "notes": False, "url": False, "doi": False}
+
+
+def check_source(path: Path, content: Any, *, required: tuple[str, ...] = ("citation",)) -> dict[str, str]:
+    """Check a ``[source]`` table: known keys, strings, the ``required`` ones present (one of them for
+    controller files, which may give ``notes`` alone)."""
+    if not isinstance(content, dict):
+        raise InputError(f"{path}: [source] must be a table with a citation", field="source")
+    for key, value in content.items():
+        if key not in _SOURCE_KEYS:
+            raise unknown_key(path, "source", key, _SOURCE_KEYS)
+        if not isinstance(value, str):
+            raise InputError(f"{path}: [source] {key} = {value!r} must be a string", field=key)
+    if required and not any(k in content for k in required):
+        raise InputError(f"{path}: missing key [source] {required[0]}: where the data come from", field=required[0])
+    return dict(content)
+
+
+def degrees_to_radians(path: Path, table: str, key: str, value: Any) -> Any:
+    """A ``*_deg`` key's value in radians (checked to be a number first)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        where = f"[{table}] {key}" if table else key
+        raise InputError(f"{path}: {where} = {value!r} is not a number [deg]", field=key)
+    return math.radians(value)
+
+
+def table_values(path: Path, table: str, content: Any, keymap: Mapping[str, str],
+                 convert: Callable[[str, Any], Any] | None = None) -> dict[str, tuple[Binding, Any]]:
+    """``field -> (binding, value)`` for the keys of one table, rejecting unknown keys.
+
+    ``keymap`` maps the file's keys to dataclass fields; keys ending in ``_deg`` are converted to radians.
+    """
+    if not isinstance(content, dict):
+        raise InputError(f"{path}: [{table}] must be a table of keys, not {content!r}", field=table)
+    out: dict[str, tuple[Binding, Any]] = {}
+    for key, value in content.items():
+        if key not in keymap:
+            raise unknown_key(path, table, key, keymap)
+        v = degrees_to_radians(path, table, key, value) if key.endswith("_deg") else value
+        if convert is not None:
+            v = convert(key, v)
+        out[keymap[key]] = (Binding(table, key, value), v)
+    return out
+
+
+#: A file layout: table ("" for the top level) -> key -> (dataclass, field).
+Layout = Mapping[str, Mapping[str, tuple[type, str]]]
+
+
+def spec_values(path: Path, spec: Mapping[str, Any], layout: Layout, *, kind: str,
+                skip: tuple[str, ...] = ("kind", "name", "source")) -> dict[type, dict[str, tuple[Binding, Any]]]:
+    """Sort the keys of a parsed controller file into ``dataclass -> {field: (binding, value)}``.
+
+    Raises
+    ------
+    InputError
+        For an unknown table (``unknown section [x] for kind 'k'``) or key (with a "did you mean").
+    """
+    out: dict[type, dict[str, tuple[Binding, Any]]] = {}
+    for key, value in spec.items():
+        if key in skip:
+            continue
+        if isinstance(value, dict):
+            if key not in layout or key == "":
+                tables = [t for t in layout if t] + ["source"]
+                close = difflib.get_close_matches(key, tables, n=1)
+                hint = f"; did you mean [{close[0]}]?" if close else ""
+                raise InputError(f"{path}: unknown section [{key}] for kind {kind!r}: expected one of "
+                                 f"{', '.join(f'[{t}]' for t in tables)}{hint}", field=key)
+            for sub, v in value.items():
+                if sub not in layout[key]:
+                    raise unknown_key(path, key, sub, sorted(layout[key]))
+                cls, fname = layout[key][sub]
+                out.setdefault(cls, {})[fname] = (Binding(key, sub, v), v)
+            continue
+        top = layout.get("", {})
+        if key not in top:
+            raise unknown_key(path, "", key, sorted([*top, *skip]), context=f" for kind {kind!r}")
+        cls, fname = top[key]
+        out.setdefault(cls, {})[fname] = (Binding("", key, value), value)
+    return out
