@@ -1,12 +1,15 @@
-"""The closed-loop tracking benchmark: every controller against every plant on the same references.
+"""The closed-loop benchmark: every controller against every plant on the same references, and an ISO 230-2
+positioning row per controller.
 
-Each run is one controller (designed on the model's improved plant) against one plant (improved,
-Yang–Sun, time-varying stiffness, or the backlash-free limit) on one reference. Runs are independent
-and spread over worker processes. The result holds every run's figures and the ratios that matter:
-compensated error over the PID's, each error over the backlash-free plant's under the same controller,
-and the improved plant's error over Yang–Sun's (how much the choice of plant model changes the
-prediction); plus, on the sine, each controller designed on the Yang–Sun plant and run on the improved
-one (how a design on one model fares on the other).
+:meth:`BenchSpec.runs` turns the catalog names into :class:`~gearctl.runs.Run` values (plants and designs as
+numbers, built once here), and :func:`run_bench` executes a list of them, spread over worker processes. Each
+run is one controller (designed on the model's improved plant) against one plant (improved, Yang–Sun,
+time-varying stiffness, or the backlash-free limit) on one reference. The result holds every run's figures
+and the ratios that matter: compensated error over the PID's, each error over the backlash-free plant's
+under the same controller, and the improved plant's error over Yang–Sun's (how much the choice of plant
+model changes the prediction); plus, on the sine, each controller designed on the Yang–Sun plant and run on
+the improved one (how a design on one model fares on the other); and the ISO 230-2 figures of each
+controller on the improved plant against the backlash-free PID's.
 """
 
 from __future__ import annotations
@@ -20,21 +23,21 @@ from typing import Any
 
 import numpy as np
 
-from .catalog import controller_names, load_controller, load_model, resolve
-from .closedloop import simulate_closed_loop
+from .catalog import controller_names, load_model, resolve
 from .errors import GearctlError, InputError
 from .kernel import compiled_available
-from .metrics import tracking_metrics
 from .plant import PlantKind, build_plant
-from .references import REFERENCES, reference
+from .references import DEFAULT_DURATION, REFERENCES, reference
+from .runs import Design, Run, controller_spec, design_controller, execute
+from .units import DURATION, SEED
 
-__all__ = ["BenchSpec", "run_bench", "bench_table", "DEFAULT_DURATION", "FREE"]
+__all__ = ["BenchSpec", "run_bench", "bench_table", "DEFAULT_DURATION", "FREE", "ISO_SETTINGS"]
 
 #: Label of the backlash-free plant (the physical limit).
 FREE = "backlash-free"
 
-#: Simulated time per reference [s].
-DEFAULT_DURATION = {"sine": 3.0, "move": 1.0, "step": 2.0, "ramp": 1.5}
+#: The ISO 230-2 cycle of the benchmark's positioning row (as ``gearctl precision`` runs it).
+ISO_SETTINGS = {"targets": 5, "cycles": 5, "travel": 0.5, "dwell": 0.3}
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -60,6 +63,8 @@ class BenchSpec:
     realtime : bool
         Optimisations that overrun their time budget fall back, as on the target (default False:
         overruns are counted and the results are deterministic for a seed).
+    precision : bool
+        Add an ISO 230-2 positioning row per controller (improved plant), and the backlash-free PID's.
     """
 
     models: tuple[str, ...] = ("shing1993_servo",)
@@ -70,6 +75,7 @@ class BenchSpec:
     seed: int = 0
     cross_design: bool = True
     realtime: bool = False
+    precision: bool = True
 
     def __post_init__(self) -> None:
         for p in self.plants:
@@ -82,59 +88,90 @@ class BenchSpec:
             if r not in REFERENCES:
                 raise InputError(f"reference = {r!r} is not a reference: expected one of {', '.join(REFERENCES)}",
                                  field="references")
-        if self.duration is not None and not (self.duration > 0 and math.isfinite(self.duration)):
-            raise InputError(f"duration = {self.duration!r} is out of range: expected a number > 0 [s]",
-                             field="duration")
+        if self.duration is not None:
+            DURATION.check("duration", self.duration)
+        SEED.check("seed", self.seed)
         for m in self.models:
             resolve(m, "models")
         for c in self.controllers:
             resolve(c, "controllers")
 
-    def runs(self) -> list[dict[str, Any]]:
-        """The independent runs, as picklable dicts."""
+    def runs(self) -> list[Run]:
+        """The independent tracking runs, as values (plants and designs built once, here)."""
         ctrls = self.controllers or tuple(controller_names())
         out = []
         for m in self.models:
+            model = load_model(m)
+            true = {p: build_plant(model, p) for p in self.plants}
+            true[FREE] = build_plant(model, backlash=0.0)
+            nominal = {"improved": build_plant(model), "yang-sun": build_plant(model, "yang-sun"), FREE: true[FREE]}
             for c in ctrls:
-                for r in self.references:
-                    for p in (*self.plants, FREE):
-                        out.append({"model": m, "controller": c, "plant": p, "design": "improved", "reference": r,
-                                    "duration": self.duration or DEFAULT_DURATION[r], "seed": self.seed,
-                                    "realtime": self.realtime})
+                spec, label = controller_spec(c)
+                cells = [(p, "improved", r) for r in self.references for p in (*self.plants, FREE)]
                 if self.cross_design and "sine" in self.references and "yang-sun" in self.plants:
-                    out.append({"model": m, "controller": c, "plant": "improved", "design": "yang-sun",
-                                "reference": "sine", "duration": self.duration or DEFAULT_DURATION["sine"],
-                                "seed": self.seed, "realtime": self.realtime})
+                    cells.append(("improved", "yang-sun", "sine"))
+                for p, d, r in cells:
+                    design = Design(spec=spec, nominal=nominal[FREE] if p == FREE else nominal[d], label=label)
+                    out.append(Run(plant=true[p], design=design, reference=reference(r),
+                                   duration=self.duration or DEFAULT_DURATION[r], seed=self.seed, sensors=model.sensors,
+                                   realtime=self.realtime,
+                                   tags={"model": m, "controller": c, "plant": p, "design": d, "reference": r}))
+        return out
+
+    def precision_runs(self) -> list[dict[str, Any]]:
+        """The ISO 230-2 rows: each controller on the improved plant, and the PID on the backlash-free one."""
+        if not self.precision:
+            return []
+        ctrls = self.controllers or tuple(controller_names())
+        out = []
+        for m in self.models:
+            model = load_model(m)
+            plant, free = build_plant(model), build_plant(model, backlash=0.0)
+            for c in ctrls:
+                spec, label = controller_spec(c)
+                out.append({"model": m, "controller": c, "plant": "improved", "true": plant, "sensors": model.sensors,
+                            "design": Design(spec=spec, nominal=plant, label=label), "seed": self.seed})
+            if "pid" in ctrls:
+                spec, label = controller_spec("pid")
+                out.append({"model": m, "controller": "pid", "plant": FREE, "true": free, "sensors": model.sensors,
+                            "design": Design(spec=spec, nominal=free, label=label), "seed": self.seed})
         return out
 
 
-def _run_one(run: dict[str, Any]) -> dict[str, Any]:
-    """Worker: one closed-loop run; returns its figures and a decimated error trace."""
-    model = load_model(run["model"])
-    free = run["plant"] == FREE
-    backlash = 0.0 if free else None
-    plant = build_plant(model, "improved" if free else run["plant"], backlash=backlash)
-    nominal = build_plant(model, run["design"], backlash=backlash)
-    out = dict(run)
-    try:
-        ctrl = load_controller(run["controller"], nominal)
-        ctrl.realtime = run.get("realtime", False)
-        res = simulate_closed_loop(plant, ctrl, reference(run["reference"]), run["duration"],
-                                   sensors=model.sensors, seed=run["seed"])
-    except GearctlError as exc:  # a diverging run is a result too, not a crash of the benchmark
-        out.update({"ok": False, "message": str(exc)})
-        part = getattr(exc, "result", None)
-        if part is not None:
-            out.update(tracking_metrics(part))
-        return out
-    step = max(1, res.t.size // 600)
-    out.update({"ok": True, "message": "ok", "name": ctrl.name, "Ts": ctrl.Ts, **tracking_metrics(res),
-                "trace_t": res.t[::step].tolist(), "trace_error": res.error[::step].tolist()})
+def _row(run: Run) -> dict[str, Any]:
+    """Worker: one tracking run as a JSON-ready row."""
+    res = execute(run)
+    out: dict[str, Any] = {**dict(run.tags), "duration": run.duration, "seed": run.seed, "realtime": run.realtime}
+    out.update({"ok": res.ok, "message": res.message})
+    if res.metrics is not None:
+        m = res.metrics.as_dict()
+        health = m.pop("health")
+        out.update({"name": res.controller.get("name"), "Ts": res.controller.get("Ts"),
+                    "preview": res.controller.get("preview", 1), **m, "warnings": list(health["warnings"])})
+    if res.ok:
+        out.update({"trace_t": res.trace_t.tolist(), "trace_error": res.trace_error.tolist()})
     return out
 
 
-def run_bench(spec: BenchSpec, *, jobs: int | None = None,
-              progress: Callable[[int, int], Any] | None = None) -> dict[str, Any]:
+def _precision_row(job: dict[str, Any]) -> dict[str, Any]:
+    """Worker: one ISO 230-2 test."""
+    from .precision import precision_test
+
+    out = {k: job[k] for k in ("model", "controller", "plant", "seed")}
+    try:
+        ctrl = design_controller(job["design"])
+        res = precision_test(job["true"], ctrl, sensors=job["sensors"], seed=job["seed"], **ISO_SETTINGS)
+    except GearctlError as exc:
+        out.update({"ok": False, "message": str(exc)})
+        return out
+    st = res.stats
+    out.update({"ok": True, "message": "ok", "accuracy": st["accuracy"], "reversal_value": st["reversal_value"],
+                "repeatability": st["repeatability"], "lost_motion": job["true"].lost_motion})
+    return out
+
+
+def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[int, int], Any] | None = None,
+              runs: Sequence[Run] | None = None) -> dict[str, Any]:
     """Run the benchmark.
 
     Parameters
@@ -145,36 +182,44 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None,
         Worker processes (default: all cores; 1 runs in this process).
     progress : callable, optional
         ``progress(done, total)`` after each run.
+    runs : sequence of Run, optional
+        The tracking runs (default ``spec.runs()``).
 
     Returns
     -------
     dict
-        ``runs`` (every run's figures), ``ratios`` {``over_pid``, ``over_backlash_free``,
-        ``improved_over_yang_sun``, ``cross_design``}, ``spec``.
+        ``runs`` (every run's figures), ``precision`` (the ISO rows), ``ratios`` {``over_pid``,
+        ``over_backlash_free``, ``improved_over_yang_sun``, ``cross_design``, ``iso_over_backlash_free``},
+        ``spec``.
     """
-    runs = spec.runs()
+    runs = list(runs if runs is not None else spec.runs())
+    iso = spec.precision_runs()
     compiled_available()  # compile the kernel once before the workers start
     jobs = jobs or os.cpu_count() or 1
-    results: list[dict[str, Any]] = []
-    if jobs == 1 or len(runs) == 1:
-        for i, r in enumerate(runs):
-            results.append(_run_one(r))
+    tasks: list[tuple[Callable[[Any], dict[str, Any]], Any]] = [(_row, r) for r in runs]
+    tasks += [(_precision_row, j) for j in iso]
+    total = len(tasks)
+    results: list[dict[str, Any] | None] = [None] * total
+    if jobs == 1 or total == 1:
+        for i, (fn, arg) in enumerate(tasks):
+            results[i] = fn(arg)
             if progress:
-                progress(i + 1, len(runs))
+                progress(i + 1, total)
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = {pool.submit(_run_one, r): k for k, r in enumerate(runs)}
-            done = [None] * len(runs)
+            futures = {pool.submit(fn, arg): k for k, (fn, arg) in enumerate(tasks)}
             for n, fut in enumerate(as_completed(futures)):
-                done[futures[fut]] = fut.result()
+                results[futures[fut]] = fut.result()
                 if progress:
-                    progress(n + 1, len(runs))
-            results = done  # type: ignore[assignment]
-    results.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
-    return {"spec": dataclasses.asdict(spec), "runs": results, "ratios": _ratios(results)}
+                    progress(n + 1, total)
+    rows = [r for r in results[:len(runs)] if r is not None]
+    rows.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
+    iso_rows = [r for r in results[len(runs):] if r is not None]
+    spec_d = dataclasses.asdict(spec)
+    return {"spec": spec_d, "runs": rows, "precision": iso_rows, "ratios": _ratios(rows, iso_rows)}
 
 
-def _ratios(results: Sequence[dict[str, Any]]) -> dict[str, Any]:
+def _ratios(results: Sequence[dict[str, Any]], iso: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:
     cell = {(r["model"], r["controller"], r["reference"], r["plant"], r["design"]): r for r in results}
 
     def rms(m: str, c: str, ref: str, p: str, d: str = "improved") -> float | None:
@@ -204,8 +249,16 @@ def _ratios(results: Sequence[dict[str, Any]]) -> dict[str, Any]:
                 "designed_improved_on_yang_sun": rms(m, c, ref, "yang-sun"),
                 "designed_yang_sun_on_improved": rms(m, c, ref, "improved", "yang-sun"),
             }
+    iso_free = {(r["model"]): r for r in iso if r["plant"] == FREE and r.get("ok")}
+    iso_ratios: dict[str, Any] = {}
+    for r in iso:
+        if r["plant"] == FREE or not r.get("ok") or r["model"] not in iso_free:
+            continue
+        f = iso_free[r["model"]]
+        iso_ratios[f"{r['model']}/{r['controller']}"] = {
+            k: ratio(r[k], f[k]) for k in ("accuracy", "reversal_value", "repeatability")}
     return {"over_pid": over_pid, "over_backlash_free": over_free, "improved_over_yang_sun": imp_ys,
-            "cross_design": cross}
+            "cross_design": cross, "iso_over_backlash_free": iso_ratios}
 
 
 def _fmt(v: float | None, scale: float = 1e6, digits: int = 4) -> str:
@@ -213,7 +266,7 @@ def _fmt(v: float | None, scale: float = 1e6, digits: int = 4) -> str:
 
 
 def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
-    """The benchmark's tables as text (or Markdown): errors per cell, then the ratios."""
+    """The benchmark's tables as text (or Markdown): errors per cell, the ratios, the ISO rows."""
     runs = [r for r in result["runs"] if r["design"] == "improved"]
     plants = list(dict.fromkeys(r["plant"] for r in runs))
     rows = list(dict.fromkeys((r["model"], r["controller"], r["reference"]) for r in runs))
@@ -248,8 +301,10 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
         ok = [cell[(m, c, ref, p)] for p in plants if cell.get((m, c, ref, p), {}).get("solve_time")]
         p99 = max((r["solve_time"]["p99"] for r in ok), default=None)  # the worst plant's
         row.append(f"{p99 * 1e6:.0f} / {ok[0]['Ts'] * 1e6:.0f}" if p99 is not None else "—")
+        prev = [cell[(m, c, ref, p)].get("preview") for p in plants if cell.get((m, c, ref, p), {}).get("preview")]
+        row.append(str(prev[0]) if prev else "1")
         body.append(row)
-    table(["controller", "reference", *plants, "solve p99 (worst plant) / Ts [us]"], body)
+    table(["controller", "reference", *plants, "solve p99 (worst plant) / Ts [us]", "preview"], body)
 
     lines.append("Ratios of RMS error: over the PID's on the same plant | over the backlash-free plant's under the "
                  "same controller:")
@@ -273,6 +328,23 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
         body = [[k.split("/")[-1], _fmt(v["designed_improved_on_improved"]), _fmt(v["designed_improved_on_yang_sun"]),
                  _fmt(v["designed_yang_sun_on_improved"])] for k, v in ratios["cross_design"].items()]
         table(["controller", "improved -> improved", "improved -> yang-sun", "yang-sun -> improved"], body)
+    iso = result.get("precision") or []
+    if iso:
+        lines.append("ISO 230-2 positioning on the improved plant (5 targets, 5 cycles; load angle [urad]); ratios "
+                     "over the backlash-free PID's:")
+        lines.append("")
+        body = []
+        for r in iso:
+            key = f"{r['model']}/{r['controller']}"
+            if not r.get("ok"):
+                body.append([r["controller"], r["plant"], "FAILED", "", "", ""])
+                continue
+            q = ratios.get("iso_over_backlash_free", {}).get(key, {})
+            body.append([r["controller"], r["plant"], _fmt(r["accuracy"]), _fmt(r["reversal_value"]),
+                         _fmt(r["repeatability"]),
+                         "—" if r["plant"] == FREE else " / ".join(_fmt(q.get(k), 1, 3) for k in
+                                                                  ("accuracy", "reversal_value", "repeatability"))])
+        table(["controller", "plant", "A", "B", "R", "A / B / R over backlash-free PID"], body)
     failed = [r for r in result["runs"] if not r.get("ok")]
     for r in failed:
         how = "" if r["design"] == "improved" else f", designed on {r['design']}"
@@ -280,9 +352,9 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def error_traces(result: dict[str, Any]) -> dict[tuple[str, str], dict[str, tuple[np.ndarray, np.ndarray]]]:
+def error_traces(result: dict[str, Any]) -> dict[tuple[str, str], dict[str, tuple[Any, Any]]]:
     """``(controller, reference) -> {plant: (t, error)}`` for plotting."""
-    out: dict[tuple[str, str], dict[str, tuple[np.ndarray, np.ndarray]]] = {}
+    out: dict[tuple[str, str], dict[str, tuple[Any, Any]]] = {}
     for r in result["runs"]:
         if r.get("ok") and r["design"] == "improved" and "trace_t" in r:
             out.setdefault((r["controller"], r["reference"]), {})[r["plant"]] = (

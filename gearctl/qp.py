@@ -33,15 +33,12 @@ from __future__ import annotations
 import ctypes
 import enum
 import functools
-import hashlib
-import os
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .build import CompileError, compile_disabled, shared_library
 from .errors import InputError, SolverError
 
 __all__ = ["DenseQP", "QPFactor", "QPStatus", "SOURCE_DIR"]
@@ -49,7 +46,7 @@ __all__ = ["DenseQP", "QPFactor", "QPStatus", "SOURCE_DIR"]
 #: Folder of the solver's C sources (``gearctl_qp.h``, ``gearctl_qp.c``).
 SOURCE_DIR = Path(__file__).parent / "csrc" / "qp"
 _SOURCES = ("gearctl_qp.h", "gearctl_qp.c")
-_CFLAGS = ("-std=c99", "-O3", "-shared", "-fPIC")  # ISO C: no FMA contraction (see gearctl_qp.h)
+_CFLAGS = ("-std=c99", "-O3")  # ISO C: no FMA contraction (see gearctl_qp.h)
 
 
 class QPStatus(enum.IntEnum):
@@ -85,49 +82,29 @@ class _Result(ctypes.Structure):
 # --- building and loading ------------------------------------------------------------------------------
 
 
-def _library() -> Path:
-    """Path of the compiled solver: built on first use into the per-user cache, one file per source version.
-
-    Returns
-    -------
-    Path
-        The shared library.
+def _library() -> ctypes.CDLL:
+    """The compiled solver, built on first use through :mod:`gearctl.build` (one file per source version).
 
     Raises
     ------
     SolverError
         Without a C compiler, with ``GEARCTL_NO_COMPILE`` set, or when compiling fails.
     """
-    # TODO(build): use gearctl.build once it exists (this function is the only compile step of the module)
-    from .kernel import c_compiler, cache_dir
-
-    if os.environ.get("GEARCTL_NO_COMPILE"):
+    if compile_disabled():
         raise SolverError("the QP solver is C only, and GEARCTL_NO_COMPILE forbids compiling it")
-    cc = c_compiler()
-    if cc is None:
-        raise SolverError("the QP solver needs a C compiler (none found; set CC)")
-    src = b"".join((SOURCE_DIR / f).read_bytes() for f in _SOURCES)
-    tag = hashlib.sha256(src + " ".join((cc, *_CFLAGS)).encode()).hexdigest()[:16]
-    target = cache_dir() / f"gearctl_qp-{tag}.so"
-    if not target.exists():
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-            out = Path(tmp) / target.name
-            try:
-                subprocess.run([cc, *_CFLAGS, "-o", str(out), str(SOURCE_DIR / "gearctl_qp.c"), "-lm"],
-                               check=True, capture_output=True, timeout=120)
-            except (OSError, subprocess.SubprocessError) as exc:
-                detail = getattr(exc, "stderr", b"") or b""
-                raise SolverError(f"could not compile the QP solver with {cc}: {exc} "
-                                  f"{detail.decode(errors='replace').strip()}") from exc
-            os.replace(out, target)  # atomic: parallel processes may race here
-    return target
+    sources = {f: (SOURCE_DIR / f).read_bytes() for f in _SOURCES}
+    try:
+        lib = shared_library("gearctl_qp", sources, flags=_CFLAGS, required=True)
+    except CompileError as exc:
+        raise SolverError(f"could not build the QP solver: {exc}") from exc
+    assert lib is not None
+    return lib
 
 
 @functools.cache
 def _lib() -> ctypes.CDLL:
     """Load the solver library once per process and declare its signatures."""
-    lib = ctypes.CDLL(str(_library()))
+    lib = _library()
     lib.gearctl_qp_factor.restype = ctypes.c_int
     lib.gearctl_qp_factor.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p]
     lib.gearctl_qp_solve.restype = ctypes.c_int

@@ -16,9 +16,12 @@ from numpy.typing import ArrayLike
 from .errors import InputError
 from .units import quantity, validate_fields
 
-__all__ = ["Reference", "reference", "REFERENCES", "move_times", "move_point"]
+__all__ = ["Reference", "reference", "REFERENCES", "DEFAULT_DURATION", "move_times", "move_point"]
 
 REFERENCES = ("sine", "step", "ramp", "move")
+
+#: Simulated time of a run on each reference when none is given [s].
+DEFAULT_DURATION = {"sine": 3.0, "move": 1.0, "step": 2.0, "ramp": 1.5}
 
 
 def move_times(distance: float, velocity: float, accel: float, profile: str = "s-curve") -> tuple[float, float, float]:

@@ -20,15 +20,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 from typing import Any
 
 from ..controller import ReferenceLike
 from ..errors import InputError
+from ..files import Layout, build_dataclass, spec_values
 from ..units import BACKLASH, check_choice, quantity, validate_fields
-from .base import Controller
-from .pid import PID
+from .base import Controller, LoopInfo
+from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, pid_from_values, restate
 
-__all__ = ["DeadzoneInverse", "InverseSettings"]
+__all__ = ["DeadzoneInverse", "InverseSettings", "KIND", "LAYOUT", "build"]
+
+#: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
+KIND = "deadzone_inverse"
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -124,3 +129,23 @@ class DeadzoneInverse(Controller):
         """Settings of the inverse and of the PID."""
         return {**self.pid.describe(), "name": self.name, "kind": "deadzone_inverse", "rule": self.rule,
                 "width": self.width, "backlash_estimate": self.backlash}
+
+
+#: The keys of a ``deadzone_inverse`` controller file and the settings fields they feed.
+LAYOUT: Layout = {"": {**LOOP_KEYS, **{f.name: (InverseSettings, f.name) for f in dataclasses.fields(InverseSettings)}},
+                  **PID_TABLES}
+
+
+def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
+          backlash: float | None = None) -> DeadzoneInverse:
+    """The inverse of a ``kind = "deadzone_inverse"`` file; ``backlash`` overrides the file's estimate."""
+    values = spec_values(path, spec, LAYOUT, kind=KIND)
+    loop = build_dataclass(path, LoopSettings, values.get(LoopSettings, {}))
+    settings = build_dataclass(path, InverseSettings, values.get(InverseSettings, {}))
+    b = backlash if backlash is not None else (settings.backlash if settings.backlash is not None
+                                               else info.plant.backlash)
+    pid = pid_from_values(path, values, info, loop, name + "/pid")
+    try:
+        return DeadzoneInverse(pid, backlash=b, rule=settings.rule, width=settings.width, name=name)
+    except InputError as exc:
+        raise restate(path, exc, values) from None

@@ -132,7 +132,10 @@ from ..plant import input_matrix, mode_matrices
 from ..units import BACKLASH, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
 
-__all__ = ["MPC", "MPCSettings", "build_mpc", "SOLVERS", "installed_solvers"]
+__all__ = ["MPC", "MPCSettings", "build_mpc", "SOLVERS", "installed_solvers", "KIND", "LAYOUT"]
+
+#: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
+KIND = "mpc"
 
 #: QP solvers (CasADi conic plugins) the MPC offers; ``daqp`` and ``qrqp`` are compiled.
 SOLVERS = ("daqp", "qrqp", "osqp", "proxqp")
@@ -322,6 +325,7 @@ MPC_LAYOUT: Layout = {
                                               "terminal")},
     "observer": {k: (MPCSettings, k) for k in ("process_noise", "measurement_noise")},
 }
+LAYOUT = MPC_LAYOUT
 
 
 # --- the gap model ---------------------------------------------------------------------------------------

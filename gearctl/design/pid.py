@@ -10,17 +10,23 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..controller import ReferenceLike
 from ..errors import InputError
-from ..units import quantity, validate_fields
+from ..files import Binding, Layout, build_dataclass, spec_values
+from ..units import SAMPLE_TIME, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
 
 if TYPE_CHECKING:
     import control as ct
 
-__all__ = ["PIDGains", "PIDDesign", "PID", "design_pid"]
+__all__ = ["PIDGains", "PIDDesign", "LoopSettings", "PID", "design_pid", "KIND", "LAYOUT", "build",
+           "LOOP_KEYS", "PID_TABLES", "pid_from_values", "restate"]
+
+#: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
+KIND = "pid"
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -245,3 +251,67 @@ class PID(Controller):
         """Gains and settings."""
         return {"name": self.name, "kind": "pid", "Ts": self.Ts, "feedback": self.feedback,
                 "feedforward": self.feedforward, **dataclasses.asdict(self.gains)}
+
+
+# --- the controller file ---------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class LoopSettings:
+    """What every PID-based controller file states at its top level."""
+
+    sample_time: float = SAMPLE_TIME.field(default=1e-3)
+    feedback: str = "motor"
+    feedforward: bool = True
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+        check_choice("feedback", self.feedback, ("motor", "load"))
+        check_choice("feedforward", self.feedforward, (True, False))
+
+
+#: top-level keys every PID-based file has, and the PID's tables
+LOOP_KEYS = {"sample_time": (LoopSettings, "sample_time"), "feedback": (LoopSettings, "feedback"),
+             "feedforward": (LoopSettings, "feedforward")}
+PID_TABLES = {"design": {f.name: (PIDDesign, f.name) for f in dataclasses.fields(PIDDesign)},
+              "gains": {f.name: (PIDGains, f.name) for f in dataclasses.fields(PIDGains)}}
+#: The keys of a ``pid`` controller file and the settings fields they feed.
+LAYOUT: Layout = {"": LOOP_KEYS, **PID_TABLES}
+
+Values = dict[str, tuple[Binding | None, Any]]
+
+
+def restate(path: Path, exc: InputError, values: dict[type, Values]) -> InputError:
+    """An error raised by a design step, restated with the file and the key it came from."""
+    for vals in values.values():
+        if exc.field in vals:
+            b = vals[exc.field][0]
+            return InputError(f"{path}: {b.label()}: {exc}", field=exc.field, rule=exc.rule)
+    return InputError(f"{path}: {exc}", field=exc.field, rule=exc.rule)
+
+
+def pid_from_values(path: Path, values: dict[type, Values], info: LoopInfo, loop: LoopSettings,
+                    name: str) -> PID:
+    """The PID of a file's ``[design]`` or ``[gains]`` (shared by every PID-based kind)."""
+    Ts = loop.sample_time
+    if PIDGains in values and PIDDesign in values:
+        raise InputError(f"{path}: give either [gains] or [design], not both", field="gains")
+    if PIDGains in values:
+        gains = build_dataclass(path, PIDGains, values[PIDGains])
+    else:
+        design = build_dataclass(path, PIDDesign, values.get(PIDDesign, {}))
+        try:
+            gains, _ = design_pid(info, bandwidth_hz=design.bandwidth_hz, phase_margin_deg=design.phase_margin_deg,
+                                  integral_ratio=design.integral_ratio, Ts=Ts)
+        except InputError as exc:
+            raise restate(path, exc, values) from None
+    return PID(info, gains, Ts=Ts, feedback=loop.feedback, feedforward=loop.feedforward, name=name)
+
+
+def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str, backlash: float | None = None) -> PID:
+    """The PID of a ``kind = "pid"`` file (``backlash`` is unused: a PID knows no gap)."""
+    values = spec_values(path, spec, LAYOUT, kind=KIND)
+    loop = build_dataclass(path, LoopSettings, values.get(LoopSettings, {}))
+    return pid_from_values(path, values, info, loop, name)
+
+

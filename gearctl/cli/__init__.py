@@ -1,0 +1,60 @@
+"""The ``gearctl`` command line. The only package that prints or exits.
+
+A :class:`~gearctl.errors.GearctlError` becomes one line on stderr and exit code 2; argparse's own usage
+errors also exit with 2; a closed output pipe (``gearctl models --json | head``) ends quietly. Anything else
+is a bug and surfaces as a traceback. Each module of this package registers a group of commands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Callable, Sequence
+
+from .. import __version__
+from ..errors import GearctlError
+from . import loop_cmds, model_cmds
+
+__all__ = ["main"]
+
+#: The command groups, in the order ``gearctl --help`` lists them.
+GROUPS = (model_cmds, loop_cmds)
+
+
+def _parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]]:
+    ap = argparse.ArgumentParser(
+        prog="gearctl",
+        description="Control design for geared servos with backlash (Shing, Tsai & Krishnaprasad, TR 93-28).",
+    )
+    ap.add_argument("--version", action="version", version=f"gearctl {__version__}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    commands: dict[str, Callable[[argparse.Namespace], int]] = {}
+    for group in GROUPS:
+        commands.update(group.register(sub))
+    return ap, commands
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``gearctl`` command line; return the exit code (0 success, 2 bad input)."""
+    parser, commands = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help / --version (0) or a usage error (2)
+        return int(exc.code or 0)
+    try:
+        return commands[args.command](args)
+    except GearctlError as exc:
+        print(f"gearctl {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # the reader went away (`| head`): end quietly, as a Unix tool does
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except OSError:
+            pass
+        return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

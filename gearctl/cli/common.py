@@ -1,0 +1,177 @@
+"""What every command shares: argument types read from the schema, JSON and CSV writers, progress, warnings."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..units import Spec
+
+__all__ = ["spec_arg", "positive_float", "finite_float", "nonnegative_float", "dump_json", "write_csv_stream",
+           "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE", "TARGETS", "CYCLES",
+           "STAGE", "JOBS", "WHOLE"]
+
+#: command-line quantities not in a model file
+POINTS = Spec(unit="1", doc="sample points", low=2, high=1_000_000, integer=True)
+OMEGA = Spec(unit="rad/s", doc="initial shaft speed", low=-1e5, high=1e5)
+TORQUE = Spec(unit="N m", doc="torque", low=-1e6, high=1e6)
+TARGETS = Spec(unit="1", doc="target positions", low=2, high=50, integer=True)
+CYCLES = Spec(unit="1", doc="cycles", low=1, high=50, integer=True)
+STAGE = Spec(unit="1", doc="stage", low=1, high=6, integer=True)
+JOBS = Spec(unit="1", doc="worker processes", low=1, high=256, integer=True)
+WHOLE = Spec(unit="1", doc="whole number", low=-2**31, high=2**31, integer=True)
+
+
+def spec_arg(spec: Spec) -> Callable[[str], Any]:
+    """An argparse type that parses a number and checks it against ``spec`` (the schema's range)."""
+    def parse(text: str) -> Any:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        try:
+            spec.check("value", v)
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(f"{text} {exc.rule}") from None
+        return int(v) if spec.integer else v
+
+    parse.__name__ = spec.doc.replace(" ", "_")
+    return parse
+
+
+def finite_float(text: str) -> float:
+    """A finite number."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{text!r} must be finite")
+    return v
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0."""
+    v = finite_float(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
+    return v
+
+
+def nonnegative_float(text: str) -> float:
+    """A finite number >= 0."""
+    v = finite_float(text)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be >= 0")
+    return v
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    if hasattr(obj, "as_dict"):
+        return obj.as_dict()
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _clean(o: Any) -> Any:
+    """JSON has no inf/nan: write null."""
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    if isinstance(o, dict):
+        return {k: _clean(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [_clean(v) for v in o]
+    return o
+
+
+def dump_json(obj: Any) -> str:
+    """``obj`` as indented JSON (numpy values, dataclasses with ``as_dict``, inf/nan as null)."""
+    return json.dumps(_clean(json.loads(json.dumps(obj, default=_json_default))), indent=2)
+
+
+def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, int], Iterable[Sequence[Any]]],
+                     n: int, *, chunk: int = 20_000) -> None:
+    """Write a CSV in chunks of rows: ``columns(i0, i1)`` gives the columns of rows ``i0..i1``.
+
+    Floats are written with 10 significant digits; memory stays bounded by one chunk.
+    """
+    p = Path(path)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with open(p, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for i0 in range(0, n, chunk):
+                cols = columns(i0, min(i0 + chunk, n))
+                text = [c if isinstance(c, list) else np.char.mod("%.10g", np.asarray(c, dtype=float)).tolist()
+                        for c in cols]
+                w.writerows(zip(*text, strict=True))
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror}") from None
+
+
+def say_written(*pairs: tuple[str | None, str]) -> None:
+    """Print ``wrote FILE (what)`` for each file the user asked for."""
+    for path, what in pairs:
+        if path:
+            print(f"  wrote {path} ({what})")
+
+
+def save_figure(fig: Any, path: str) -> None:
+    """Write a figure, turning an unwritable path into one line."""
+    from ..plots import save
+
+    try:
+        save(fig, path)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot write plot {path}: {exc}") from None
+
+
+class progress_bar:  # noqa: N801 (a context manager used like a function)
+    """A tqdm bar on stderr for runs expected to take more than ``threshold`` seconds (and only on a terminal).
+
+    Call the object with the fraction done (0..1).
+    """
+
+    def __init__(self, desc: str, *, expected_s: float, threshold: float = 2.0, total: int = 1000) -> None:
+        self.bar = None
+        self.total = total
+        self.done = 0
+        if expected_s > threshold and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=desc, file=sys.stderr, leave=False, unit="‰")
+
+    def __call__(self, fraction: float) -> None:
+        if self.bar is not None:
+            k = int(fraction * self.total)
+            if k > self.done:
+                self.bar.update(k - self.done)
+                self.done = k
+
+    def __enter__(self) -> progress_bar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def warn(command: str, warnings: Iterable[str]) -> None:
+    """Print each warning of an unhealthy loop on stderr, one line each."""
+    for w in warnings:
+        print(f"gearctl {command}: warning: {w}", file=sys.stderr)

@@ -1,0 +1,314 @@
+"""Closed-loop commands: ``track``, ``precision``, ``bench``, ``perf``."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..units import BACKLASH, DURATION, SEED
+from .common import (
+    CYCLES,
+    JOBS,
+    TARGETS,
+    WHOLE,
+    dump_json,
+    positive_float,
+    progress_bar,
+    save_figure,
+    say_written,
+    spec_arg,
+    warn,
+    write_csv_stream,
+)
+
+__all__ = ["register"]
+
+
+def _cmd_track(args: argparse.Namespace) -> int:
+    from ..runs import execute, make_run
+
+    run = make_run(args.model, args.controller, plant=args.plant, reference_kind=args.reference,
+                   duration=args.duration, seed=args.seed, backlash=args.backlash, realtime=args.realtime)
+    with progress_bar("gearctl track", expected_s=run.duration * 0.02):
+        out, res = execute(run, keep=True)
+    if res is None or out.metrics is None:
+        raise InputError(out.message)
+    m = out.metrics
+    ctrl = out.controller
+    plant = run.plant
+    n, w = plant.n_stages, plant.nx // 2
+    summary = {"model": run.tags["model"], "controller": ctrl, "plant": args.plant, "reference": args.reference,
+               "backlash": plant.backlash if n == 1 else list(plant.backlashes), "seed": args.seed,
+               "preview": ctrl.get("preview", 1), "ok": out.ok, "message": out.message, **m.as_dict()}
+    if n > 1:
+        c = res.counts
+        summary["impacts_per_stage"] = [int(c["impacts_front"][i] + c["impacts_back"][i] + c["plastic_front"][i]
+                                            + c["plastic_back"][i]) for i in range(n)]
+    warn("track", m.health.warnings)
+    if not out.ok:
+        warn("track", [f"the run stopped early: {out.message}"])
+    if args.csv:
+        names = (["theta1", "theta2", "omega1", "omega2"] if n == 1 else
+                 [f"theta{j}" for j in range(w)] + [f"omega{j}" for j in range(w)])
+        s_names = ["s"] if n == 1 else [f"s{i + 1}" for i in range(n)]
+        m_names = ["mode"] if n == 1 else [f"mode{i + 1}" for i in range(n)]
+        s_all = plant.gaps(res.x)
+        mode = res.mode.reshape(n, -1)
+
+        def cols(i0: int, i1: int) -> list[Any]:
+            return [res.t[i0:i1], res.reference[i0:i1], *res.x[:, i0:i1], *s_all[:, i0:i1], *mode[:, i0:i1],
+                    res.torque[i0:i1], res.y_motor[i0:i1], res.y_load[i0:i1]]
+
+        write_csv_stream(args.csv, ["t", "reference", *names, *s_names, *m_names, "torque", "y_motor", "y_load"],
+                         cols, res.t.size)
+    if args.plot:
+        from ..plots import plot_tracking
+
+        save_figure(plot_tracking({ctrl["name"]: res}, title=f"{run.tags['model']}, {args.plant} plant, "
+                                                               f"{args.reference}"), args.plot)
+    if args.json:
+        print(dump_json(summary))
+        return 0 if out.ok else 2
+    st = m.solve_time
+    bl = (f"b = {plant.backlash * 1e6:.4g} um" if n == 1 else
+          f"lost motion {plant.lost_motion * 1e6:.4g} urad at the output")
+    print(f"{run.tags['model']}: {ctrl['name']} on the {args.plant} plant, {args.reference} reference, "
+          f"{m.duration:.3g} s ({bl})")
+    print(f"  load-angle error       RMS {m.rms_error:.4g} rad, max {m.max_error:.4g} rad, "
+          f"final {m.final_error:.3g} rad")
+    print(f"  impacts                {m.impacts} (front {m.impacts_front}, back {m.impacts_back}), "
+          f"fastest {m.max_impact_velocity:.3g} m/s")
+    if st is not None:
+        print(f"  solve time             median {st['median'] * 1e6:.0f} us, p99 {st['p99'] * 1e6:.0f} us, "
+              f"max {st['max'] * 1e6:.0f} us (sample period {ctrl['Ts'] * 1e6:.0f} us); overruns {m.overruns}, "
+              f"fallbacks {m.fallbacks}")
+    if ctrl.get("preview", 1) > 1:
+        ahead = (ctrl["preview"] - 1) * ctrl["Ts"] * 1e3
+        print(f"  preview                {ctrl['preview']} reference samples ({ahead:.3g} ms ahead)")
+    print(f"  wall time              {m.wall_time:.3g} s ({m.duration / max(m.wall_time, 1e-9):.0f} "
+          f"simulated s per wall s)")
+    say_written((args.csv, "CSV"), (args.plot, "plot"))
+    return 0 if out.ok else 2
+
+
+def _cmd_precision(args: argparse.Namespace) -> int:
+    from ..catalog import load_controller, load_model
+    from ..plant import build_plant
+    from ..precision import precision_test
+
+    model = load_model(args.model)
+    nominal = build_plant(model, backlash=args.backlash)
+    plant = build_plant(model, args.plant, backlash=args.backlash)
+    ctrl = load_controller(args.controller, nominal, backlash=args.estimate)
+    TARGETS.check("targets", args.targets)
+    CYCLES.check("cycles", args.cycles)
+    res = precision_test(plant, ctrl, targets=args.targets, cycles=args.cycles, travel=args.travel,
+                         dwell=args.dwell, sensors=model.sensors, seed=args.seed)
+    st = res.stats
+    from ..metrics import loop_health
+
+    health = loop_health(res.run, settle=0.0)
+    out = {
+        "model": model.name, "controller": ctrl.describe(), "plant": args.plant,
+        "backlash": plant.backlash if plant.n_stages == 1 else list(plant.backlashes),
+        "lost_motion": plant.lost_motion,
+        "targets": res.targets.tolist(), "cycles": args.cycles,
+        "reversal_value": st["reversal_value"], "repeatability": st["repeatability"],
+        "repeatability_up": st["repeatability_up"], "repeatability_down": st["repeatability_down"],
+        "accuracy": st["accuracy"], "mean_bidirectional_deviation": st["mean_bidirectional_deviation"],
+        "systematic_deviation": st["systematic_deviation"], "mean_reversal": st["mean_reversal"],
+        "per_target": [
+            {"target": float(P), "mean_up": float(st["mean_up"][i]), "mean_down": float(st["mean_down"][i]),
+             "s_up": float(st["s_up"][i]), "s_down": float(st["s_down"][i]), "reversal": float(st["reversal"][i]),
+             "deviations_up": res.deviations_up[i].tolist(), "deviations_down": res.deviations_down[i].tolist()}
+            for i, P in enumerate(res.targets)],
+        "impacts": res.run.impact_count,
+        "health": health.as_dict(),
+    }
+    warn("precision", health.warnings)
+    if args.plot:
+        from ..plots import plot_precision
+
+        save_figure(plot_precision(res), args.plot)
+    if args.json:
+        print(dump_json(out))
+        return 0
+    print(f"{model.name}: {ctrl.name} on the {args.plant} plant, ISO 230-2 linear cycle, {args.targets} targets "
+          f"over {args.travel:g} rad, {args.cycles} cycles")
+    print(f"  reversal value B       {st['reversal_value'] * 1e6:.4g} urad (lost motion = "
+          f"{out['lost_motion'] * 1e6:.4g} urad)")
+    print(f"  repeatability R        {st['repeatability'] * 1e6:.4g} urad (R+ {st['repeatability_up'] * 1e6:.3g}, "
+          f"R- {st['repeatability_down'] * 1e6:.3g})")
+    print(f"  accuracy A             {st['accuracy'] * 1e6:.4g} urad")
+    print(f"  mean bidirectional M   {st['mean_bidirectional_deviation'] * 1e6:.4g} urad")
+    print("  target [rad]   mean+ [urad]  mean- [urad]  B_i [urad]")
+    for row in out["per_target"]:
+        print(f"  {row['target']:11.4f}  {row['mean_up'] * 1e6:12.2f}  {row['mean_down'] * 1e6:12.2f}  "
+              f"{row['reversal'] * 1e6:10.2f}")
+    if args.plot:
+        print(f"  wrote {args.plot}")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from ..bench import BenchSpec, bench_table, error_traces, run_bench
+
+    plants = tuple(p.strip() for p in args.plants.split(",") if p.strip())
+    refs = tuple(r.strip() for r in args.references.split(",") if r.strip())
+    spec = BenchSpec(models=tuple(args.models) or ("shing1993_servo",), controllers=tuple(args.controllers or ()),
+                     plants=plants, references=refs, duration=args.duration, seed=args.seed,
+                     realtime=args.realtime, precision=not args.no_precision)
+    runs = spec.runs()
+    n = len(runs)
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n, desc="gearctl bench", unit="run", file=sys.stderr, leave=False, disable=None)
+
+    def progress(done: int, total: int) -> None:
+        if bar is not None:
+            bar.update(1)
+
+    t0 = time.perf_counter()
+    result = run_bench(spec, jobs=args.jobs, progress=progress, runs=runs)
+    wall = time.perf_counter() - t0
+    if bar is not None:
+        bar.close()
+    result["wall_time"] = wall
+    result["jobs"] = args.jobs or (os.cpu_count() or 1)
+    text = bench_table(result)
+    print(text, end="")
+    print(f"{n} runs in {wall:.1f} s on {result['jobs']} process(es)")
+    for r in result["runs"]:
+        for wmsg in r.get("warnings", ()):
+            warn("bench", [f"{r['controller']} on {r['plant']} ({r['reference']}): {wmsg}"])
+    if args.json:
+        try:
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.json).write_text(dump_json(result))
+        except OSError as exc:
+            raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
+        print(f"wrote {args.json}")
+    if args.out:
+        from ..plots import plot_bench_bars, plot_bench_errors
+
+        out = Path(args.out)
+        traces = error_traces(result)
+        for ref in spec.references:
+            save_figure(plot_bench_errors(traces, reference=ref), str(out / f"errors_{ref}.png"))
+        save_figure(plot_bench_bars(result), str(out / "rms_by_controller.png"))
+        md = ["# gearctl bench", "", f"{n} runs, {wall:.1f} s on {result['jobs']} process(es); models "
+              f"{', '.join(spec.models)}; plants {', '.join(spec.plants)} and the backlash-free limit.", "",
+              bench_table(result, markdown=True), "![RMS error by controller and plant](rms_by_controller.png)", ""]
+        md += [f"![errors, {ref}](errors_{ref}.png)" for ref in spec.references]
+        try:
+            (out / "report.md").write_text("\n".join(md) + "\n")
+        except OSError as exc:
+            raise InputError(f"cannot write {out / 'report.md'}: {exc.strerror}") from None
+        print(f"wrote {out}/report.md and plots")
+    return 0
+
+
+def _cmd_perf(args: argparse.Namespace) -> int:
+    from ..catalog import controller_names
+    from ..perf import bench_wall_time, mpc_timing, sim_speed
+
+    out: dict[str, Any] = {}
+    scen = {name: sim_speed(name) for name in ("free", "pd")}
+    keys = ("gearctl_sim_per_wall", "python_control_sim_per_wall", "ratio", "gearctl_error", "python_control_error")
+    # the contract keys at the top of "sim" are the harder case, the 1 kHz closed loop; both scenarios below
+    out["sim"] = {**{k: scen["pd"][k] for k in keys}, "free": scen["free"], "pd": scen["pd"]}
+    out["mpc"] = mpc_timing() if "mpc" in controller_names() else None
+    out["bench"] = None if args.no_bench else bench_wall_time(jobs=args.jobs)
+    if args.json:
+        print(dump_json(out))
+        return 0
+    for name, r in scen.items():
+        label = {"free": "free vibration (shing1993)", "pd": "1 kHz PD loop on a sine (shing1993_servo)"}[name]
+        print(f"{label}:")
+        print(f"  gearctl                      {r['gearctl_sim_per_wall']:10.4g} sim-s/wall-s, "
+              f"error {r['gearctl_error']:.1e} b")
+        print(f"  python-control (default tol) {r['python_control_sim_per_wall']:10.4g} sim-s/wall-s, error "
+              f"{r['python_control_error']:.1e} b -> {r['ratio']:.0f}x")
+        print(f"  python-control (rtol 1e-10)  {r['python_control_tight_sim_per_wall']:10.4g} sim-s/wall-s, error "
+              f"{r['python_control_tight_error']:.1e} b -> {r['ratio_equal_accuracy']:.0f}x at equal accuracy")
+    m = out["mpc"]
+    if m is not None:
+        print(f"MPC solve per step ({m['steps']} steps, Ts {m['Ts'] * 1e6:.0f} us): median {m['median'] * 1e6:.0f} us, "
+              f"p99 {m['p99'] * 1e6:.0f} us, max {m['max'] * 1e6:.0f} us; whole step p99 {m['step_p99'] * 1e6:.0f} us")
+        print("  within budget: " + ", ".join(f"{k} {v * 100:.1f} %" for k, v in m["budgets"].items()))
+    b = out["bench"]
+    if b is not None:
+        print(f"default bench: {b['runs']} runs, {b['simulated_time']:.0f} simulated s in {b['wall_time']:.1f} s wall "
+              f"on {b['jobs']} process(es)")
+    return 0
+
+
+def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
+    """Add the closed-loop commands to the subparsers; return name -> function."""
+    dur, seed, bl = spec_arg(DURATION), spec_arg(SEED), spec_arg(BACKLASH)
+    plants = ("improved", "yang-sun", "tvms")
+    p = sub.add_parser("track", help="run a controller against the nonlinear plant on a reference")
+    p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
+    p.add_argument("controller", nargs="?", default="deadzone_inverse",
+                   help="controller: catalog name (pid, deadzone_inverse, mpc, ...) or TOML path "
+                        "(default deadzone_inverse)")
+    p.add_argument("--plant", choices=plants, default="improved", help="plant (default improved)")
+    p.add_argument("--reference", choices=("sine", "step", "ramp", "move"), default="sine",
+                   help="sine: 0.1 rad 1 Hz; step: 0.05 rad + 0.5 N m load step; ramp; move: S-curve (default sine)")
+    p.add_argument("--duration", type=dur, help="simulated time [s] (default per reference)")
+    p.add_argument("--backlash", type=bl, help="override the plant's backlash [m], every stage (0: none)")
+    p.add_argument("--seed", type=seed, default=0, help="sensor-noise seed (default 0)")
+    p.add_argument("--realtime", action="store_true",
+                   help="an optimisation that overruns its time budget falls back, as on the target "
+                        "(default: overruns are counted, results are deterministic)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--csv", metavar="FILE", help="write the run per sample")
+    p.add_argument("--plot", metavar="FILE", help="write reference/load angle, error, torque and gap plot")
+
+    p = sub.add_parser("precision", help="ISO 230-2 positioning test: reversal value, repeatability, accuracy")
+    p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
+    p.add_argument("controller", nargs="?", default="deadzone_inverse", help="controller (default deadzone_inverse)")
+    # whole numbers here; their ranges are checked by the test itself (one line naming the key)
+    p.add_argument("--targets", type=spec_arg(WHOLE), default=5, help="target positions, 2..50 (default 5)")
+    p.add_argument("--cycles", type=spec_arg(WHOLE), default=5, help="cycles, 1..50 (default 5, as ISO 230-2)")
+    p.add_argument("--travel", type=positive_float, default=0.5, help="span of the targets [rad] (default 0.5)")
+    p.add_argument("--dwell", type=positive_float, default=0.3, help="rest before each measurement [s] (default 0.3)")
+    p.add_argument("--plant", choices=plants, default="improved", help="plant")
+    p.add_argument("--backlash", type=bl, help="override the model's backlash [m]")
+    p.add_argument("--estimate", type=bl, help="the controller's backlash estimate [m] (default: the model's)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of sensor noise and target offsets")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", metavar="FILE", help="write the deviations per target and direction")
+
+    p = sub.add_parser("bench", help="the tracking benchmark: every controller on every plant (the main job)")
+    p.add_argument("models", nargs="*", help="models (default shing1993_servo)")
+    p.add_argument("--controllers", nargs="+", metavar="FILE", help="controllers (default: every catalog entry)")
+    p.add_argument("--plants", default="improved,yang-sun,tvms",
+                   help="comma-separated plants; the backlash-free plant is always added "
+                        "(default improved,yang-sun,tvms)")
+    p.add_argument("--references", default="sine,move,step", help="comma-separated references (default sine,move,step)")
+    p.add_argument("--duration", type=dur, help="simulated time of every run [s] (default per reference)")
+    p.add_argument("--jobs", type=spec_arg(JOBS), help="worker processes (default: all cores)")
+    p.add_argument("--seed", type=seed, default=0, help="sensor-noise seed (default 0)")
+    p.add_argument("--realtime", action="store_true",
+                   help="optimisations that overrun their time budget fall back, as on the target "
+                        "(default: overruns are counted, results are deterministic)")
+    p.add_argument("--no-precision", action="store_true", help="skip the ISO 230-2 row per controller")
+    p.add_argument("--json", metavar="FILE", help="write every figure as JSON")
+    p.add_argument("--out", metavar="DIR", help="write plots and a Markdown report")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    p = sub.add_parser("perf", help="speed: simulator vs python-control, MPC solve times, bench wall time")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--no-bench", action="store_true", help="skip timing the default bench")
+    p.add_argument("--jobs", type=spec_arg(JOBS), help="worker processes for the bench timing")
+    return {"track": _cmd_track, "precision": _cmd_precision, "bench": _cmd_bench, "perf": _cmd_perf}
+

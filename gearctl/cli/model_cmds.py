@@ -1,0 +1,396 @@
+"""Commands on a model: ``models``, ``info``, ``stiffness``, ``simulate``, ``linearize``, ``describe``."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..catalog import load_model, model_names
+from ..errors import InputError
+from ..geometry import pair_geometry
+from ..limits import check_output_size
+from ..units import DURATION
+from .common import (
+    OMEGA,
+    POINTS,
+    STAGE,
+    TORQUE,
+    dump_json,
+    positive_float,
+    progress_bar,
+    save_figure,
+    say_written,
+    spec_arg,
+    write_csv_stream,
+)
+
+__all__ = ["register"]
+
+
+def _cmd_models(args: argparse.Namespace) -> int:
+    rows = []
+    for name in model_names():
+        m = load_model(name)
+        if m.n_stages == 1:
+            geo = pair_geometry(m.pair)
+            teeth, mod, phi, eps = (f"{m.pair.teeth1}x{m.pair.teeth2}", f"{m.pair.module * 1e3:g}",
+                                    f"{math.degrees(m.pair.pressure_angle):g}", f"{geo.contact_ratio:.3f}")
+        else:
+            ps = [s.pair for s in m.stages]
+            teeth = "+".join(f"{p.teeth1}x{p.teeth2}" for p in ps)
+            mod = "/".join(f"{p.module * 1e3:g}" for p in ps)
+            phi = "/".join(f"{math.degrees(p.pressure_angle):g}" for p in ps)
+            eps = "/".join(f"{pair_geometry(p).contact_ratio:.2f}" for p in ps)
+        rows.append((name, teeth, mod, phi, eps, m.source.get("citation", "")))
+    if args.json:
+        keys = ("name", "teeth", "module_mm", "pressure_angle_deg", "contact_ratio", "source")
+        print(dump_json([dict(zip(keys, r, strict=True)) for r in rows]))
+        return 0
+    head = ("name", "teeth", "m [mm]", "phi [deg]", "eps", "source")
+    widths = [max(len(str(r[i])) for r in [*rows, head]) for i in range(5)]
+    print("  ".join(h.ljust(w) for h, w in zip(head[:5], widths, strict=True)) + "  " + head[5])
+    for r in rows:
+        src = r[5] if len(r[5]) <= 70 else r[5][:67] + "..."
+        print("  ".join(str(v).ljust(w) for v, w in zip(r[:5], widths, strict=True)) + "  " + src)
+    return 0
+
+
+def _print_stage(s: dict[str, Any], indent: str = "  ") -> None:
+    ms = s["mesh_stiffness"]
+    loa = s["line_of_action"]
+    print(f"{indent}contact ratio          {s['contact_ratio']:.6g}")
+    if any(s["profile_shift"]):
+        print(f"{indent}profile shift          x1 {s['profile_shift'][0]:g}, x2 {s['profile_shift'][1]:g}; operating "
+              f"pressure angle {s['operating_pressure_angle_deg']:.5g} deg, centre distance "
+              f"{s['centre_distance'] * 1e3:.6g} mm")
+    print(f"{indent}base pitch             {s['base_pitch'] * 1e3:.6g} mm")
+    print(f"{indent}pitch radius           {s['pitch_radius'][0] * 1e3:.6g}, {s['pitch_radius'][1] * 1e3:.6g} mm")
+    print(f"{indent}base radius            {s['base_radius'][0] * 1e3:.6g}, {s['base_radius'][1] * 1e3:.6g} mm")
+    print(f"{indent}line of action [mm]    " + ", ".join(f"{k} {v * 1e3:.4f}" for k, v in loa.items()))
+    print(f"{indent}inertia                I1 {s['inertia'][0]:.5g}, I2 {s['inertia'][1]:.5g} kg m^2")
+    print(f"{indent}equivalent mass        {s['equivalent_mass']:.5g} kg (along the line of action)")
+    print(f"{indent}mesh stiffness         mean {ms['mean']:.5g} N/m ({s['mesh_stiffness_per_width']:.3g} N/(mm um)), "
+          f"C1 {ms['c1']:.4g}, C2 {ms['c2']:.4g}, min {ms['min']:.4g}, max {ms['max']:.4g}")
+    print(f"{indent}damping coefficient    {s['damping_coefficient']:.5g} N s/m (eq 38, consistent form)")
+    print(f"{indent}Yang-Sun stiffness     {s['yang_sun_stiffness']:.5g} N/m (eq 39)")
+    print(f"{indent}backlash                {s['backlash'] * 1e6:.4g} um along the line of action")
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from ..summary import model_summary
+
+    s = model_summary(load_model(args.model))
+    if args.json:
+        print(dump_json(s))
+        return 0
+    p = s["plant"]
+    if s["stages_count"] == 1:
+        print(f"{s['model']}: {s['teeth'][0]} x {s['teeth'][1]} teeth, module {s['module'] * 1e3:g} mm, "
+              f"pressure angle {s['pressure_angle_deg']:g} deg, face width {s['face_width'] * 1e3:g} mm")
+        _print_stage(s)
+        print(f"  plant                  k {p['k']:.5g} N/m, c {p['c']:.5g} N s/m, J1 {p['J1']:.5g}, J2 {p['J2']:.5g} "
+              f"kg m^2, mesh mode {p['natural_frequency_hz']:.5g} Hz, {p['contact_law']} contact law")
+        return 0
+    print(f"{s['model']}: {s['stages_count']}-stage train, ratio {p['gear_ratio']:.5g}, lost motion at the output "
+          f"{s['lost_motion'] * 1e6:.4g} urad, stiffness at the output {s['equivalent_stiffness']:.4g} N m/rad")
+    for i, st in enumerate(s["stages"], start=1):
+        print(f"  stage {i}: {st['teeth'][0]} x {st['teeth'][1]} teeth, module {st['module'] * 1e3:g} mm, pressure "
+              f"angle {st['pressure_angle_deg']:g} deg, face width {st['face_width'] * 1e3:g} mm, "
+              f"ratio {st['ratio']:.4g}")
+        _print_stage(st, indent="    ")
+    print("  plant                  J " + ", ".join(f"{v:.4g}" for v in p["J"]) + " kg m^2 (motor first); k "
+          + ", ".join(f"{v:.4g}" for v in p["k"]) + " N/m; fastest mesh mode "
+          f"{p['natural_frequency_hz']:.5g} Hz, {p['contact_law']} contact law")
+    return 0
+
+
+def _cmd_stiffness(args: argparse.Namespace) -> int:
+    from ..stiffness import COMPONENTS, mesh_stiffness, mesh_stiffness_at, tooth_deflections
+
+    model = load_model(args.model)
+    n = model.n_stages
+    if not 1 <= args.stage <= n:
+        raise InputError(f"stage = {args.stage} is out of range: {model.name} has {n} stage(s), expected 1 <= value <= "
+                         f"{n}", field="stage")
+    pair = model.stages[args.stage - 1].pair
+    ms = mesh_stiffness(pair, points=args.points)
+    td = tooth_deflections(pair, points=args.points)
+    if args.csv:
+        K = mesh_stiffness_at(pair, td.theta1)
+        header = ["theta1", "K"] + [f"{c}_{j}" for j in (1, 2) for c in (*COMPONENTS, "total")]
+        header += ["k1", "k2", "k_pair"]
+        cols = [td.theta1, K] + [d[c] for d in (td.gear1, td.gear2) for c in (*COMPONENTS, "total")]
+        cols += [td.stiffness1, td.stiffness2, td.pair_stiffness]
+        write_csv_stream(args.csv, header, lambda i0, i1: [c[i0:i1] for c in cols], td.theta1.size)
+    if args.plot:
+        from ..plots import plot_stiffness
+
+        title = model.name if n == 1 else f"{model.name}, stage {args.stage}"
+        save_figure(plot_stiffness(td, ms, title=title), args.plot)
+    where = "" if n == 1 else f" stage {args.stage}"
+    print(f"{model.name}{where}: mesh stiffness over one mesh cycle ({ms.theta1.size} points): "
+          f"mean {ms.mean:.5g} N/m, C1 {ms.c1:.4g}, C2 {ms.c2:.4g}, min {ms.min:.4g}, max {ms.max:.4g} N/m")
+    if args.csv:
+        print(f"  wrote {args.csv} (theta1 over the path of contact C->D, deflections per unit load [m/N])")
+    if args.plot:
+        print(f"  wrote {args.plot} (report Figures 8-11)")
+    return 0
+
+
+def _simulate_summary(model: Any, plant: Any, args: argparse.Namespace, res: Any) -> dict[str, Any]:
+    """The ``simulate --json`` object, from the result's arrays and counters (no per-sample objects)."""
+    n, w = plant.n_stages, plant.nx // 2
+    log = res.event_log
+    imp = log[(log["kind"] == 1) | (log["kind"] == 5)]
+    E0, E1 = (float(v) for v in plant.energy(res.x[:, [0, -1]]))
+    fastest = float(np.max(res.counts["max_impact_velocity"])) if n else 0.0
+    out: dict[str, Any] = {
+        "model": model.name, "plant": plant.kind.value, "case": args.case, "duration": float(res.t[-1]),
+        "solver": res.solver, "rows": int(res.t.size), "output_interval": float(res.t[1] - res.t[0]),
+        "max_impact_velocity": fastest, "max_penetration": res.max_penetration,
+        "events_dropped": res.events_dropped, "energy": {"initial": E0, "final": E1},
+        "mesh_stiffness": plant.k if n == 1 else [s.k for s in plant.stages],
+        "damping_coefficient": plant.c if n == 1 else [s.c for s in plant.stages],
+    }
+    if n == 1:
+        out["impacts"] = res.impact_counts()
+        out["impact_times"] = imp["t"].tolist()
+        out["final"] = dict(zip(("theta1", "theta2", "omega1", "omega2"), res.x[:, -1].tolist(), strict=True))
+        out["final_mode"] = res.mode_labels()[-1]
+        out["backlash"] = plant.backlash
+    else:
+        out["impacts"] = res.stage_impacts()
+        out["impact_times"] = [imp["t"][imp["where"] == i].tolist() for i in range(n)]
+        out["final"] = {"theta": res.x[:w, -1].tolist(), "omega": res.x[w:, -1].tolist()}
+        labels = {-1: "back", 0: "separation", 1: "front"}
+        out["final_mode"] = [labels[int(m)] for m in res.mode[:, -1]]
+        out["backlash"] = list(plant.backlashes)
+        out["lost_motion"] = plant.lost_motion
+    return out
+
+
+def _write_simulation_csv(path: str, plant: Any, res: Any) -> None:
+    n, w = plant.n_stages, plant.nx // 2
+    labels = np.array(["back", "separation", "front"])
+    if n == 1:
+        header = ["t", "theta1", "theta2", "omega1", "omega2", "s", "mode", "force"]
+
+        def cols(i0: int, i1: int) -> list[Any]:
+            return [res.t[i0:i1], *res.x[:, i0:i1], res.s[i0:i1], labels[res.mode[i0:i1] + 1].tolist(),
+                    res.force[i0:i1]]
+    else:
+        header = (["t"] + [f"theta{j}" for j in range(w)] + [f"omega{j}" for j in range(w)] + [f"s{i + 1}" for i in
+                  range(n)] + [f"mode{i + 1}" for i in range(n)] + [f"force{i + 1}" for i in range(n)])
+
+        def cols(i0: int, i1: int) -> list[Any]:
+            return [res.t[i0:i1], *res.x[:, i0:i1], *res.s[:, i0:i1],
+                    *[labels[res.mode[i, i0:i1] + 1].tolist() for i in range(n)], *res.force[:, i0:i1]]
+    write_csv_stream(path, header, cols, res.t.size)
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from ..plant import build_plant
+    from ..simulate import default_output_interval, report_case
+
+    model = load_model(args.model)
+    plant = build_plant(model, args.plant)
+    dt = args.dt if args.dt is not None else default_output_interval(args.duration)
+    rows = int(math.ceil(args.duration / dt - 1e-9)) + 1
+    check_output_size(rows, 3 * plant.nx + 3 * plant.n_stages + 4, field="--dt", fix="a larger --dt")
+    # a rough figure for the progress bar: ~2 us per output row, 2 us per 10 us of simulated time
+    expected = rows * 2e-6 + args.duration * 0.2
+    with progress_bar("gearctl simulate", expected_s=expected) as bar:
+        res = report_case(plant, args.case, args.duration, omega1=args.omega1, omega2=args.omega2,
+                          torque1=args.torque1, torque2=args.torque2, dt=dt, progress=bar if bar.bar else None)
+    summary = _simulate_summary(model, plant, args, res)
+    if args.csv:
+        _write_simulation_csv(args.csv, plant, res)
+    if args.plot:
+        from ..plots import plot_simulation
+
+        save_figure(plot_simulation({plant.kind.value: res}, title=f"{model.name}, {args.case} case"), args.plot)
+    if args.json:
+        print(dump_json(summary))
+        return 0
+    f = summary["final"]
+    print(f"{model.name} ({plant.kind.value} plant, {args.case} case, {summary['duration'] * 1e3:.4g} ms, "
+          f"{res.solver} solver, {summary['rows']} rows every {summary['output_interval']:.3g} s)")
+    if plant.n_stages == 1:
+        counts = summary["impacts"]
+        print(f"  impacts                front {counts['front']}, back {counts['back']}, fastest "
+              f"{summary['max_impact_velocity']:.4g} m/s")
+        print(f"  max penetration        {res.max_penetration * 1e6:.4g} um (|s| - b)")
+        print(f"  final                  theta1 {f['theta1']:.6g} rad, theta2 {f['theta2']:.6g} rad, "
+              f"omega1 {f['omega1']:.6g} rad/s, omega2 {f['omega2']:.6g} rad/s, {summary['final_mode']}")
+    else:
+        for i, c in enumerate(summary["impacts"], start=1):
+            print(f"  stage {i} impacts       front {c['front']}, back {c['back']}, "
+                  f"final {summary['final_mode'][i - 1]}")
+        print(f"  fastest impact         {summary['max_impact_velocity']:.4g} m/s; max penetration "
+              f"{res.max_penetration * 1e6:.4g} um (|s| - b)")
+        print("  final                  theta " + ", ".join(f"{v:.6g}" for v in f["theta"]) + " rad; omega "
+              + ", ".join(f"{v:.6g}" for v in f["omega"]) + " rad/s")
+    print(f"  energy                 {summary['energy']['initial']:.6g} J -> {summary['energy']['final']:.6g} J")
+    say_written((args.csv, "CSV"), (args.plot, "plot"))
+    return 0
+
+
+def _cmd_linearize(args: argparse.Namespace) -> int:
+    from ..modes import linearize_modes
+    from ..plant import build_plant
+
+    model = load_model(args.model)
+    modes = linearize_modes(build_plant(model))
+    n = modes.plant.n_stages
+    if args.mode.startswith("stage"):
+        k = int(args.mode[5:]) if args.mode[5:].isdigit() else 0
+        if n == 1 or not 1 <= k <= n:
+            raise InputError(f"mode = {args.mode!r}: 'stageK' (stage K separated, the others in contact) needs a train "
+                             f"and 1 <= K <= {n}", field="mode")
+        sys_ = modes.stage_separated[k - 1]
+    else:
+        sys_ = modes.mode(args.mode)
+    mesh = modes.mesh
+    contact = args.mode == "contact"
+    out = {
+        "model": model.name,
+        "mode": args.mode,
+        "states": list(sys_.state_labels),
+        "inputs": list(sys_.input_labels),
+        "outputs": list(sys_.output_labels),
+        "A": sys_.A.tolist(), "B": sys_.B.tolist(), "C": sys_.C.tolist(), "D": sys_.D.tolist(),
+        "poles": [[float(p.real), float(p.imag)] for p in sys_.poles()],
+        "natural_frequency_hz": mesh.natural_frequency_hz if contact else None,
+        "damping_ratio": mesh.damping_ratio if contact else None,
+        "antiresonance_hz": mesh.antiresonance_hz if contact else None,
+        "resonances_hz": list(modes.resonances_hz),
+        "lost_motion": modes.lost_motion,
+        "equivalent_stiffness": modes.equivalent_stiffness,
+        "motor_angle_tf": {"num": np.asarray(modes.motor_angle.num[0][0]).tolist(),
+                           "den": np.asarray(modes.motor_angle.den[0][0]).tolist()},
+        "load_angle_tf": {"num": np.asarray(modes.load_angle.num[0][0]).tolist(),
+                          "den": np.asarray(modes.load_angle.den[0][0]).tolist()},
+    }
+    if args.bode or args.step:
+        from ..plots import plot_bode, plot_step
+
+        both = {"contact": modes.contact, "separation": modes.separation, "rigid": modes.rigid}
+        motor = list(modes.contact.output_labels)[0]
+        if args.bode:
+            save_figure(plot_bode(both, output=motor, input=list(modes.contact.input_labels)[0],
+                                  title=f"{model.name}: motor torque to motor angle"), args.bode)
+        if args.step:
+            T = np.linspace(0, 8 / max(mesh.natural_frequency_hz, 1.0), 2000)
+            s_out = "s" if n == 1 else "s1"
+            save_figure(plot_step({"contact": modes.contact}, output=s_out, input=list(modes.contact.input_labels)[0],
+                                  T=T, title=f"{model.name}: motor torque step, relative displacement"), args.step)
+    if args.json:
+        print(dump_json(out))
+        return 0
+    print(f"{model.name}: {args.mode} model, states {', '.join(out['states'])}; inputs {', '.join(out['inputs'])}; "
+          f"outputs {', '.join(out['outputs'])}")
+    print("  poles                  " + ", ".join(f"{p.real:.5g}{p.imag:+.5g}j" for p in sys_.poles()))
+    if contact:
+        print(f"  mesh mode              {mesh.natural_frequency_hz:.5g} Hz, damping ratio {mesh.damping_ratio:.4g}; "
+              f"anti-resonance {mesh.antiresonance_hz:.5g} Hz (motor torque -> motor angle)")
+        if n > 1:
+            print("  resonances             " + ", ".join(f"{f:.5g}" for f in modes.resonances_hz) + " Hz")
+    p = modes.plant
+    J_eq = float(1.0 / modes.rigid.B[1, 0])
+    print(f"  rigid train            J_eq {J_eq:.5g} kg m^2 on the motor, gear ratio {p.gear_ratio:.4g}")
+    if n > 1:
+        print(f"  lost motion            {p.lost_motion * 1e6:.4g} urad at the output; stiffness at the output "
+              f"{p.equivalent_stiffness:.4g} N m/rad")
+    say_written((args.bode, "Bode of contact, separation and rigid models"), (args.step, "step response"))
+    return 0
+
+
+def _cmd_describe(args: argparse.Namespace) -> int:
+    from ..describe import describe
+
+    d = describe(args.model, args.controller, duration=args.duration)
+    if args.json:
+        print(dump_json(d))
+        return 0
+    b = d.get("backlash")
+    print(f"{d['model']}: {d['controller']} ({d['feedback']} feedback, Ts {d['sample_time'] * 1e3:g} ms), limit cycle "
+          f"of the backlash loop")
+    print(f"  {'':28s} {'f [Hz]':>9s} {'A/b':>8s} {'load [urad]':>12s} {'torque [N m]':>13s}  stable")
+    rows = [("describing function", p) for p in d["prediction"] or []]
+    rows += [("impact balance", p) for p in d.get("impact_prediction") or []]
+    sim = d["simulation"]
+
+    def fmt(v: float | None, scale: float = 1.0, spec: str = ".4g") -> str:
+        return "—" if v is None else format(v * scale, spec)
+
+    for name, p in rows:
+        a = p.get("amplitude")
+        print(f"  {name:28s} {fmt(p.get('frequency_hz')):>9s} {fmt(a / b if a and b else None):>8s} "
+              f"{fmt(p.get('load_amplitude'), 1e6):>12s} {fmt(p.get('torque_amplitude')):>13s}  {p.get('stable')}")
+    if not rows:
+        print("  (no limit cycle predicted)")
+    a = sim.get("amplitude")
+    print(f"  {'simulation':28s} {fmt(sim.get('frequency_hz')):>9s} {fmt(a / b if a and b else None):>8s} "
+          f"{fmt(sim.get('load_amplitude'), 1e6):>12s} {fmt(sim.get('torque_amplitude')):>13s}  "
+          f"{'limit cycle' if sim.get('limit_cycle') else 'none'} ({fmt(sim.get('impacts_per_second'))} impacts/s)")
+    ag = d["agreement"]
+    print("  prediction / simulation    " + ", ".join(f"{k.replace('_ratio', '')} {v:.3g}" for k, v in ag.items()
+                                                        if v is not None))
+    return 0
+
+
+def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
+    """Add the model commands to the subparsers; return name -> function."""
+    dur = spec_arg(DURATION)
+    p = sub.add_parser("models", help="list the catalog of gear models and trains")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+    p = sub.add_parser("info", help="geometry, mesh stiffness, damping and plant figures of a model")
+    p.add_argument("model", help="catalog name (see `gearctl models`) or path to a TOML file")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+    p = sub.add_parser("stiffness", help="mesh stiffness and tooth deflections over the mesh cycle (Figs 8-11)")
+    p.add_argument("model", help="catalog name or path to a TOML file")
+    p.add_argument("--points", type=spec_arg(POINTS), default=401, help="sample points, 2..1e6 (default 401)")
+    p.add_argument("--stage", type=spec_arg(STAGE), default=1, help="stage of a train, 1..6 (default 1)")
+    p.add_argument("--csv", metavar="FILE", help="write theta1, K and the deflection components")
+    p.add_argument("--plot", metavar="FILE", help="write the figure (png, pdf, svg)")
+
+    p = sub.add_parser("simulate", help="simulate the report's free-vibration or constant-load case")
+    p.add_argument("model", help="catalog name or path to a TOML file")
+    p.add_argument("--case", choices=("free", "load"), default="free",
+                   help="free: omega1(0)=50 rad/s, no torque; load: plus xi1=1 N m, xi2=-1 N m (default free)")
+    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved",
+                   help="mesh law (default improved)")
+    p.add_argument("--duration", type=dur, default=0.02, help="simulated time [s] (default 0.02)")
+    p.add_argument("--dt", type=positive_float, default=None,
+                   help="output interval [s] (default: 1 us up to 20 ms, then about 20 000 rows)")
+    p.add_argument("--omega1", type=spec_arg(OMEGA), help="initial velocity of the motor shaft [rad/s]")
+    p.add_argument("--omega2", type=spec_arg(OMEGA), help="initial velocity of the load shaft [rad/s]")
+    p.add_argument("--torque1", type=spec_arg(TORQUE), help="torque on the motor shaft [N m]")
+    p.add_argument("--torque2", type=spec_arg(TORQUE), help="torque on the load shaft [N m]")
+    p.add_argument("--csv", metavar="FILE", help="write the trajectory (t, angles, speeds, s, mode, force)")
+    p.add_argument("--plot", metavar="FILE", help="write the figure (angles, velocities, s, force)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+    p = sub.add_parser("linearize", help="linear model per contact mode (python-control), Bode and step")
+    p.add_argument("model", help="catalog name or path to a TOML file")
+    p.add_argument("--mode", default="contact", metavar="{contact,separation,rigid,stageK}",
+                   choices=["contact", "separation", "rigid", *[f"stage{k}" for k in range(1, 7)]],
+                   help="contact (every stage), separation, rigid (k -> inf), or stageK (a train's stage K "
+                        "separated) (default contact)")
+    p.add_argument("--json", action="store_true", help="print A, B, C, D, poles, mesh-mode figures as JSON")
+    p.add_argument("--bode", metavar="FILE", help="write the Bode diagram of all modes on common axes")
+    p.add_argument("--step", metavar="FILE", help="write the contact-mode step response (s)")
+
+    p = sub.add_parser("describe", help="describing-function limit cycle of a PID loop vs simulation")
+    p.add_argument("model", help="model (e.g. shing1993_servo)")
+    p.add_argument("controller", help="a pid controller (e.g. pid_load: load-side feedback)")
+    p.add_argument("--duration", type=dur, default=2.0, help="simulated time [s] (default 2)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    return {"models": _cmd_models, "info": _cmd_info, "stiffness": _cmd_stiffness, "simulate": _cmd_simulate,
+            "linearize": _cmd_linearize, "describe": _cmd_describe}

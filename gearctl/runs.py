@@ -1,0 +1,233 @@
+"""Runs described by values: what to simulate, as data that can be pickled to a worker and reproduced.
+
+A :class:`Run` is (true plant, controller design, reference, duration, seed, sensors): numbers, not catalog
+names. :func:`make_run` builds one from the catalog (or from numbers); :func:`execute` runs it and returns
+a :class:`RunResult`. The benchmark (:mod:`gearctl.bench`) and the sweeps take lists of runs; a worker
+builds each distinct controller design once (:func:`design_controller` caches it per process).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import pickle
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .catalog import load_model, read_toml, resolve
+from .closedloop import ClosedLoopResult, simulate_closed_loop
+from .controller import Controller
+from .design.registry import build_controller
+from .errors import GearctlError
+from .metrics import TrackingMetrics, tracking_metrics
+from .params import Sensors
+from .plant import Plant, build_plant
+from .references import DEFAULT_DURATION, Reference, reference
+from .units import DURATION, SEED
+
+__all__ = ["Design", "Run", "RunResult", "make_run", "execute", "design_controller", "controller_spec"]
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class Design:
+    """A controller design: the controller file's content, the plant it is designed on, the estimate.
+
+    Attributes
+    ----------
+    spec : mapping
+        The parsed controller file.
+    nominal : Plant
+        The plant the controller is designed on (the model's improved plant, as in reality).
+    backlash : float or None
+        Backlash estimate overriding the file's and the model's [m].
+    label : str
+        The file's name (messages, reports).
+    """
+
+    spec: Mapping[str, Any]
+    nominal: Plant
+    backlash: float | None = None
+    label: str = "controller"
+
+    def key(self) -> str:
+        """A digest of the design (equal designs build equal controllers)."""
+        return hashlib.sha256(pickle.dumps((dict(self.spec), self.nominal, self.backlash, self.label))).hexdigest()
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class Run:
+    """One closed-loop run, as values.
+
+    Attributes
+    ----------
+    plant : Plant
+        The true plant.
+    design : Design
+        How the controller is built.
+    reference : Reference
+        Load-angle reference and disturbance.
+    duration : float
+        Simulated time [s].
+    seed : int
+        Sensor-noise seed.
+    sensors : Sensors
+        Encoders.
+    realtime : bool
+        Optimisation overruns fall back, as on the target.
+    tags : mapping
+        What the run stands for in a report (model, controller, plant kind, reference, varied values).
+    """
+
+    plant: Plant
+    design: Design
+    reference: Reference
+    duration: float
+    seed: int = 0
+    sensors: Sensors = dataclasses.field(default_factory=Sensors)
+    realtime: bool = False
+    tags: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        DURATION.check("duration", self.duration)
+        SEED.check("seed", self.seed)
+
+    def __getitem__(self, key: str) -> Any:
+        """A tag (``run["plant"]``) or one of the scalar fields (``duration``, ``seed``, ``realtime``)."""
+        if key in self.tags:
+            return self.tags[key]
+        if key in ("duration", "seed", "realtime"):
+            return getattr(self, key)
+        raise KeyError(key)
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class RunResult:
+    """What a run gave: its figures or its failure, and a short error trace for plots.
+
+    Attributes
+    ----------
+    run : Run
+    ok : bool
+    message : str
+        ``"ok"`` or the error.
+    metrics : TrackingMetrics or None
+        Figures (of the partial run for a failure, where there is one).
+    controller : dict
+        The controller's settings (:meth:`Controller.describe`).
+    trace_t, trace_error : ndarray
+        The load-angle error, decimated to at most ~600 points.
+    """
+
+    run: Run
+    ok: bool
+    message: str
+    metrics: TrackingMetrics | None
+    controller: dict[str, Any]
+    trace_t: np.ndarray
+    trace_error: np.ndarray
+
+
+_DESIGNS: dict[str, Controller] = {}
+
+
+def design_controller(design: Design) -> Controller:
+    """The controller of ``design``, built once per process (then reset before each run)."""
+    key = design.key()
+    ctrl = _DESIGNS.get(key)
+    if ctrl is None:
+        if len(_DESIGNS) > 64:  # a sweep over estimates builds many: keep the cache bounded
+            _DESIGNS.clear()
+        ctrl = build_controller(dict(design.spec), design.nominal, path=design.label, backlash=design.backlash)
+        _DESIGNS[key] = ctrl
+    return ctrl
+
+
+def controller_spec(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
+    """A controller file's content and its path label."""
+    path = resolve(name_or_path, "controllers")
+    return read_toml(path), str(path)
+
+
+def make_run(model: str | Path, controller: str | Path, *, plant: str = "improved", reference_kind: str = "sine",
+             duration: float | None = None, seed: int = 0, backlash: float | None = None,
+             estimate: float | None = None, realtime: bool = False, design_plant: str = "improved",
+             tags: Mapping[str, Any] | None = None) -> Run:
+    """A run from catalog names (the CLI's ``track``): the controller designed on the model's plant.
+
+    Parameters
+    ----------
+    model, controller : str or Path
+        Catalog names or paths.
+    plant : str
+        True plant kind (``improved``, ``yang-sun``, ``tvms``).
+    reference_kind : str
+        ``sine``, ``step``, ``ramp`` or ``move``.
+    duration : float, optional
+        Simulated time [s] (default per reference).
+    seed : int
+        Sensor-noise seed.
+    backlash : float, optional
+        Changes the model's backlash (plant and the default estimate; 0: the backlash-free plant).
+    estimate : float, optional
+        The controller's backlash estimate, if it should differ from the model's.
+    realtime : bool
+        Overruns fall back.
+    design_plant : str
+        Plant kind the controller is designed on.
+    tags : mapping, optional
+        Report labels (default: model, controller, plant, reference).
+    """
+    m = load_model(model)
+    true = build_plant(m, plant, backlash=backlash)
+    nominal = build_plant(m, design_plant, backlash=backlash)
+    spec, label = controller_spec(controller)
+    ref = reference(reference_kind)
+    dur = duration if duration is not None else DEFAULT_DURATION[reference_kind]
+    return Run(plant=true, design=Design(spec=spec, nominal=nominal, backlash=estimate, label=label), reference=ref,
+               duration=dur, seed=seed, sensors=m.sensors, realtime=realtime,
+               tags=dict(tags) if tags is not None else {"model": m.name, "controller": Path(label).stem,
+                                                         "plant": plant, "reference": reference_kind})
+
+
+def _trace(res: ClosedLoopResult) -> tuple[np.ndarray, np.ndarray]:
+    step = max(1, res.t.size // 600)
+    return res.t[::step].copy(), res.error[::step].copy()
+
+
+def execute(run: Run, *, keep: bool = False) -> RunResult | tuple[RunResult, ClosedLoopResult | None]:
+    """Run one closed loop; a failure is a result too, never an exception.
+
+    Parameters
+    ----------
+    run : Run
+    keep : bool
+        Also return the whole :class:`ClosedLoopResult` (None for a run that failed before it started).
+
+    Returns
+    -------
+    RunResult, or (RunResult, ClosedLoopResult or None) with ``keep``
+    """
+    try:
+        ctrl = design_controller(run.design)
+    except GearctlError as exc:
+        out = RunResult(run=run, ok=False, message=str(exc), metrics=None, controller={}, trace_t=np.zeros(0),
+                        trace_error=np.zeros(0))
+        return (out, None) if keep else out
+    ctrl.realtime = run.realtime
+    try:
+        res = simulate_closed_loop(run.plant, ctrl, run.reference, run.duration, sensors=run.sensors, seed=run.seed)
+        ok, message = True, "ok"
+    except GearctlError as exc:
+        part = getattr(exc, "result", None)
+        if not isinstance(part, ClosedLoopResult) or part.t.size < 2:
+            out = RunResult(run=run, ok=False, message=str(exc), metrics=None, controller=ctrl.describe(),
+                            trace_t=np.zeros(0), trace_error=np.zeros(0))
+            return (out, None) if keep else out
+        res, ok, message = part, False, str(exc)
+    t, e = _trace(res)
+    out = RunResult(run=run, ok=ok, message=message, metrics=tracking_metrics(res), controller=ctrl.describe(),
+                    trace_t=t, trace_error=e)
+    return (out, res) if keep else out
