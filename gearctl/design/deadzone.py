@@ -93,6 +93,12 @@ class DeadzoneInverse(Controller):
         self._tc2 = p.tc2
         self.reset()
 
+    def set_backlash(self, backlash: float) -> None:
+        """Change the backlash estimate ``b`` [m] (e.g. an adaptive law's), keeping every other state."""
+        BACKLASH.check("backlash", backlash)
+        self.backlash = backlash
+        self._offset = backlash / self.pid.info.plant.rb2
+
     def reset(self) -> None:
         """Reset the wrapped PID and the held flank."""
         self.pid.reset()
