@@ -231,43 +231,12 @@ def _check_plant(plant: Plant) -> None:
                          "model with backlash > 0 [m]", field="backlash")
 
 
-def _pid_coefficients(gains: PIDGains, Ts: float) -> tuple[float, float, float, float]:
-    """``(kp, ki Ts, kd (1 - a) / Ts, a)`` of the PID as :class:`~gearctl.design.pid.PID` computes it."""
-    Tf = 1.0 / (2 * math.pi * gains.derivative_filter_hz)
-    a = Tf / (Tf + Ts)
-    return gains.kp, gains.ki * Ts, gains.kd * (1.0 - a) / Ts, a
-
-
 def sampled_pid(gains: PIDGains, Ts: float) -> ct.TransferFunction:
-    """Write the PID of :class:`~gearctl.design.pid.PID` as a discrete transfer function, error to torque.
+    """The sampled PID of :class:`~gearctl.design.pid.PID` as a discrete transfer function, error to torque.
 
-    ``C(z) = kp + ki Ts / (z - 1) + kd (1 - a) (z - 1) / (Ts (z - a))``, ``a = T_f / (T_f + Ts)``,
-    ``T_f = 1 / (2 pi f_d)``.
-
-    Parameters
-    ----------
-    gains : PIDGains
-        The gains.
-    Ts : float
-        Sample period [s], > 0.
-
-    Returns
-    -------
-    control.TransferFunction
-        Discrete-time (``dt = Ts``), input the load-angle error ``e = r - y`` [rad], output the motor
-        torque [N m] before the torque limit and without feedforward.
-
-    Notes
-    -----
-    Derived from :meth:`PID.torque`: the integrator adds ``Ts ki e_k`` *after* forming ``u_k`` (so
-    ``I_k = Ts ki sum_{i<k} e_i``: ``Ts ki / (z - 1)``); the derivative acts on the measurement through
-    a backward-Euler filter, ``y_f,k = a y_f,k-1 + (1 - a) y_k``, ``dy_k = (y_f,k - y_f,k-1) / Ts``:
-    ``(1 - a)(z - 1) / (Ts (z - a))``. With a constant reference the derivative of the measurement
-    is minus that of the error. Anti-windup is inactive below the torque limit.
+    :meth:`PIDGains.sampled_tf`, the one statement of the discretisation (see its Notes).
     """
-    kp, kiT, kdT, a = _pid_coefficients(gains, Ts)
-    z = ct.tf([1.0, 0.0], [1.0], Ts)
-    return kp + kiT / (z - 1) + kdT * (z - 1) / (z - a)
+    return gains.sampled_tf(Ts)
 
 
 def _controller_response(gains: PIDGains, Ts: float, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
@@ -280,7 +249,7 @@ def _controller_response(gains: PIDGains, Ts: float, omega: NDArray[np.float64])
     if Ts == 0.0:
         wf = 2 * math.pi * gains.derivative_filter_hz
         return gains.kp + gains.ki / s + gains.kd * s / (1 + s / wf)
-    kp, kiT, kdT, a = _pid_coefficients(gains, Ts)
+    kp, kiT, kdT, a = gains.discrete(Ts)
     z = np.exp(s * Ts)
     C = kp + kiT / (z - 1) + kdT * (z - 1) / (z - a)
     return C * (1 - 1 / z) / (s * Ts)
@@ -403,7 +372,7 @@ def loop_around_backlash(plant: Plant, gains_or_controller: PID | PIDGains, *, T
     else:
         num, den = ct.pade(Ts, pade_order)  # e^{-s Ts} ~ num/den (decreasing powers)
         Q, R = np.asarray(den, float)[::-1], np.asarray(num, float)[::-1]  # z = e^{s Ts} ~ Q / R
-        kp, kiT, kdT, a = _pid_coefficients(gains, Ts)
+        kp, kiT, kdT, a = gains.discrete(Ts)
         zm1 = P.polysub(Q, R)  # (z - 1) R
         zma = P.polysub(Q, a * R)  # (z - a) R
         # C = kp + kiT R/(Q - R) + kdT (Q - R)/(Q - a R)
@@ -910,8 +879,9 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
         Unknown model or controller, a controller that is not a PID, or a plant outside the analysis.
     """
     gm = model if isinstance(model, GearModel) else load_model(model)
-    plant = build_plant(gm)
-    ctrl = load_controller(controller, plant)
+    train = build_plant(gm)
+    plant = train.equivalent_pair()  # a train is analysed as its one-gap pair (the controllers' design model)
+    ctrl = load_controller(controller, train)
     if not isinstance(ctrl, PID):
         raise InputError(f"controller {str(controller)!r} is a {type(ctrl).__name__}: the describing-function "
                          f"analysis covers kind = 'pid' controllers", field="controller")
@@ -929,10 +899,15 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
         "impact_amplitude_ratio": _ratio(imp[0]["amplitude"], sim["amplitude"]) if have and imp else None,
         "impact_frequency_ratio": _ratio(imp[0]["frequency_hz"], sim["frequency_hz"]) if have and imp else None,
     }
+    notes = _notes(plant, ctrl, pred, imp, sim)
+    if train.n_stages > 1:
+        notes = (f"The {train.n_stages}-stage train is analysed as its equivalent one-gap pair (the whole lost "
+                 f"motion in one gap at the output, the stages' series stiffness; Plant.equivalent_pair). " + notes)
     return {
         "model": gm.name, "controller": ctrl.name, "feedback": ctrl.feedback, "sample_time": ctrl.Ts,
-        "prediction": pred, "impact_prediction": imp, "simulation": sim, "agreement": agreement,
-        "method_notes": _notes(plant, ctrl, pred, imp, sim),
+        "backlash": plant.backlash, "stages": train.n_stages, "prediction": pred, "impact_prediction": imp,
+        "simulation": sim, "agreement": agreement,
+        "method_notes": notes,
     }
 
 

@@ -384,3 +384,145 @@ def test_kernel_classify_and_set_state(improved: Plant) -> None:
     parting = np.array([(b + delta) / p.rb1, 0.0, v / p.rb1, 0.0])
     assert np_kn.classify(parting) == 2
     assert np_kn.classify(-parting) == -2
+
+
+# --- trains, the force law written once, grazing and bounded cascades (issues 11, 16, 17) ---------------
+
+
+def _train(kind: str = "improved", *, n: int = 2, law: ContactLaw = ContactLaw.LINEAR, coulomb: float = 0.0,
+           friction: str = "stick_slip") -> Plant:
+    """A train built from the report's pair: each stage the same pair, the gear of one the pinion's shaft of
+    the next (``build_plant`` of a ``[[stage]]`` model does the same from a file)."""
+    from gearctl.plant import Shaft
+
+    base = build_plant(load_model("shing1993"), kind)
+    st = base.stages[0]
+    J = [base.J1] + [base.J2 + base.J1] * (n - 1) + [base.J2]
+    shafts = [Shaft(J=j, d=1e-4, tc=coulomb if i == n else 0.0) for i, j in enumerate(J)]
+    stages = [dataclasses.replace(st, backlash=st.backlash * (1 + 0.3 * i)) for i in range(n)]
+    return Plant(kind=kind, shafts=shafts, stages=stages, contact_law=law, friction_law=friction)
+
+
+def _train_x0(p: Plant) -> np.ndarray:
+    w = len(p.shafts)
+    x0 = np.zeros(2 * w)
+    x0[w] = 50.0
+    for j in range(1, w):  # each shaft slower than its stage's ratio allows: every gap closes
+        x0[w + j] = 0.85 * x0[w + j - 1] / p.stages[j - 1].ratio
+    return x0
+
+
+TRAIN_CASES = ["improved", "no_pull", "yang-sun", "tvms", "stick-slip"]
+
+
+@pytest.mark.parametrize("case", TRAIN_CASES)
+def test_train_compiled_matches_python(case: str) -> None:
+    require_compiled(True)
+    kind = case if case in ("improved", "yang-sun", "tvms") else "improved"
+    p = _train(kind, law=ContactLaw.NO_PULL if case == "no_pull" else ContactLaw.LINEAR,
+               coulomb=0.02 if case == "stick-slip" else 0.0)
+    x0 = _train_x0(p)
+    runs = [simulate(p, x0, 3e-3, dt=1e-5, torque=(0.5, -0.3), compiled=c) for c in (True, False)]
+    a, b = runs
+    assert a.solver.endswith("(compiled)") and b.solver.endswith("(python)")
+    assert sum(1 for e in a.events if e.kind in ("impact", "plastic")) >= 4  # several contacts on the stages
+    assert {e.stage for e in a.events} == {0, 1}  # both stages have events
+    # one algorithm written twice: every stage's gap within 1e-9 of its b (exact path) / 1e-7 (dopri5)
+    tol = 1e-9 if a.solver.startswith("exact") else 1e-7
+    for i, st in enumerate(p.stages):
+        assert_allclose(a.s[i], b.s[i], rtol=0, atol=tol * st.backlash)
+    assert [(e.kind, e.side, e.stage) for e in a.events] == [(e.kind, e.side, e.stage) for e in b.events]
+    assert np.array_equal(a.mode, b.mode)
+    for k in ("impacts_front", "impacts_back", "plastic_front", "plastic_back", "separations"):
+        assert np.array_equal(a.counts[k], b.counts[k]), k
+
+
+@pytest.mark.parametrize("kind", ["improved", "yang-sun", "tvms"])
+@pytest.mark.parametrize("law", [ContactLaw.LINEAR, ContactLaw.NO_PULL])
+def test_c_and_python_force_laws_agree(kind: str, law: ContactLaw) -> None:
+    """The force law is written once per language: the kernel's C ``force()`` and :func:`mesh_force` agree."""
+    require_compiled(True)
+    from gearctl.plant import mesh_force
+
+    p = _train(kind, law=law)
+    kn = Kernel(p, _train_x0(p), dt=1e-5, compiled=True)
+    rng = np.random.default_rng(7)
+    w = len(p.shafts)
+    for _ in range(200):
+        x = np.concatenate([rng.normal(0, 2e-3, w), rng.normal(0, 20.0, w)])
+        modes = rng.integers(-1, 2, p.n_stages)
+        d_ys = rng.uniform(0, 1e8, p.n_stages)
+        F = mesh_force(p, x, modes, d_ys)
+        for i in range(p.n_stages):
+            # same formula, same operation order: equal to rounding (1e-12 of the spring term)
+            scale = p.stages[i].k * (abs(p.gaps(x)[i]) + p.stages[i].backlash) + 1.0
+            assert abs(kn.c_force(i, int(modes[i]), float(d_ys[i]), x) - F[i]) <= 1e-12 * scale
+
+
+def test_kernel_structs_come_from_one_description() -> None:
+    """The C structs are generated from the field lists the ctypes mirror is built from."""
+    from gearctl.kernel import PARAMS_FIELDS, STATE_FIELDS, _Params, _State, c_structs
+
+    text = c_structs()
+    for name, _ in PARAMS_FIELDS + STATE_FIELDS:
+        assert f"{name};" in text
+    assert [f[0] for f in _Params._fields_] == [n for n, _ in PARAMS_FIELDS]
+    assert [f[0] for f in _State._fields_] == [n for n, _ in STATE_FIELDS]
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+def test_grazing_contact_does_not_chatter(compiled: bool) -> None:
+    """Issue 11's endless cascade, isolated: flanks touching (s = -b), no relative speed, and a relative
+    acceleration at rounding level (an MPC's 1e-16 N m torque). Separation and plastic impact used to
+    alternate at one instant without end; the grazing rule keeps the stage where it is."""
+    require_compiled(compiled)
+    m = load_model("shing1993_servo")
+    p = build_plant(m)
+    b = p.backlash
+    # gear 2 at rest; gear 1 placed so that s = -b exactly, both rolling together (v = 0)
+    th2 = 0.0
+    th1 = (p.rb2 * th2 - b) / p.rb1
+    om2 = 0.3
+    om1 = p.rb2 * om2 / p.rb1
+    kn = Kernel(p, np.array([th1, th2, om1, om2]), dt=1e-3, compiled=compiled, max_events=1000)
+    for u1 in (-1.9e-16, 1.9e-16, 0.0):
+        status = kn.advance(u1, 0.0, 1e-3)
+        assert status == 0, Kernel.status_message(status)
+    assert kn.events_total <= 4
+
+
+def test_event_budget_holds_across_buffer_refills(improved: Plant) -> None:
+    """The per-call event cap counts every event of the call, also after the buffer was drained (it used to
+    restart at each refill, so a cascade ran forever); and the records kept are capped."""
+    require_compiled(True)
+    p = dataclasses.replace(improved, c=0.0)
+    kn = Kernel(p, np.array(free_x0(p)), dt=0.4, compiled=True, max_events=5000, max_records=3000)
+    status = kn.advance(0.0, 0.0, 0.4)  # ~4800 events wanted in 0.4 s of undamped vibration
+    assert status == 0
+    kn2 = Kernel(p, np.array(free_x0(p)), dt=0.4, compiled=True, max_events=4500)
+    assert kn2.advance(0.0, 0.0, 0.4) == 3  # more than 4500 (buffer 4096): the cap holds across the refill
+    assert kn.events_total > 3000 and len(kn.event_log) == 3000 and kn.dropped_events == kn.events_total - 3000
+    c = kn.counts
+    assert int(np.sum(c["impacts_front"] + c["impacts_back"])) > 1000  # counts stay exact beyond the records
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+def test_stick_slip_standstill_is_exact_and_cheap(compiled: bool) -> None:
+    """Stick-slip Coulomb friction: a shaft pushed with less than its friction sticks (zero speed, exactly);
+    pushed with more, it slips with (torque - T_c) / J; standstill costs no sub-steps beyond the grid."""
+    require_compiled(compiled)
+    servo = build_plant(load_model("shing1993_servo_friction"), backlash=0.0)
+    kn = Kernel(servo, np.zeros(4), dt=1e-3, compiled=compiled)
+    assert kn.exact  # stick-slip keeps the improved plant piecewise affine
+    for _ in range(100):  # 0.15 N m through the stiff mesh onto 0.2 N m of load friction: stuck
+        assert kn.advance(0.15 / servo.gear_ratio, 0.0, 1e-3) == 0
+    assert kn.slip[1] == 0 and kn.x[3] == 0.0
+    steps_still = kn.steps
+    for _ in range(100):  # 0.4 N m: breaks away and accelerates
+        assert kn.advance(0.4 / servo.gear_ratio, 0.0, 1e-3) == 0
+    assert kn.slip[1] == 1 and kn.x[3] > 0
+    kinds = [EventKind.NAMES[k] for k in kn.event_log["kind"].tolist()]
+    # the break-away: the elastic mesh rings, so the load may stick again at the first speed zeros; then it slips
+    assert kinds[0] == "slip" and kinds[-1] == "slip" and len(kinds) < 20
+    # standstill: the same sub-steps per sample as free motion of this plant (no stiff friction law)
+    assert steps_still <= 100 * math.ceil(1e-3 * servo.natural_frequency / 0.6 + 1)

@@ -34,7 +34,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
     from ..runs import execute, make_run
 
     run = make_run(args.model, args.controller, plant=args.plant, reference_kind=args.reference,
-                   duration=args.duration, seed=args.seed, backlash=args.backlash, realtime=args.realtime)
+                   duration=args.duration, seed=args.seed, backlash=args.backlash, estimate=args.estimate,
+                   realtime=args.realtime)
     with progress_bar("gearctl track", expected_s=run.duration * 0.02):
         out, res = execute(run, keep=True)
     if res is None or out.metrics is None:
@@ -265,6 +266,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                    help="sine: 0.1 rad 1 Hz; step: 0.05 rad + 0.5 N m load step; ramp; move: S-curve (default sine)")
     p.add_argument("--duration", type=dur, help="simulated time [s] (default per reference)")
     p.add_argument("--backlash", type=bl, help="override the plant's backlash [m], every stage (0: none)")
+    p.add_argument("--estimate", type=bl, help="the controller's backlash estimate [m] (default: the model's; for "
+                                                "a train, the equivalent half-gap on the last stage's line of action)")
     p.add_argument("--seed", type=seed, default=0, help="sensor-noise seed (default 0)")
     p.add_argument("--realtime", action="store_true",
                    help="an optimisation that overruns its time budget falls back, as on the target "
