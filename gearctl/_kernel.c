@@ -746,16 +746,7 @@ int gc_advance_ode(const gc_params *p, gc_state *st) {
             if (hi < best) { best = hi; which = e; }
         }
         if (which >= 0) {
-            if (best > 0.0) {
-                if (!have_dense) { /* a breakaway or grazing exit at once needs no dense output */
-                    for (i = 0; i < nx; i++) {
-                        r[0][i] = y[i];
-                        r[1][i] = y1[i] - y[i];
-                        r[2][i] = h * k1[i] - r[1][i];
-                        r[3][i] = r[1][i] - h * k7[i] - r[2][i];
-                        r[4][i] = h * (d1 * k1[i] + d3 * k3[i] + d4 * k4[i] + d5 * k5[i] + d6 * k6[i] + d7 * k7[i]);
-                    }
-                }
+            if (best > 0.0) { /* a root on the dense output (an exit at once, best = 0, needs none) */
                 dense(nx, r, best, st->x);
                 st->t += best * h;
             }

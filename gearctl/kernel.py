@@ -1238,9 +1238,8 @@ class _Mirror:
                 if hi < best:
                     best, which = hi, e
             if which >= 0:
-                if best > 0.0:
-                    if r is None:
-                        r = make_dense()
+                if best > 0.0:  # a root on the dense output (an exit at once, best = 0, needs none)
+                    assert r is not None
                     self.x = dense_of(r, best)
                     self.t += best * h
                 f = fns[which]

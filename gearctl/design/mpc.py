@@ -137,8 +137,11 @@ __all__ = ["MPC", "MPCSettings", "build_mpc", "SOLVERS", "installed_solvers", "K
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "mpc"
 
-#: QP solvers (CasADi conic plugins) the MPC offers; ``daqp`` and ``qrqp`` are compiled.
-SOLVERS = ("daqp", "qrqp", "osqp", "proxqp")
+#: QP solvers the MPC offers: gearctl's own exact dense solver (:class:`gearctl.qp.DenseQP`, the default:
+#: the exported C controller runs the same code) and CasADi conic plugins (``daqp`` and ``qrqp`` compiled).
+SOLVERS = ("daqp", "qrqp", "osqp", "proxqp", "gearctl")
+#: The CasADi plugin the ``gearctl`` setting falls back to where the C solver cannot be built.
+FALLBACK_SOLVER = "daqp"
 _COMPILABLE = ("daqp", "qrqp")
 # quiet options per plugin, and the relative KKT tolerance a solution of that solver must meet
 _PLUGIN_OPTIONS: dict[str, dict[str, Any]] = {
@@ -242,7 +245,11 @@ class MPCSettings:
 
 
 def installed_solvers() -> tuple[str, ...]:
-    """The entries of :data:`SOLVERS` whose CasADi plugin loads in this installation."""
+    """The entries of :data:`SOLVERS` usable in this installation.
+
+    ``gearctl`` always is (compiled where a C compiler exists, else through CasADi's
+    :data:`FALLBACK_SOLVER`, which :meth:`MPC.describe` then states); a CasADi plugin is if it loads.
+    """
     return tuple(s for s in SOLVERS if _plugin_loads(s))
 
 
@@ -250,6 +257,8 @@ _PLUGIN_OK: dict[str, bool] = {}
 
 
 def _plugin_loads(plugin: str) -> bool:
+    if plugin == "gearctl":  # part of gearctl (with a CasADi fallback)
+        return True
     if plugin not in _PLUGIN_OK:
         import casadi as ca
 
