@@ -442,9 +442,9 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
     st->n_events = 0;
     long guard = 0;
     /* per pattern and call: the affine term a, Gamma(h) a, and x' carried from step to step */
-    int cached = 0, have_dx = 0;
+    int cached = 0, have_dx = 0, ne = 0;
     double a[GC_NX_MAX], gam_a[GC_NX_MAX], dx0[GC_NX_MAX], dx1[GC_NX_MAX];
-    gc_evfun fn[NEV_MAX];
+    gc_evfun fn[NEV_MAX]; /* the event functions of the current modes: they change only at events */
     while (st->t < t_end) {
         long pat = pattern_of(p, st), slot = p->slot[pat];
         if (slot < 0) {
@@ -459,6 +459,7 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
         if (!cached) {
             affine(p, st, u1, u2, a);
             matvec(nx, Gam, a, gam_a);
+            ne = collect_events(p, st, u1, u2, 0, fn);
             cached = 1;
             have_dx = 0;
         }
@@ -483,7 +484,6 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
             for (i = 0; i < nx; i++) dx1[i] += a[i];
         }
         /* events: each g_e is positive inside the current modes */
-        int ne = collect_events(p, st, u1, u2, 0, fn);
         double best = -1.0;
         int which = -1;
         for (int e = 0; e < ne; e++) {
@@ -504,6 +504,9 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
                 /* a rate that is zero up to cancellation (e.g. the residue of a plastic impulse) is zero */
                 if (ga == 0.0 && fabs(da) <= 1e-12 * dscale) da = 0.0;
                 if (!(gb <= 0.0 || (da < 0.0 && db > 0.0) || (ga == 0.0 && da <= 0.0))) continue;
+                /* an interior minimum that cannot reach zero: with rho h <= 0.6, g stays within
+                   h (|g'(0)| + |g'(h)|) / 4 of its end values (the cubic Hermite bound); a margin of 4 */
+                if (gb > 0.0 && ga > 0.0 && fmin(ga, gb) > h * (fabs(da) + fabs(db))) continue;
                 if (ga == 0.0 && da == 0.0 && fn[e].type == 0) { /* grazing: see the file's header */
                     if (grazing_leaves(p, st, &fn[e], x0, u1, u2, h_pat)) {
                         tau = 0.0;

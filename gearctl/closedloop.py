@@ -213,7 +213,7 @@ def simulate_closed_loop(
     # per-sample records as Python lists (cheaper than numpy element writes); arrays at the end
     xs_l: list[list[float]] = [list(x0)]
     modes = kn._mode
-    mode_l = [np.sign(modes).tolist()]
+    mode_l = [modes.tolist()]
     u_l: list[float] = []
     cmd_l: list[float] = []
     ym_l: list[float] = []
@@ -238,20 +238,20 @@ def simulate_closed_loop(
         status = advance(ui, tl + disturbance(ti), Ts)
         xn = xk.tolist()
         xs_l.append(xn)
-        mode_l.append([1 if mo > 0 else (-1 if mo < 0 else 0) for mo in modes.tolist()])
+        mode_l.append(modes.tolist())
         if status != 0:
             last, message = i + 1, Kernel.status_message(status)
             if status == 3:
                 message = (f"event cascade: more contact events than the run may locate ({kn.events_total} by "
                            f"t = {kn.t:.6g} s); the contact chatters without settling")
             break
-        if not all(abs(v) < DIVERGENCE_LIMIT for v in xn[w:]):
+        if max(map(abs, xn[w:])) >= DIVERGENCE_LIMIT or xn[w] != xn[w]:  # (a NaN fails the second test)
             last, message = i + 1, f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s at t = {t[i + 1]:.4g} s"
             break
         if progress is not None and i % tick == 0:
             progress(i / n)
     xs = np.array(xs_l).T
-    mode = np.array(mode_l).T
+    mode = np.sign(np.array(mode_l).T)  # the solver's +-2 (no_pull, overlapping without load) are contact too
     mode = mode[0] if mode.shape[0] == 1 else mode
     u = np.array([*u_l, u_l[-1]])
     cmd = np.array([*cmd_l, cmd_l[-1]])

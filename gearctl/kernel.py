@@ -331,6 +331,7 @@ class Kernel:
         for name in ("table_off", "ev_count", "fbit", "slot"):
             setattr(prm, name, _ptr(getattr(self, "_" + name), ctypes.c_int64))
         prm.ev_target, prm.ev_type = _ptr(self._ev_target, ctypes.c_int), _ptr(self._ev_type, ctypes.c_int)
+        prm.max_events = self.max_events
         self._prm = prm
         # the patterns every run meets: all stages free and all in contact (a pair has no other)
         if self.exact:
@@ -537,40 +538,42 @@ class Kernel:
         self._classify_slip(0.0, 0.0)
 
     # -- advancing
-    def _budget(self, t_end: float) -> int:
-        """Events this call may still locate: per call, and for the run per simulated second."""
-        run = self.max_event_rate * max(t_end - self.t0, 0.0) + self.max_events - self._st.events_total
+    def _budget(self, t_end: float, already: int = 0) -> int:
+        """Events a call may locate: per call, and for the run per simulated second (``already``: events of
+        this call counted in ``events_total`` so far)."""
+        run = self.max_event_rate * max(t_end - self.t0, 0.0) + self.max_events - (self._st.events_total - already)
         return int(max(0, min(self.max_events, run)))
 
     def advance(self, u1: float, u2: float, T: float) -> int:
         """Advance by ``T`` seconds with constant torques ``u1`` (motor), ``u2`` (load) [N m]; return a status.
 
-        0 is success; events are recorded in :attr:`event_log`.
+        0 is success; events are recorded in :attr:`event_log`. The call stops with status 3 when it has
+        located ``max_events`` events, or the run more than ``max_events + max_event_rate * (t - t0)``.
         """
         st = self._st
         st.u1, st.u2 = u1, u2
         st.t_end = st.t + T
         if self._fn is None:
             return self._py_advance()
-        budget = self._budget(st.t_end)
-        self._prm.max_events = budget
+        # the per-call cap is set once (max_events); the run's rate is checked after the call, cheaply
         status = self._fn(self._pp, self._sp)  # two pointer arguments: the cheapest ctypes call
         if status == 0 and st.n_events == 0:
             return 0
+        budget = self._budget(st.t_end, st.n_events)  # what this call could locate when it started
         used = 0
         while True:
             if st.n_events:
                 used += st.n_events
                 self._drain(min(st.n_events, self._cap))
+            if used > budget:
+                return _ST_EVENTS
             if status == _PATTERN:
                 self._ensure_pattern(st.need)
-            elif status == _BUFFER_FULL:
-                if used > budget:
-                    return _ST_EVENTS
-            else:
+            elif status != _BUFFER_FULL:
                 return status
-            self._prm.max_events = max(budget - used, 0)
+            self._prm.max_events = max(min(budget - used, self.max_events), 0)
             status = self._fn(self._pp, self._sp)
+            self._prm.max_events = self.max_events
 
     def _drain(self, n: int) -> None:
         room = self.max_records - self._n_recorded
@@ -1002,6 +1005,7 @@ class _Mirror:
         guard = 0
         cached, have_dx = False, False
         a = gam_a = dx0 = dx1 = None
+        fns: list[_EvFun] = []
         while self.t < self.t_end:
             pat = self.pattern()
             kn._ensure_pattern(pat)
@@ -1011,6 +1015,7 @@ class _Mirror:
             if not cached:
                 a = self.affine()
                 gam_a = _mv(Gam, a)
+                fns = self.collect(False)
                 cached, have_dx = True, False
             x0 = self.x
             if not have_dx:
@@ -1028,7 +1033,6 @@ class _Mirror:
                 D = _taylor(A, rho, x0, a, h)
                 x1 = _taylor_eval(D, h)
                 dx1 = [u + v for u, v in zip(_mv(A, x1), a, strict=True)]
-            fns = self.collect(False)
             best, which = -1.0, -1
             for e, f in enumerate(fns):
                 cg = f.cg
@@ -1045,6 +1049,8 @@ class _Mirror:
                         da = 0.0
                     if not (gb <= 0.0 or (da < 0.0 and db > 0.0) or (ga == 0.0 and da <= 0.0)):
                         continue
+                    if gb > 0.0 and ga > 0.0 and min(ga, gb) > h * (abs(da) + abs(db)):
+                        continue  # an interior minimum that cannot reach zero (see _kernel.c)
                     if ga == 0.0 and da == 0.0 and f.type == EVENT_GEOMETRIC:
                         if self.grazing_leaves(f, x0, h_pat):
                             tau = 0.0

@@ -82,21 +82,17 @@ class GearModel:
         """Number of stages."""
         return len(self.stages)
 
-    def _pair_only(self, what: str) -> None:
-        if len(self.stages) != 1:
-            raise AttributeError(f"{what!r} is a pair's; {self.name} has {len(self.stages)} stages: use "
-                                 f"model.stages[i].{what}")
-
     @property
     def pair(self) -> GearPair:
-        """The gear pair of a one-stage model."""
-        self._pair_only("pair")
+        """The gear pair of a one-stage model; for a train, its first stage's (the motor's pinion and its gear).
+
+        Code that handles trains reads :attr:`stages`.
+        """
         return self.stages[0].pair
 
     @property
     def dynamics(self) -> MeshDynamics:
-        """The mesh dynamics of a one-stage model."""
-        self._pair_only("dynamics")
+        """The mesh dynamics of a one-stage model; for a train, its first stage's."""
         return self.stages[0].dynamics
 
     def with_backlash(self, backlash: float | Sequence[float]) -> GearModel:

@@ -26,7 +26,7 @@ from .oracle import reference_solution
 from .plant import Plant, build_plant, plant_nlsys
 from .simulate import simulate
 
-__all__ = ["sim_speed", "pd_gains", "mpc_timing", "bench_wall_time"]
+__all__ = ["sim_speed", "pd_gains", "mpc_timing", "bench_wall_time", "loop_speed", "standstill_cost"]
 
 
 def pd_gains(plant: Plant, bandwidth_hz: float = 20.0) -> tuple[float, float]:
@@ -209,6 +209,72 @@ def mpc_timing(*, duration: float = 3.0, controller: str = "mpc") -> dict[str, A
         "budgets": {name: float(np.mean(st <= b)) for name, b in (("1kHz", 1e-3), ("4kHz", 250e-6), ("8kHz", 125e-6))},
         "Ts": ctrl.Ts, "fallbacks": len(res.fallbacks), "rms_error": m["rms_error"], "steps": int(st.size),
     }
+
+
+def loop_speed(model: str, controller: str = "pid", *, reference_kind: str = "sine", duration: float = 5.0,
+               backlash: float | None = None, repeats: int = 3, hold: bool = False) -> dict[str, Any]:
+    """Simulated seconds per wall second of a catalog closed loop (median of ``repeats`` runs).
+
+    ``hold`` replaces the reference by a standstill (zero reference, no disturbance).
+
+    Returns
+    -------
+    dict
+        ``sim_per_wall``, ``per_sample_s`` [s of wall time per controller sample], ``model``, ``controller``,
+        ``stages``, ``reference``, ``duration``, ``impacts``.
+    """
+    import dataclasses
+
+    from .references import Reference
+    from .runs import execute, make_run
+
+    run = make_run(model, controller, reference_kind=reference_kind, duration=duration, backlash=backlash)
+    if hold:
+        run = dataclasses.replace(run, reference=Reference(kind="step", amplitude=0.0))
+    walls, last = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        last = execute(run)
+        walls.append(time.perf_counter() - t0)
+    wall = float(np.median(walls))
+    Ts = last.controller.get("Ts", 1e-3) if last is not None else 1e-3
+    return {"model": model, "controller": controller, "stages": run.plant.n_stages,
+            "reference": "hold" if hold else reference_kind, "duration": duration, "sim_per_wall": duration / wall,
+            "per_sample_s": wall * Ts / duration,
+            "impacts": last.metrics.impacts if last is not None and last.metrics is not None else None}
+
+
+def standstill_cost(model: str = "shing1993_servo_friction", controller: str = "pid", *,
+                    duration: float = 5.0) -> dict[str, Any]:
+    """Coulomb friction at standstill against motion: the same loop held at rest and on the sine.
+
+    With stick-slip friction (events where a shaft stops or breaks away, a stuck shaft one degree of freedom
+    less) a standstill costs no more than motion. Measured on the backlash-free plant, the stiff case (the
+    load's friction acts through the mesh at once) that the smooth law made take minutes, and as the ISO
+    230-2 test's wall time (mostly dwells at rest) with and without backlash.
+
+    Returns
+    -------
+    dict
+        ``standstill``, ``motion`` (:func:`loop_speed`), ``ratio`` (standstill's simulated s per wall s over
+        motion's: >= 1 means a standstill is not dearer), ``precision`` {``backlash_free``, ``backlash``:
+        wall time [s] of ``gearctl precision MODEL CONTROLLER --cycles 1``}.
+    """
+    from .catalog import load_controller
+    from .precision import precision_test
+
+    still = loop_speed(model, controller, duration=duration, backlash=0.0, hold=True)
+    moving = loop_speed(model, controller, reference_kind="sine", duration=duration, backlash=0.0)
+    m = load_model(model)
+    walls = {}
+    for label, b in (("backlash_free", 0.0), ("backlash", None)):
+        plant = build_plant(m, backlash=b)
+        ctrl = load_controller(controller, plant)
+        t0 = time.perf_counter()
+        precision_test(plant, ctrl, cycles=1, sensors=m.sensors)
+        walls[label] = time.perf_counter() - t0
+    return {"standstill": still, "motion": moving, "ratio": still["sim_per_wall"] / moving["sim_per_wall"],
+            "precision": walls}
 
 
 def bench_wall_time(*, jobs: int | None = None) -> dict[str, Any]:

@@ -236,7 +236,10 @@ def mesh_stiffness_at(pair: GearPair, theta1: ArrayLike, geo: Geometry | None = 
     geo = pair_geometry(pair) if geo is None else geo
     th = np.asarray(theta1, dtype=float)
     period = geo.mesh_period_angle
-    z0 = geo.AC + geo.base_radius[0] * np.mod(th, period)
+    phase = np.mod(th, period)
+    # a whole number of cycles comes back as (period - rounding), not 0: the start of the cycle, where K jumps
+    phase = np.where(phase >= period * (1.0 - 1e-12), 0.0, phase)
+    z0 = geo.AC + geo.base_radius[0] * phase
     K = np.zeros_like(z0)
     n_max = int(math.ceil(geo.contact_ratio)) + 1
     for i in range(n_max):

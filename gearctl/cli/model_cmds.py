@@ -32,7 +32,7 @@ __all__ = ["register"]
 
 
 def _cmd_models(args: argparse.Namespace) -> int:
-    rows = []
+    rows, extra = [], []
     for name in model_names():
         m = load_model(name)
         if m.n_stages == 1:
@@ -46,9 +46,12 @@ def _cmd_models(args: argparse.Namespace) -> int:
             phi = "/".join(f"{math.degrees(p.pressure_angle):g}" for p in ps)
             eps = "/".join(f"{pair_geometry(p).contact_ratio:.2f}" for p in ps)
         rows.append((name, teeth, mod, phi, eps, m.source.get("citation", "")))
+        extra.append({"stages": m.n_stages, "contact_ratio": pair_geometry(m.pair).contact_ratio,
+                      "contact_ratios": [pair_geometry(s.pair).contact_ratio for s in m.stages]})
     if args.json:
         keys = ("name", "teeth", "module_mm", "pressure_angle_deg", "contact_ratio", "source")
-        print(dump_json([dict(zip(keys, r, strict=True)) for r in rows]))
+        # contact_ratio: the first stage's (a pair's own), as a number; every stage's in contact_ratios
+        print(dump_json([{**dict(zip(keys, r, strict=True)), **x} for r, x in zip(rows, extra, strict=True)]))
         return 0
     head = ("name", "teeth", "m [mm]", "phi [deg]", "eps", "source")
     widths = [max(len(str(r[i])) for r in [*rows, head]) for i in range(5)]
