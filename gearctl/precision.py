@@ -223,7 +223,7 @@ def precision_test(
     count_down = np.zeros(targets, dtype=int)
     for tm, idx, direction in measure:
         k = int(np.searchsorted(run.t, tm))
-        x = run.x[1, min(k, run.t.size - 1)] - P[idx]
+        x = run.load_angle[min(k, run.t.size - 1)] - P[idx]
         if direction > 0:
             up[idx, count_up[idx]] = x
             count_up[idx] += 1

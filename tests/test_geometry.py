@@ -139,9 +139,13 @@ def test_line_of_action_relations(name: str) -> None:
     # section 3.1: DE = CF = p_b
     assert_allclose(g.AE, g.AD - g.base_pitch, rtol=1e-12)
     assert_allclose(g.AF, g.AC + g.base_pitch, rtol=1e-12)
-    # pitch point P: tangent length of gear 1's base circle to the pitch point
-    assert_allclose(g.AP, g.base_radius[0] * math.tan(phi), rtol=1e-12)
-    assert_allclose(g.AB - g.AP, g.base_radius[1] * math.tan(phi), rtol=1e-12)
+    # pitch point P: tangent length of gear 1's base circle to the (operating) pitch point; the operating
+    # pressure angle is the nominal one for an unshifted or V-zero pair (x1 + x2 = 0)
+    phi_w = g.operating_pressure_angle
+    if pair.x1 + pair.x2 == 0.0:
+        assert phi_w == phi
+    assert_allclose(g.AP, g.base_radius[0] * math.tan(phi_w), rtol=1e-12)
+    assert_allclose(g.AB - g.AP, g.base_radius[1] * math.tan(phi_w), rtol=1e-12)
     # the pitch point lies on the path of contact C -> D, which lies on A -> B
     assert 0.0 < g.AC < g.AP < g.AD < g.AB
     assert_allclose(g.contact_ratio, (g.AD - g.AC) / g.base_pitch, rtol=1e-12)
@@ -199,16 +203,21 @@ def test_tooth_thicknesses(name: str) -> None:
     assert_allclose(g.tooth_thickness_pitch, math.pi * m / 2, rtol=1e-12)
     for j in range(2):
         rb, rp, ra = g.base_radius[j], g.pitch_radius[j], g.addendum_radius[j]
-        # eq 26 at a radius r, with cos(phi_r) = r_b / r
-        def t_at(r: float, rb: float = rb, rp: float = rp) -> float:
-            return r * (math.pi * m / 2 / rp + 2 * (involute(phi) - involute(math.acos(rb / r))))
+        # the reference-circle thickness: pi m / 2, plus 2 x m tan(phi) for a profile-shifted gear (ISO 21771)
+        s_ref = g.tooth_thickness_reference[j]
+        assert_allclose(s_ref, m * (math.pi / 2 + 2 * g.profile_shift[j] * math.tan(phi)), rtol=1e-12)
 
-        # eq 26 at the pitch circle returns t_p; eq 27 is eq 26 at the base circle; eq 28 at the tip
-        assert_allclose(t_at(rp), math.pi * m / 2, rtol=1e-12)
+        # eq 26 at a radius r, with cos(phi_r) = r_b / r
+        def t_at(r: float, rb: float = rb, rp: float = rp, s_ref: float = s_ref) -> float:
+            return r * (s_ref / rp + 2 * (involute(phi) - involute(math.acos(rb / r))))
+
+        # eq 26 at the pitch circle returns the reference thickness; eq 27 is eq 26 at the base circle; eq 28
+        # at the tip
+        assert_allclose(t_at(rp), s_ref, rtol=1e-12)
         assert_allclose(g.tooth_thickness_base[j], t_at(rb), rtol=1e-12)
         assert_allclose(g.tooth_thickness_addendum[j], t_at(ra), rtol=1e-12)
         # the involute tooth narrows outward and is not pointed
-        assert g.tooth_thickness_base[j] > g.tooth_thickness_pitch > g.tooth_thickness_addendum[j] > 0
+        assert g.tooth_thickness_base[j] > s_ref > g.tooth_thickness_addendum[j] > 0
         # eq 19: w is where the flanks of the trapezoid (t_b at h_b, t_a at h_a) meet, beyond the tip
         h_a, h_b, tb, ta = g.h_a[j], g.h_b[j], g.tooth_thickness_base[j], g.tooth_thickness_addendum[j]
         w = g.w[j]

@@ -366,7 +366,8 @@ def test_pointed_tip_message_states_the_tip_thickness() -> None:
 # --- (f) the unshifted pair is bit-identical ------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", model_names())
+@pytest.mark.parametrize("name", [n for n in model_names() if not any(
+    s.pair.x1 or s.pair.x2 for s in load_model(n).stages)])
 def test_unshifted_catalog_pairs_are_bit_identical(name: str) -> None:
     pair = load_model(name).pair
     explicit = dataclasses.replace(pair, x1=0.0, x2=0.0)

@@ -1,0 +1,539 @@
+"""Gear trains (issue 17): the catalog's trains, the physics of n stages, and every command on a train.
+
+Oracles, each with its tolerance where it is asserted:
+
+1. identity: a one-stage ``[[stage]]`` file written from ``shing1993_servo.toml``'s data is the pair, to the
+   last bit (``numpy.array_equal``), open loop and in closed loop with the catalog PID and MPC;
+2. an independent integration: :func:`gearctl.oracle.reference_solution` (``solve_ivp`` with terminal events,
+   written from the report's equations, rtol 1e-12) for a two-stage train: the same impact sequence per stage
+   and the gaps within 1e-6 of each stage's ``b``;
+3. closed forms: the lost motion ``sum_i 2 b_i / (r_b2,i prod_(j>i) N_j)`` measured by a slow reversal (2 %),
+   the train's resonances as the undamped eigenvalues of ``M^-1 K`` built here, a separated stage's
+   two-inertia mode, the ISO 21771 operating pressure angle of the shifted 17-tooth pinion;
+4. invariants: energy without damping, the motor-equivalent angular momentum
+   ``sum_j J_j omega_j / N_(0->j)`` without friction (mesh damping is internal), zero force in a stage's gap
+   while the others carry load, front/back mirror symmetry per stage;
+5. closed-loop figures on the three-stage catalog train, with the measured ratios stated and a margin kept.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.optimize
+from numpy.testing import assert_allclose
+
+from gearctl import InputError, Plant, build_plant, load_model
+from gearctl.catalog import load_controller, read_toml, resolve
+from gearctl.cli import main
+from gearctl.closedloop import simulate_closed_loop
+from gearctl.geometry import involute, pair_geometry
+from gearctl.oracle import reference_solution
+from gearctl.references import reference
+from gearctl.runs import execute, make_run
+from gearctl.simulate import SimulationResult, report_case, simulate
+
+TWO = "servo_2stage_phm09"
+THREE = "servo_3stage_quanser_srv02"
+PINION = "pinion17_shifted_shing1993"
+TRAINS = [TWO, THREE]
+
+
+@pytest.fixture(scope="module")
+def two() -> Plant:
+    return build_plant(load_model(TWO))
+
+
+@pytest.fixture(scope="module")
+def three() -> Plant:
+    return build_plant(load_model(THREE))
+
+
+def without(plant: Plant, *, damping: bool = False, friction: bool = False) -> Plant:
+    """The plant with every stage's ``c`` and/or every shaft's viscous and Coulomb friction set to 0."""
+    stages = tuple(dataclasses.replace(s, c=0.0) for s in plant.stages) if damping else plant.stages
+    shafts = tuple(dataclasses.replace(s, d=0.0, tc=0.0) for s in plant.shafts) if friction else plant.shafts
+    return dataclasses.replace(plant, stages=stages, shafts=shafts)
+
+
+def ratio_to(plant: Plant) -> list[float]:
+    """``N_(0->j)``: motor angle over shaft ``j``'s angle in a rigid train."""
+    return [math.prod(s.ratio for s in plant.stages[:j]) for j in range(plant.n_stages + 1)]
+
+
+# --- 0. the catalog's trains -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("name", "ratios"), [(TWO, (3.0, 80 / 48)), (THREE, (3.5, 4.0, 5.0))])
+def test_catalog_trains(name: str, ratios: tuple[float, ...]) -> None:
+    model = load_model(name)
+    plant = build_plant(model)
+    assert model.n_stages == len(ratios)
+    assert model.source["citation"].strip() and "ASSUMED" in model.source["notes"]
+    # teeth ratios from the sources (PHM09: 96/32 and 80/48, overall 5; SRV02: Kgi 14 = 3.5 x 4, Kge 5,
+    # overall 70); rtol 1e-12: exact fractions
+    assert_allclose([s.ratio for s in plant.stages], ratios, rtol=1e-12)
+    assert_allclose(plant.gear_ratio, {TWO: 5.0, THREE: 70.0}[name], rtol=1e-12)
+    for sm in model.stages:  # within the model's range: b <= 0.5 module, b < 0.01 m
+        assert 0 < sm.pair.backlash <= 0.5 * sm.pair.module and sm.pair.backlash < 0.01
+    assert model.sensors.motor_encoder_cpr == model.sensors.load_encoder_cpr == 2**20
+    assert math.isfinite(plant.torque_limit) and plant.torque_limit > 0
+    # the lost motion is many encoder counts (2 pi / 2^20 = 6 urad): a controller can see the gap
+    assert plant.lost_motion > 100 * 2 * math.pi / 2**20
+
+
+def test_srv02_numbers_reproduce_the_manual() -> None:
+    """SRV02 User Manual Tables 3.1 and 3.2, as cited in the model file."""
+    model = load_model(THREE)
+    last = pair_geometry(model.stages[-1].pair)
+    # Table 3.2 radii of the 24- and 120-tooth gears, 6.35e-3 and 0.032 m (printed to 2-3 digits: rtol 1 %)
+    assert_allclose(last.pitch_radius, (6.35e-3, 0.032), rtol=0.01)
+    # Table 3.1: rotor 3.90e-7 + tachometer 7.06e-8 kg m^2 on the motor (entered to 3 digits: rtol 2e-3);
+    # torque limit kt 7.68e-3 N m/A x Imax 1 A, disc load 0.04 kg of radius 0.05 m (rtol 1e-12: one product)
+    assert_allclose(model.servo.motor_inertia, 3.90e-7 + 7.06e-8, rtol=2e-3)
+    assert_allclose(model.servo.torque_limit, 7.68e-3 * 1.0, rtol=1e-12)
+    assert_allclose(model.servo.load_inertia, 0.5 * 0.04 * 0.05**2, rtol=1e-12)
+    # Table 3.2: gear inertias as solid disks of the listed masses and radii (entered to 3-4 digits)
+    assert_allclose(last.inertia, (0.5 * 0.005 * 6.35e-3**2, 0.5 * 0.083 * 0.032**2), rtol=2e-3)
+
+
+def test_phm09_motor_is_about_the_reflected_load(two: Plant) -> None:
+    # servo sizing: the motor rotor about the inertia reflected to the motor shaft (within a factor 2)
+    reflected = sum(sh.J / n**2 for sh, n in zip(two.shafts[1:], ratio_to(two)[1:], strict=True))
+    motor = load_model(TWO).servo.motor_inertia
+    assert 0.5 <= motor / reflected <= 2.0
+
+
+# --- 1. a one-stage train is the pair, to the last bit ----------------------------------------------------
+
+
+def _toml_value(v: object) -> str:
+    return json.dumps(v) if isinstance(v, str) else repr(v)
+
+
+@pytest.fixture(scope="module")
+def one_stage_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``shing1993_servo.toml`` rewritten as one ``[[stage]]`` (teeth, pair keys; material and dynamics as
+    the train's defaults), from the catalog file's parsed data, so the two cannot drift apart."""
+    data = read_toml(resolve("shing1993_servo", "models"))
+    stage = {"teeth1": data["gear1"]["teeth"], "teeth2": data["gear2"]["teeth"], **data["pair"]}
+    lines = []
+    for table in ("source", "material", "dynamics", "servo", "sensors"):
+        lines.append(f"[{table}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in data[table].items()]
+    lines.append("[[stage]]")
+    lines += [f"{k} = {_toml_value(v)}" for k, v in stage.items()]
+    path = tmp_path_factory.mktemp("train") / "shing1993_servo_one_stage.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def pair_and_train(one_stage_file: Path) -> tuple[Plant, Plant]:
+    return build_plant(load_model("shing1993_servo")), build_plant(load_model(one_stage_file))
+
+
+def test_one_stage_train_is_the_pair(one_stage_file: Path, pair_and_train: tuple[Plant, Plant]) -> None:
+    text = one_stage_file.read_text()
+    assert "[[stage]]" in text and "[gear1]" not in text and "[pair]" not in text
+    pair, train = pair_and_train
+    assert train.n_stages == 1
+    assert pair.shafts == train.shafts
+    for a, b in zip(pair.stages, train.stages, strict=True):
+        for f in dataclasses.fields(a):
+            assert np.array_equal(getattr(a, f.name), getattr(b, f.name)), f.name
+    for f in ("kind", "contact_law", "friction_law", "coulomb_velocity", "torque_limit", "load_torque"):
+        assert getattr(pair, f) == getattr(train, f), f
+
+
+def assert_same_run(a: SimulationResult, b: SimulationResult) -> None:
+    for f in ("t", "x", "u", "s", "mode", "force", "event_log"):
+        assert np.array_equal(getattr(a, f), getattr(b, f)), f
+    assert a.counts.keys() == b.counts.keys()
+    assert all(np.array_equal(a.counts[k], b.counts[k]) for k in a.counts)
+    assert a.max_penetration == b.max_penetration and a.steps == b.steps
+
+
+@pytest.mark.parametrize("case", ["free", "load"])
+def test_one_stage_train_simulates_bit_identically(case: str, pair_and_train: tuple[Plant, Plant]) -> None:
+    pair, train = pair_and_train
+    a, b = report_case(pair, case, 0.02), report_case(train, case, 0.02)
+    assert sum(a.impact_counts().values()) >= 10  # the run has contacts to compare
+    assert_same_run(a, b)
+
+
+@pytest.mark.parametrize("controller", ["pid", "mpc"])
+def test_one_stage_train_closed_loop_bit_identical(controller: str, one_stage_file: Path,
+                                                   pair_and_train: tuple[Plant, Plant]) -> None:
+    pair, train = pair_and_train
+    sensors = load_model("shing1993_servo").sensors
+    assert load_model(one_stage_file).sensors == sensors
+    runs = [simulate_closed_loop(p, load_controller(controller, p), reference("sine"), 1.0, sensors=sensors)
+            for p in (pair, train)]
+    a, b = runs
+    assert a.impact_count >= 10
+    for f in ("t", "x", "reference", "torque", "command", "y_motor", "y_load", "mode"):
+        assert np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True), f
+    assert np.array_equal(a.event_log, b.event_log)
+    assert all(np.array_equal(a.counts[k], b.counts[k]) for k in a.counts)
+    assert len(a.fallbacks) == len(b.fallbacks)
+
+
+# --- 2. two stages against solve_ivp with events ---------------------------------------------------------
+
+
+@pytest.mark.parametrize(("case", "torque"), [("free", (0.0, 0.0)), ("load", (1.0, -1.0))])
+def test_two_stage_matches_reference_solution(two: Plant, case: str, torque: tuple[float, float]) -> None:
+    res = report_case(two, case, 0.02, dt=1e-5)
+    assert res.solver.startswith("exact")
+    x_ref, impacts_ref = reference_solution(two, res.x[:, 0], res.t, torque=torque, rtol=1e-12)
+    impacts = [e for e in res.impacts if e.kind == "impact"]
+    assert len(impacts) == len(res.impacts)  # no plastic (Zeno) landings in these runs
+    seq = [(e.stage + 1) * (1 if e.side == "front" else -1) for e in impacts]
+    # the same impact sequence, stage by stage and flank by flank (oracle: side x stage number)
+    assert seq == [side for _, side in impacts_ref]
+    for i in (1, 2):
+        assert sum(abs(s) == i for s in seq) >= 10  # both stages impact, on both flanks where the case has them
+    # impact times: measured agreement 3.4e-12 s; atol 1e-9 s (2e-6 of the ~0.5 ms between impacts)
+    assert_allclose([e.t for e in impacts], [t for t, _ in impacts_ref], rtol=0, atol=1e-9)
+    # gaps within 1e-6 of each stage's b at every output (measured 7.3e-10 b)
+    ds = np.abs(res.s - two.gaps(x_ref)) / np.array(two.backlashes)[:, None]
+    assert ds.max() <= 1e-6
+
+
+def test_two_stage_energy_conserved_without_damping(two: Plant) -> None:
+    undamped = without(two, damping=True, friction=True)
+    res = report_case(undamped, "free", 0.02)
+    assert all(c["front"] >= 10 and c["back"] >= 10 for c in res.stage_impacts())
+    E = undamped.energy(res.x)
+    w = two.n_stages + 1
+    # all kinetic at t = 0: 0.5 sum J_j omega_j^2 (closed form, rtol 1e-15)
+    assert_allclose(E[0], 0.5 * sum(sh.J * res.x[w + j, 0] ** 2 for j, sh in enumerate(undamped.shafts)),
+                    rtol=1e-15)
+    # conserved to 1e-6 over 20 ms of impacts (measured 1.4e-11)
+    assert np.max(np.abs(E - E[0])) <= 1e-6 * E[0]
+
+
+# --- 3. the lost motion, measured ------------------------------------------------------------------------
+
+
+def slow_reversal(plant: Plant, *, load_friction: float, speed: float = 0.05,
+                  T: float = 0.4) -> tuple[SimulationResult, float]:
+    """The motor position-controlled at ``speed`` [rad/s of load angle] forward for ``T`` seconds, then back;
+    the load held by ``load_friction`` [N m] of stick-slip Coulomb friction, so it stops where the last flank
+    leaves it. Returns the run and the lost motion measured as the jump of ``theta_motor / N - theta_load``
+    between the steady forward and the steady backward motion [rad at the output]."""
+    q = dataclasses.replace(plant, shafts=(*plant.shafts[:-1], dataclasses.replace(plant.shafts[-1],
+                                                                                   tc=load_friction)))
+    N, w = q.gear_ratio, q.n_stages + 1
+    eq = q.equivalent_pair()
+    J = eq.J1 + eq.J2 / N**2
+    wc = 2 * math.pi * 30.0  # a 30 Hz position loop on the motor, sampled at 10 kHz
+    kp, kd = J * wc**2, 2 * J * wc
+    V = speed * N
+
+    def torque(t: float, x: np.ndarray) -> tuple[float, float]:
+        r, v = (V * t, V) if t < T else (V * (2 * T - t), -V)
+        u = kp * (r - x[0]) + kd * (v - x[w])
+        return min(max(u, -q.torque_limit), q.torque_limit), 0.0
+
+    res = simulate(q, np.zeros(q.nx), 2 * T, torque=torque, dt=1e-4)
+    offset = res.x[0] / N - res.x[w - 1]
+    fwd = (res.t > 0.6 * T) & (res.t < 0.95 * T)
+    bwd = (res.t > 1.6 * T) & (res.t < 1.95 * T)
+    # a clean experiment: steady motion on the front flanks of every stage, then on the back flanks
+    assert np.all(res.mode[:, fwd] == 1) and np.all(res.mode[:, bwd] == -1)
+    assert_allclose(res.x[-1, fwd], speed, rtol=1e-6)
+    # the load stands still while the motor crosses the gaps (stuck by friction: exactly zero speed)
+    assert np.count_nonzero(res.x[-1, (res.t > T) & (res.t < 1.5 * T)] == 0.0) > 50
+    return res, float(offset[fwd].mean() - offset[bwd].mean())
+
+
+@pytest.mark.parametrize(("name", "backlash", "friction"), [
+    (TWO, (6e-5, 1.5e-5), 0.01),  # unequal stages: the weights 1 / (r_b2,i prod N_j) are tested
+    (THREE, None, 1e-3),
+])
+def test_lost_motion_measured_by_a_slow_reversal(name: str, backlash: tuple[float, ...] | None,
+                                                 friction: float) -> None:
+    plant = build_plant(load_model(name), backlash=backlash)
+    # closed form, written here from the stages (not from Plant.lost_motion)
+    closed = sum(2 * s.backlash / (s.rb2 * math.prod(t.ratio for t in plant.stages[i + 1:]))
+                 for i, s in enumerate(plant.stages))
+    assert_allclose(plant.lost_motion, closed, rtol=1e-12)
+    _, measured = slow_reversal(plant, load_friction=friction, speed=0.05)
+    # 2 % (issue 17); measured 5.2e-5 (two stages) and 7.4e-5 (three) above the lost motion
+    assert_allclose(measured, plant.lost_motion, rtol=0.02)
+    # ... which is the stages' deflection under the torque the flanks carry in steady motion, the load's
+    # friction and viscous drag, (T_c + d v) / K at each end, K the stages in series seen at the load:
+    # measured agreement 1e-15, rtol 1e-9
+    K = 1 / sum(1 / (s.k * (s.rb2 * math.prod(t.ratio for t in plant.stages[i + 1:])) ** 2)
+                for i, s in enumerate(plant.stages))
+    carried = friction + plant.shafts[-1].d * 0.05
+    assert_allclose(measured, closed + 2 * carried / K, rtol=1e-9)
+
+
+# --- 4. invariants per stage -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", TRAINS)
+def test_momentum_conserved_without_friction(name: str) -> None:
+    """Mesh forces are internal: ``sum_j J_j omega_j / N_(0->j)`` is constant (mesh damping included)."""
+    plant = without(build_plant(load_model(name)), friction=True)
+    w = plant.n_stages + 1
+    x0 = np.zeros(plant.nx)
+    x0[w] = 50.0  # the report's free case with the intermediate shafts at rest: every stage impacts
+    res = simulate(plant, x0, 0.02)
+    assert all(c["front"] + c["back"] >= 10 for c in res.stage_impacts())
+    P = sum(sh.J * res.x[w + j] / n for j, (sh, n) in enumerate(zip(plant.shafts, ratio_to(plant), strict=True)))
+    # rtol 1e-10 (measured 6.4e-13 and 4.9e-13); the mesh damping dissipates meanwhile (energy -52 % and -9 %):
+    # momentum is kept although energy is not
+    assert_allclose(P, P[0], rtol=1e-10)
+    E = plant.energy(res.x)
+    assert E[-1] < 0.95 * E[0]
+
+
+@pytest.mark.parametrize("name", TRAINS)
+def test_zero_force_in_each_stage_gap(name: str) -> None:
+    plant = build_plant(load_model(name))
+    res = report_case(plant, "load", 0.02)
+    b = np.array(plant.backlashes)[:, None] * np.ones_like(res.s)
+    gap = res.mode == 0
+    for i in range(plant.n_stages):
+        others_loaded = np.any(np.delete(res.mode, i, axis=0) != 0, axis=0)
+        # stage i in its gap while another stage carries load: there are such samples, and no force
+        assert np.count_nonzero(gap[i] & others_loaded) >= 10
+        assert np.all(res.force[i, gap[i]] == 0.0)
+    # the mode is the gap's: |s| <= b in separation, sigma s >= b in contact (rtol 1e-9 at the boundary)
+    assert np.all(np.abs(res.s[gap]) <= b[gap] * (1 + 1e-9))
+    assert np.all((res.mode * res.s)[~gap] >= b[~gap] * (1 - 1e-9))
+    # in contact the force is the report's law, eqs 3 and 10, per stage (rtol 1e-12)
+    w = plant.n_stages + 1
+    for i, st in enumerate(plant.stages):
+        on = ~gap[i]
+        sig = res.mode[i, on]
+        v = st.rb1 * res.x[w + i, on] - st.rb2 * res.x[w + i + 1, on]
+        assert_allclose(res.force[i, on], st.k * (res.s[i, on] - sig * st.backlash) + st.c * v, rtol=1e-12,
+                        atol=1e-9 * st.k * st.backlash)
+
+
+@pytest.mark.parametrize("name", TRAINS)
+def test_mirror_symmetry_per_stage(name: str) -> None:
+    plant = build_plant(load_model(name))
+    x0 = np.zeros(plant.nx)
+    w = plant.n_stages + 1
+    x0[w] = 50.0  # the report's free case with intermediate shafts at rest: every stage impacts
+    a, b = simulate(plant, x0, 0.02), simulate(plant, -x0, 0.02)
+    # negating every angle and speed swaps front and back: exact (the solver's arithmetic is symmetric)
+    assert np.array_equal(b.x, -a.x) and np.array_equal(b.mode, -a.mode) and np.array_equal(b.force, -a.force)
+    for sa, sb in zip(a.stage_impacts(), b.stage_impacts(), strict=True):
+        assert sa["front"] + sa["back"] >= 5
+        assert (sa["front"], sa["back"]) == (sb["back"], sb["front"])
+    assert [e.t for e in a.impacts] == [e.t for e in b.impacts]
+
+
+# --- 5. the 17-tooth shifted pinion ----------------------------------------------------------------------
+
+
+def test_pinion17_shifted_is_accepted() -> None:
+    model = load_model(PINION)
+    pair = model.pair
+    assert (pair.teeth1, pair.x1, pair.x2) == (17, 0.3, 0.0)
+    g = pair_geometry(pair)
+    # ISO 21771: inv(alpha_w) = inv(alpha) + 2 (x1 + x2) tan(alpha) / (z1 + z2), solved here by bracketing
+    # (independent of gearctl's Newton iteration); rtol 1e-12
+    rhs = involute(pair.pressure_angle) + 2 * (pair.x1 + pair.x2) * math.tan(pair.pressure_angle) / (17 + 68)
+    alpha_w = scipy.optimize.brentq(lambda a: involute(a) - rhs, 0.1, 1.2, xtol=1e-15)
+    assert_allclose(g.operating_pressure_angle, alpha_w, rtol=1e-12)
+    a = pair.module * (17 + 68) / 2
+    assert_allclose(g.centre_distance, a * math.cos(pair.pressure_angle) / math.cos(alpha_w), rtol=1e-12)
+    assert g.contact_ratio > 1.4
+    # without the shift the 17-tooth pinion is undercut (limit 17.1 teeth at 20 deg) and refused
+    with pytest.raises(InputError, match=r"\[gear1\] teeth = 17 is below the undercut limit"):
+        load_model(PINION, x1=0.0)
+
+
+def test_pinion17_runs_info_and_track(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["info", PINION]) == 0
+    out = capsys.readouterr().out
+    assert "17 x 68 teeth" in out and "profile shift" in out
+    assert main(["info", PINION, "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["teeth"] == [17, 68] and info["profile_shift"] == [0.3, 0.0]
+    assert info["operating_pressure_angle_deg"] > 20.0
+    assert main(["track", PINION, "pid", "--json", "--duration", "1.0"]) == 0
+    run = json.loads(capsys.readouterr().out)
+    lost = build_plant(load_model(PINION)).lost_motion
+    # the motor-encoder PID leaves about half the lost motion as error (1.57e-3 rad here): finite, bounded
+    assert run["ok"] and 0 < run["rms_error"] < lost
+
+
+# --- 6. controllers on the three-stage catalog train -----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def sine_rms() -> Callable[[str, str], float]:
+    """RMS load-angle error of a catalog controller on a catalog model, 1 Hz sine, 3 s (``gearctl track``)."""
+    cache: dict[tuple[str, str], float] = {}
+
+    def rms(model: str, controller: str) -> float:
+        if (model, controller) not in cache:
+            rr = execute(make_run(model, controller))
+            assert rr.ok, rr.message
+            cache[model, controller] = rr.metrics.rms_error
+        return cache[model, controller]
+
+    return rms
+
+
+def test_three_stage_deadzone_inverse_beats_pid(sine_rms: Callable[[str, str], float], three: Plant) -> None:
+    """The same kind of factor as on the pair: at least half the pair's PID / dead-zone-inverse ratio, and 2.
+
+    Measured: train PID 1.06e-3 rad (about half the 2.02e-3 rad lost motion, as a motor-encoder PID leaves),
+    dead-zone inverse 1.04e-4: ratio 10.1; on shing1993_servo 6.30e-4 / 4.38e-5 = 14.4 (so the bound is 7.2).
+    """
+    assert 0.3 * three.lost_motion < sine_rms(THREE, "pid") < 0.7 * three.lost_motion
+    train = sine_rms(THREE, "pid") / sine_rms(THREE, "deadzone_inverse")
+    pair = sine_rms("shing1993_servo", "pid") / sine_rms("shing1993_servo", "deadzone_inverse")
+    assert train >= max(2.0, 0.5 * pair), (train, pair)
+
+
+@pytest.mark.xfail(strict=True, reason="the MPC's one-gap model (Plant.equivalent_pair) does not hold on a train "
+                   "whose gaps are spread over stages with light intermediate shafts: measured RMS 4.18e-3 rad vs "
+                   "the PID's 1.06e-3 (6680 impacts in 3 s); the same MPC on the equivalent pair as the true plant "
+                   "gives 1.92e-4, and with the whole lost motion in the last stage 2.51e-4 (reported)")
+def test_three_stage_mpc_beats_pid(sine_rms: Callable[[str, str], float]) -> None:
+    """The same kind of factor as on the pair: at least half the pair's PID / MPC ratio, and 2.
+
+    Measured: train PID 1.06e-3 rad, MPC 4.18e-3 (ratio 0.25); on shing1993_servo 6.30e-4 / 2.86e-6 = 220.
+    """
+    train = sine_rms(THREE, "pid") / sine_rms(THREE, "mpc")
+    pair = sine_rms("shing1993_servo", "pid") / sine_rms("shing1993_servo", "mpc")
+    assert train >= max(2.0, 0.5 * pair), (train, pair)
+
+
+# --- 7. every command on a train -------------------------------------------------------------------------
+
+
+def run_json(argv: list[str], capsys: pytest.CaptureFixture[str]) -> dict:
+    """``main(argv + ['--json'])``: exit 0, one JSON object on stdout."""
+    code = main([*argv, "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    return json.loads(out)
+
+
+def test_cli_info_train(capsys: pytest.CaptureFixture[str], two: Plant) -> None:
+    assert main(["info", TWO]) == 0
+    out = capsys.readouterr().out
+    assert "2-stage train, ratio 5" in out and "stage 2: 48 x 80 teeth" in out
+    info = run_json(["info", TWO], capsys)
+    pair = run_json(["info", "shing1993_servo"], capsys)
+    assert len(info["stages"]) == 2
+    assert_allclose(info["lost_motion"], two.lost_motion, rtol=1e-15)
+    # each stage carries the keys a pair's info has (less the model-level ones)
+    model_level = {"model", "source", "plant", "stages_count", "lost_motion", "equivalent_stiffness"}
+    for st in info["stages"]:
+        assert set(pair) - model_level <= set(st)
+    assert [s["teeth"] for s in info["stages"]] == [[32, 96], [48, 80]]
+    assert [s["backlash"] for s in info["stages"]] == list(two.backlashes)
+
+
+def test_cli_stiffness_per_stage(capsys: pytest.CaptureFixture[str], two: Plant) -> None:
+    assert main(["stiffness", TWO, "--stage", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "stage 2" in out and f"mean {two.stages[1].k:.4e}" in out
+    assert main(["stiffness", TWO, "--stage", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "stage" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_cli_simulate_train_csv_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[str], three: Plant) -> None:
+    path = tmp_path / "run.csv"
+    assert main(["simulate", THREE, "--duration", "0.002", "--csv", str(path)]) == 0
+    capsys.readouterr()
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    n = 3
+    assert rows[0] == (["t"] + [f"theta{j}" for j in range(n + 1)] + [f"omega{j}" for j in range(n + 1)]
+                       + [f"s{i}" for i in range(1, n + 1)] + [f"mode{i}" for i in range(1, n + 1)]
+                       + [f"force{i}" for i in range(1, n + 1)])
+    res = report_case(three, "free", 0.002)
+    body = rows[1:]
+    assert len(body) == res.t.size
+    num = np.array([[float(v) for v in r[: 1 + 2 * (n + 1) + n]] for r in body]).T
+    # the CSV is the API's run, printed: rtol 1e-8 (printed digits), atol for the zero crossings
+    assert_allclose(num[0], res.t, rtol=1e-8, atol=1e-12)
+    assert_allclose(num[1:1 + 2 * (n + 1)], res.x, rtol=1e-8, atol=1e-12)
+    assert_allclose(num[1 + 2 * (n + 1):], res.s, rtol=1e-8, atol=1e-15)
+    labels = {-1: "back", 0: "separation", 1: "front"}
+    assert [[r[1 + 2 * (n + 1) + n + i] for r in body] for i in range(n)] == [
+        [labels[int(m)] for m in res.mode[i]] for i in range(n)]
+    summary = run_json(["simulate", THREE, "--duration", "0.002"], capsys)
+    assert summary["impacts"] == res.stage_impacts()
+    assert_allclose(summary["final"]["theta"], res.x[:n + 1, -1], rtol=1e-15)
+    assert_allclose(summary["final"]["omega"], res.x[n + 1:, -1], rtol=1e-15)
+
+
+def test_cli_linearize_train(capsys: pytest.CaptureFixture[str], two: Plant) -> None:
+    lin = run_json(["linearize", TWO], capsys)
+    assert lin["mode"] == "contact"
+    # the train's resonances: the undamped eigenproblem K v = omega^2 M v built here from the stages
+    # (rtol 1e-3: the poles are the damped system's; measured 7.5e-5)
+    w = two.n_stages + 1
+    K = np.zeros((w, w))
+    for i, st in enumerate(two.stages):
+        v = np.zeros(w)
+        v[i], v[i + 1] = st.rb1, -st.rb2
+        K += st.k * np.outer(v, v)
+    ev = scipy.linalg.eigh(K, np.diag([sh.J for sh in two.shafts]), eigvals_only=True)
+    assert_allclose(lin["resonances_hz"], np.sqrt(ev[1:]) / (2 * math.pi), rtol=1e-3)
+    assert_allclose(lin["lost_motion"], two.lost_motion, rtol=1e-15)
+    sep = run_json(["linearize", TWO, "--mode", "stage2"], capsys)
+    assert sep["mode"] == "stage2"
+    # stage 2 separated: the only oscillation is stage 1's two-inertia mode, sqrt(k (rb1^2/J0 + rb2^2/J1))
+    # (|pole| of the damped pair; rtol 1e-3)
+    s1 = two.stages[0]
+    wn = math.sqrt(s1.k * (s1.rb1**2 / two.shafts[0].J + s1.rb2**2 / two.shafts[1].J))
+    osc = [abs(complex(*p)) for p in sep["poles"] if abs(p[1]) > 1.0]
+    assert len(osc) == 2
+    assert_allclose(osc, wn, rtol=1e-3)
+
+
+def test_cli_track_train(capsys: pytest.CaptureFixture[str], two: Plant) -> None:
+    run = run_json(["track", TWO, "pid", "--duration", "1.0"], capsys)
+    assert run["ok"] and run["model"] == TWO
+    per_stage = run["impacts_per_stage"]
+    assert len(per_stage) == 2
+    assert sum(per_stage) == run["impacts"] and min(per_stage) > 0
+    assert 0.3 * two.lost_motion < run["rms_error"] < two.lost_motion
+
+
+def test_cli_precision_train(capsys: pytest.CaptureFixture[str], two: Plant) -> None:
+    out = run_json(["precision", TWO, "pid", "--targets", "2", "--cycles", "1"], capsys)
+    assert out["lost_motion"] == pytest.approx(two.lost_motion, rel=1e-15)
+    # the motor-encoder PID stops each move within the lost motion of its target (measured at the target
+    # 0: +8.4e-4 and -3.8e-4 rad); every deviation below the lost motion
+    for row in out["per_target"]:
+        assert abs(row["mean_up"]) < two.lost_motion and abs(row["mean_down"]) < two.lost_motion
+
+
+def test_cli_bench_train(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "bench.json"
+    code = main(["bench", THREE, "--references", "sine", "--plants", "improved", "--no-precision", "--duration",
+                 "0.5", "--jobs", "1", "--quiet", "--json", str(path)])
+    capsys.readouterr()
+    assert code == 0
+    runs = json.loads(path.read_text())["runs"]
+    assert {r["plant"] for r in runs} == {"improved", "backlash-free"}
+    assert {r["controller"] for r in runs} >= {"pid", "deadzone_inverse", "mpc"}
+    assert all(r["ok"] and r["model"] == THREE for r in runs)
+    free = {r["controller"]: r for r in runs if r["plant"] == "backlash-free"}
+    assert all(r["impacts"] == 0 for r in free.values())  # no gap, no impact
