@@ -26,7 +26,7 @@ from .oracle import reference_solution
 from .plant import Plant, build_plant, plant_nlsys
 from .simulate import simulate
 
-__all__ = ["sim_speed", "pd_gains", "mpc_timing", "bench_wall_time", "loop_speed", "standstill_cost"]
+__all__ = ["sim_speed", "pd_gains", "mpc_timing", "bench_wall_time", "loop_speed", "standstill_cost", "train_speed"]
 
 
 def pd_gains(plant: Plant, bandwidth_hz: float = 20.0) -> tuple[float, float]:
@@ -275,6 +275,23 @@ def standstill_cost(model: str = "shing1993_servo_friction", controller: str = "
         walls[label] = time.perf_counter() - t0
     return {"standstill": still, "motion": moving, "ratio": still["sim_per_wall"] / moving["sim_per_wall"],
             "precision": walls}
+
+
+def train_speed(*, duration: float = 5.0) -> dict[str, Any]:
+    """The 1 kHz catalog PID loop on the pair and on every catalog train: simulated s per wall s.
+
+    Returns
+    -------
+    dict
+        model name -> :func:`loop_speed` figures (``stages``, ``sim_per_wall``, ``per_sample_s``).
+    """
+    from .catalog import model_names
+
+    out = {"shing1993_servo": loop_speed("shing1993_servo", "pid", duration=duration)}
+    for name in model_names():
+        if load_model(name).n_stages > 1:
+            out[name] = loop_speed(name, "pid", duration=duration)
+    return out
 
 
 def bench_wall_time(*, jobs: int | None = None) -> dict[str, Any]:

@@ -219,13 +219,15 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 def _cmd_perf(args: argparse.Namespace) -> int:
     from ..catalog import controller_names
-    from ..perf import bench_wall_time, mpc_timing, sim_speed
+    from ..perf import bench_wall_time, mpc_timing, sim_speed, standstill_cost, train_speed
 
     out: dict[str, Any] = {}
     scen = {name: sim_speed(name) for name in ("free", "pd")}
     keys = ("gearctl_sim_per_wall", "python_control_sim_per_wall", "ratio", "gearctl_error", "python_control_error")
     # the contract keys at the top of "sim" are the harder case, the 1 kHz closed loop; both scenarios below
     out["sim"] = {**{k: scen["pd"][k] for k in keys}, "free": scen["free"], "pd": scen["pd"]}
+    out["trains"] = train_speed()
+    out["standstill"] = standstill_cost()
     out["mpc"] = mpc_timing() if "mpc" in controller_names() else None
     out["bench"] = None if args.no_bench else bench_wall_time(jobs=args.jobs)
     if args.json:
@@ -240,6 +242,15 @@ def _cmd_perf(args: argparse.Namespace) -> int:
               f"{r['python_control_error']:.1e} b -> {r['ratio']:.0f}x")
         print(f"  python-control (rtol 1e-10)  {r['python_control_tight_sim_per_wall']:10.4g} sim-s/wall-s, error "
               f"{r['python_control_tight_error']:.1e} b -> {r['ratio_equal_accuracy']:.0f}x at equal accuracy")
+    print("1 kHz catalog PID loop, simulated s per wall s (closed loop in Python around the compiled kernel):")
+    for name, r in out["trains"].items():
+        print(f"  {name:32s} {r['stages']} stage(s)  {r['sim_per_wall']:8.4g}  "
+              f"({r['per_sample_s'] * 1e6:.3g} us per sample)")
+    sc = out["standstill"]
+    print(f"Coulomb friction at standstill ({sc['standstill']['model']}, backlash-free, stick-slip): "
+          f"{sc['standstill']['sim_per_wall']:.4g} sim-s/wall-s held at rest vs {sc['motion']['sim_per_wall']:.4g} "
+          f"on the sine (ratio {sc['ratio']:.3g}); ISO 230-2 one cycle: {sc['precision']['backlash_free']:.3g} s "
+          f"backlash-free, {sc['precision']['backlash']:.3g} s with backlash")
     m = out["mpc"]
     if m is not None:
         print(f"MPC solve per step ({m['steps']} steps, Ts {m['Ts'] * 1e6:.0f} us): median {m['median'] * 1e6:.0f} us, "
