@@ -290,3 +290,227 @@ def plot_precision(result: Any, *, title: str = "") -> Figure:
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return fig
+
+
+# --- robustness sweeps (gearctl.sweep) ------------------------------------------------------------------
+
+__all__ += ["plot_sweep_scatter", "plot_sweep_histogram", "plot_sweep_map", "plot_sweep_compare"]
+
+
+def _sweep_label(result: Any, key: str) -> str:
+    v = next((v for v in result.vary if v.key == key), None)
+    unit = "" if v is None or v.unit == "1" else f" [{v.unit}]"
+    return f"{key}{unit}"
+
+
+def plot_sweep_scatter(result: Any, key: str) -> Figure:
+    """RMS and max load-angle error of every run against one varied key (log scale).
+
+    Runs with a limit cycle are ringed; failed runs are drawn at the top of the panel as red crosses.
+
+    Parameters
+    ----------
+    result : SweepResult
+        From :func:`gearctl.sweep.sweep`.
+    key : str
+        A varied key.
+    """
+    x = result.column(key)
+    ok = np.array([r["status"] == "ok" for r in result.runs])
+    cyc = np.array([bool(r.get("limit_cycle")) for r in result.runs])
+    fig = Figure(figsize=(7.5, 4.5), layout="constrained")
+    ax = fig.subplots()
+    for name, marker, color in (("rms_error", "o", "C0"), ("max_error", ".", "C1")):
+        y = result.column(name) * 1e6
+        ax.plot(x[ok], y[ok], marker, ms=3, alpha=0.6, color=color, ls="none", label=name.replace("_", " "))
+        if np.any(ok & cyc):
+            ax.plot(x[ok & cyc], y[ok & cyc], "o", mfc="none", mec="k", ms=6, ls="none",
+                    label="limit cycle" if name == "rms_error" else None)
+    if np.any(~ok):
+        top = np.nanmax(result.column("max_error")[ok]) * 1e6 if np.any(ok) else 1.0
+        ax.plot(x[~ok], np.full(int(np.sum(~ok)), top * 1.5), "x", color="C3", ls="none", label="failed")
+    nominal = result.settings.get("nominal", {}).get(key)
+    if nominal:
+        ax.axvline(nominal, color="0.5", ls="--", lw=1, label="nominal")
+    st = result.settings
+    ax.set(xlabel=_sweep_label(result, key), ylabel="load-angle error [urad]", yscale="log",
+           title=f"{st['controller']} on {st['model']}: {len(result.runs)} runs, {st['reference']}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    return fig
+
+
+def plot_sweep_histogram(result: Any) -> Figure:
+    """Histograms of the RMS and max load-angle error over the runs that ran to their end (log bins)."""
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
+
+    fig = Figure(figsize=(9, 4), layout="constrained")
+    axs = fig.subplots(1, 2)
+    ok = np.array([r["status"] == "ok" for r in result.runs])
+    for ax, name in zip(axs, ("rms_error", "max_error"), strict=True):
+        y = result.column(name)[ok] * 1e6
+        y = y[np.isfinite(y) & (y > 0)]
+        if y.size:
+            lo, hi = y.min(), y.max()
+            bins = np.geomspace(lo, hi * (1 + 1e-9), 30) if hi > lo else 10
+            ax.hist(y, bins=bins, color="C0", alpha=0.8)
+            for q, ls in ((50, "-"), (95, "--"), (99, ":")):
+                ax.axvline(np.percentile(y, q), color="k", ls=ls, lw=1, label=f"p{q}")
+            ax.set_xscale("log")
+            ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.legend(fontsize=8)
+        ax.set(xlabel=f"{name.replace('_', ' ')} [urad]", ylabel="runs")
+        ax.grid(True, alpha=0.3, which="both")
+    fig.suptitle(f"{result.settings['controller']} on {result.settings['model']}: {len(result.runs)} runs "
+                 f"({int(np.sum(~ok))} failed)")
+    return fig
+
+
+def plot_sweep_map(result: Any, metric: str = "rms_error") -> Figure:
+    """A two-key grid's figure as a colour map (log colour scale, failed cells blank).
+
+    Parameters
+    ----------
+    result : SweepResult
+        A grid sweep over two keys.
+    metric : str
+        A run figure (default ``rms_error``), drawn in urad.
+    """
+    from matplotlib.colors import LogNorm
+
+    from .sweep import grid_axes
+
+    keys, axes, values = grid_axes(result, metric)
+    fig = Figure(figsize=(7.5, 5.5), layout="constrained")
+    ax = fig.subplots()
+    z = values.T * 1e6
+    finite = z[np.isfinite(z) & (z > 0)]
+    norm = LogNorm(vmin=finite.min(), vmax=finite.max()) if finite.size and finite.max() > finite.min() else None
+    mesh = ax.pcolormesh(axes[0], axes[1], z, shading="nearest", norm=norm, cmap="viridis")
+    fig.colorbar(mesh, ax=ax, label=f"{metric.replace('_', ' ')} [urad]")
+    if finite.size > 3 and norm is not None:
+        cs = ax.contour(axes[0], axes[1], z, levels=np.geomspace(finite.min(), finite.max(), 6)[1:-1], colors="w",
+                        linewidths=0.8)
+        ax.clabel(cs, fmt="%.3g", fontsize=7)
+    for k, axis in ((keys[0], "x"), (keys[1], "y")):
+        nominal = result.settings.get("nominal", {}).get(k)
+        if nominal:
+            (ax.axvline if axis == "x" else ax.axhline)(nominal, color="r", ls="--", lw=1)
+    ax.set(xlabel=_sweep_label(result, keys[0]), ylabel=_sweep_label(result, keys[1]),
+           title=f"{result.settings['controller']} on {result.settings['model']} (red: nominal)")
+    return fig
+
+
+def plot_sweep_compare(comparison: dict[str, Any]) -> Figure:
+    """Where a compensating controller stops being worth it: its error over a baseline's, per grid point.
+
+    Parameters
+    ----------
+    comparison : dict
+        From :func:`gearctl.sweep.compare_grids`: the baseline's error along the shared key, and per
+        controller its error and its ratio to the baseline over (shared key, second key).
+
+    Notes
+    -----
+    Left: each controller's RMS error against the shared key (a controller with a second key: the line at
+    the second key's value nearest 0, the band spanning its other values) with the baseline's. Right, one
+    panel per controller with a second key: ``ratio = error / baseline error`` in colour (log scale, blue
+    better, red worse) and the contour ``ratio = 1``, where compensating stops paying.
+    """
+    from matplotlib.colors import LogNorm
+
+    maps = {c: d for c, d in comparison["controllers"].items() if d["y"] is not None}
+    fig = Figure(figsize=(5.5 + 4.8 * len(maps), 4.8), layout="constrained")
+    axs = fig.subplots(1, 1 + len(maps), squeeze=False)[0]
+    x = comparison["x"]
+    xs = x / comparison["x_nominal"] if comparison.get("x_nominal") else x
+    xlabel = (f"{comparison['x_key']} / nominal" if comparison.get("x_nominal") else comparison["x_key"])
+    ax = axs[0]
+    ax.plot(xs, comparison["baseline_values"] * 1e6, "k-o", ms=3, label=comparison["baseline"])
+    for k, (c, d) in enumerate(comparison["controllers"].items()):
+        v = d["values"] * 1e6
+        color = f"C{k}"
+        if d["y"] is None:
+            ax.plot(xs, v, "-o", ms=3, color=color, label=c)
+            continue
+        j0 = int(np.argmin(np.abs(d["y"])))
+        ax.plot(xs, v[:, j0], "-o", ms=3, color=color, label=f"{c}, {d['y_key']} = {d['y'][j0]:.3g}")
+        ax.fill_between(xs, np.nanmin(v, axis=1), np.nanmax(v, axis=1), color=color, alpha=0.2,
+                        label=f"{c}, {d['y_key']} {d['y'].min():.3g} .. {d['y'].max():.3g}")
+    ax.set(xlabel=xlabel, ylabel="RMS error [urad]", yscale="log", title="error against the shared key")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    ratios = np.concatenate([d["ratio"][np.isfinite(d["ratio"])].ravel() for d in maps.values()]) if maps else []
+    span = float(np.max(np.abs(np.log10(ratios)))) if len(ratios) else 1.0
+    span = max(span, 0.05)
+    for ax, (c, d) in zip(axs[1:], maps.items(), strict=True):
+        r = d["ratio"].T
+        mesh = ax.pcolormesh(xs, d["y"], r, shading="nearest", cmap="RdBu_r",
+                             norm=LogNorm(vmin=10**-span, vmax=10**span))
+        fig.colorbar(mesh, ax=ax, label=f"RMS error / {comparison['baseline']}'s")
+        if np.nanmin(r) < 1 < np.nanmax(r):
+            cs = ax.contour(xs, d["y"], r, levels=[1.0], colors="k", linewidths=1.5)
+            ax.clabel(cs, fmt={1.0: "worth it no more"}, fontsize=7)
+        ax.set(xlabel=xlabel, ylabel=d["y_key"], title=f"{c} over {comparison['baseline']}")
+    return fig
+
+
+__all__ += ["plot_identification"]
+
+
+def plot_identification(result: Any, *, ax: Any = None) -> Figure:
+    """Measured against re-simulated motion around the gap crossings of an identification.
+
+    Parameters
+    ----------
+    result : Identification
+        From :func:`gearctl.identify.identify`.
+    ax : matplotlib Axes, optional
+        Draw only the main panel (the relative displacement ``s`` along the line of action, measured dots
+        and re-simulated lines, time from each crossing) into it; without it a figure with that panel, the
+        motor angle's residual and the estimate of each crossing is made.
+    """
+    import numpy as np
+
+    rb1, rb2 = result.base_radius
+    b = result.backlash
+    if ax is None:
+        fig = Figure(figsize=(10, 8), layout="constrained")
+        axs = fig.subplots(3, 1)
+        main = axs[0]
+    else:
+        fig, axs, main = ax.figure, None, ax
+    for j, w in enumerate(result.windows):
+        c = f"C{j % 10}"
+        tt = (w.t - w.t_switch) * 1e3
+        s_sim = rb1 * w.theta1_sim - rb2 * w.theta2_sim
+        main.plot(tt, s_sim * 1e6, "-", color=c, lw=1.2)
+        if w.theta2 is not None:
+            main.plot(tt, (rb1 * w.theta1 - rb2 * w.theta2) * 1e6, ".", color=c, ms=3)
+        if axs is not None:
+            axs[1].plot(tt, (w.theta1 - w.theta1_sim) * 1e6, "-", color=c, lw=0.8)
+    for sgn in (-1, 1):
+        main.axhline(sgn * b * 1e6, color="k", ls="--", lw=0.8)
+        main.axhspan(sgn * result.backlash_ci[0] * 1e6, sgn * result.backlash_ci[1] * 1e6, color="k", alpha=0.08)
+    what = "measured (dots) and re-simulated" if result.encoders == "motor+load" else "re-simulated from the motor"
+    main.set(xlabel="time from the gap crossing [ms]", ylabel=r"$s = r_{b1}\theta_1 - r_{b2}\theta_2$ [um]",
+             title=f"{result.log}: s {what}, b = {b * 1e6:.4g} um "
+                   f"[{result.backlash_ci[0] * 1e6:.4g}, {result.backlash_ci[1] * 1e6:.4g}] ({result.encoders})")
+    main.grid(True, alpha=0.3)
+    if axs is None:
+        return fig
+    axs[1].set(xlabel="time from the gap crossing [ms]", ylabel="motor angle, measured - re-simulated [urad]",
+               title=f"residual (RMS {result.rms_residual:.3g} rad in load angle)")
+    axs[1].grid(True, alpha=0.3)
+    est = np.asarray(result.estimates)
+    axs[2].plot(result.estimate_times, est * 1e6, "o", ms=4, label="each crossing" if result.encoders == "motor"
+                else "each pair of plateaus")
+    axs[2].axhline(b * 1e6, color="k", label="estimate")
+    axs[2].axhspan(result.backlash_ci[0] * 1e6, result.backlash_ci[1] * 1e6, color="k", alpha=0.1, label="95 % CI")
+    axs[2].axhline(result.nominal["backlash"] * 1e6, color="C3", ls=":", label="model")
+    axs[2].set(xlabel="time [s]", ylabel="backlash b [um]")
+    axs[2].grid(True, alpha=0.3)
+    axs[2].legend(fontsize=8)
+    return fig

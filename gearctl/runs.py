@@ -154,7 +154,7 @@ def controller_spec(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
 def make_run(model: str | Path, controller: str | Path, *, plant: str = "improved", reference_kind: str = "sine",
              duration: float | None = None, seed: int = 0, backlash: float | None = None,
              estimate: float | None = None, realtime: bool = False, design_plant: str = "improved",
-             tags: Mapping[str, Any] | None = None) -> Run:
+             tags: Mapping[str, Any] | None = None, overrides: Mapping[str, Any] | None = None) -> Run:
     """A run from catalog names (the CLI's ``track``): the controller designed on the model's plant.
 
     Parameters
@@ -179,15 +179,19 @@ def make_run(model: str | Path, controller: str | Path, *, plant: str = "improve
         Plant kind the controller is designed on.
     tags : mapping, optional
         Report labels (default: model, controller, plant, reference).
+    overrides : mapping, optional
+        Model keys changed on the true plant only (``gearctl track --set KEY=VALUE``): the controller is still
+        designed on the unchanged model, as in reality.
     """
     m = load_model(model)
-    true = build_plant(m, plant, backlash=backlash)
+    m_true = load_model(model, **overrides) if overrides else m
+    true = build_plant(m_true, plant, backlash=backlash)
     nominal = build_plant(m, design_plant, backlash=backlash)
     spec, label = controller_spec(controller)
     ref = reference(reference_kind)
     dur = duration if duration is not None else DEFAULT_DURATION[reference_kind]
     return Run(plant=true, design=Design(spec=spec, nominal=nominal, backlash=estimate, label=label), reference=ref,
-               duration=dur, seed=seed, sensors=m.sensors, realtime=realtime,
+               duration=dur, seed=seed, sensors=m_true.sensors, realtime=realtime,
                tags=dict(tags) if tags is not None else {"model": m.name, "controller": Path(label).stem,
                                                          "plant": plant, "reference": reference_kind})
 

@@ -35,7 +35,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
 
     run = make_run(args.model, args.controller, plant=args.plant, reference_kind=args.reference,
                    duration=args.duration, seed=args.seed, backlash=args.backlash, estimate=args.estimate,
-                   realtime=args.realtime)
+                   realtime=args.realtime, overrides=dict(args.set))
     with progress_bar("gearctl track", expected_s=run.duration * 0.02):
         out, res = execute(run, keep=True)
     if res is None or out.metrics is None:
@@ -104,13 +104,14 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     from ..precision import precision_test
 
     model = load_model(args.model)
+    true_model = load_model(args.model, **dict(args.set)) if args.set else model
     nominal = build_plant(model, backlash=args.backlash)
-    plant = build_plant(model, args.plant, backlash=args.backlash)
+    plant = build_plant(true_model, args.plant, backlash=args.backlash)
     ctrl = load_controller(args.controller, nominal, backlash=args.estimate)
     TARGETS.check("targets", args.targets)
     CYCLES.check("cycles", args.cycles)
     res = precision_test(plant, ctrl, targets=args.targets, cycles=args.cycles, travel=args.travel,
-                         dwell=args.dwell, sensors=model.sensors, seed=args.seed)
+                         dwell=args.dwell, sensors=true_model.sensors, seed=args.seed)
     st = res.stats
     from ..metrics import loop_health
 
@@ -263,6 +264,16 @@ def _cmd_perf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _set_arg(text: str) -> tuple[str, float | int]:
+    """``KEY=VALUE``: a model key changed on the true plant (the reading the sweeps' commands use)."""
+    from ..sweep import parse_set
+
+    try:
+        return parse_set(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     """Add the closed-loop commands to the subparsers; return name -> function."""
     dur, seed, bl = spec_arg(DURATION), spec_arg(SEED), spec_arg(BACKLASH)
@@ -279,6 +290,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--backlash", type=bl, help="override the plant's backlash [m], every stage (0: none)")
     p.add_argument("--estimate", type=bl, help="the controller's backlash estimate [m] (default: the model's; for "
                                                 "a train, the equivalent half-gap on the last stage's line of action)")
+    p.add_argument("--set", action="append", type=_set_arg, default=[], metavar="KEY=VALUE",
+                   help="change a model key on the true plant only (repeatable; the controller is designed on the "
+                        "unchanged model): what a sweep's per-run command uses")
     p.add_argument("--seed", type=seed, default=0, help="sensor-noise seed (default 0)")
     p.add_argument("--realtime", action="store_true",
                    help="an optimisation that overruns its time budget falls back, as on the target "
@@ -298,6 +312,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--plant", choices=plants, default="improved", help="plant")
     p.add_argument("--backlash", type=bl, help="override the model's backlash [m]")
     p.add_argument("--estimate", type=bl, help="the controller's backlash estimate [m] (default: the model's)")
+    p.add_argument("--set", action="append", type=_set_arg, default=[], metavar="KEY=VALUE",
+                   help="change a model key on the true plant only (repeatable)")
     p.add_argument("--seed", type=seed, default=0, help="seed of sensor noise and target offsets")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE", help="write the deviations per target and direction")

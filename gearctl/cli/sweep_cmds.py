@@ -1,0 +1,226 @@
+"""Robustness sweeps: ``sweep`` (Monte Carlo or grid over model tolerances, on Dask.distributed)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..units import DURATION, SEED, Spec
+from .common import dump_json, save_figure, spec_arg, warn
+
+__all__ = ["register"]
+
+_WORKERS = Spec(unit="1", doc="worker processes", low=1, high=1024, integer=True)
+_COUNT = Spec(unit="1", doc="runs", low=1, high=10_000_000, integer=True)
+
+_EPILOG = """\
+KEY=SPEC (numbers in SI; a trailing x means times the nominal value):
+  a:b or uniform(a,b)      uniform (grid: N points a..b)        backlash=0.5x:2x
+  loguniform(a,b)          log-uniform (grid: geometric points) mesh_stiffness=loguniform(0.5x,2x)
+  normal(m,s[,lo,hi])      Gaussian, truncated to [lo,hi]       coulomb_friction2=normal(0.2,0.05,0,inf)
+  lognormal(m,s[,lo,hi])   median m, log-std s                  load_inertia=lognormal(5e-3,0.2)
+  a,b,c                    a list (one value fixes the key)     load_noise=0,1e-6,2e-6
+KEY: a model key (backlash, mesh_stiffness, damping_ratio, coulomb_friction1/2, viscous_friction1/2,
+motor_inertia, load_inertia, load_torque, torque_limit, motor_noise, load_noise, ...; a train's stage key
+sets every stage), estimate (the controller's backlash estimate [m]; x scales the nominal one) or
+estimate_error (relative error of the estimate against each run's true backlash).
+
+The controller is designed once on the nominal model and run on every perturbed plant. A draw outside a
+key's range is an error before any run (truncate the distribution instead). Each run's "command" is the
+`gearctl track` line that reproduces it alone. --scheduler tcp://HOST:PORT (or DASK_SCHEDULER_ADDRESS) runs
+on a cluster started with `dask scheduler` and `dask worker tcp://HOST:PORT --nthreads 1`.
+"""
+
+
+def _fmt_urad(q: dict[str, float] | None) -> str:
+    if not q:
+        return "no run ran to its end"
+    return (f"median {q['median'] * 1e6:.4g}, p95 {q['p95'] * 1e6:.4g}, p99 {q['p99'] * 1e6:.4g}, "
+            f"max {q['max'] * 1e6:.4g} (min {q['min'] * 1e6:.4g})")
+
+
+def _text(result: Any) -> list[str]:
+    s, st, eng = result.summary, result.settings, result.engine
+    ranges = any(v.kind != "list" for v in result.vary)
+    points = f" of {st['points']} points per key" if ranges else ""
+    mode = f"grid{points}" if st["grid"] else f"Monte Carlo, seed {st['seed']}"
+    lines = [f"{st['model']}: {st['controller']} designed on the nominal model, {s['runs']} runs ({mode}) on the "
+             f"{st['plant']} plant, {st['reference']} reference, {st['duration']:g} s each; {eng['where']}, "
+             f"{eng['wall_time']:.1f} s"]
+    for v in result.vary:
+        lines.append(f"  varied                 {v.describe()}")
+    lines.append(f"  RMS error [urad]       {_fmt_urad(s['rms_error'])}")
+    lines.append(f"  max error [urad]       {_fmt_urad(s['max_error'])}")
+    f = s["fractions"]
+    lines.append(f"  loop health            limit cycle {f['limit_cycle']:.1%}, saturated {f['saturated']:.1%}, "
+                 f"impact rate high {f['impact_rate_high']:.1%}, diverged {f['diverged']:.1%} "
+                 f"(failed {s['failed']})")
+    w = s["worst"]
+    if w is not None:
+        shown = ", ".join(f"{k} = {v:.4g}" for k, v in w["params"].items()) or "nominal"
+        lines.append(f"  worst                  run {w['index']} ({shown}): RMS {w['rms_error'] * 1e6:.4g} urad, "
+                     f"max {w['max_error'] * 1e6:.4g} urad")
+        lines.append(f"                         {w['command']}")
+    for k, sens in s["sensitivity"].items():
+        rho, el = sens["rank_correlation"], sens["elasticity"]
+        lines.append(f"  sensitivity of RMS     {k}: rank correlation "
+                     f"{'-' if rho is None else f'{rho:+.2f}'}" + ("" if el is None else f", elasticity {el:+.3g}"))
+    if st.get("precision"):
+        import numpy as np
+
+        iso = (("reversal_value", "reversal B"), ("repeatability", "repeatab. R"), ("accuracy", "accuracy A"))
+        for k, label in iso:
+            x = result.column(k)
+            x = x[np.isfinite(x)]
+            if x.size:
+                lines.append(f"  ISO 230-2 {label:<13}median {np.median(x) * 1e6:.4g} urad, max {x.max() * 1e6:.4g} "
+                             f"urad")
+    return lines
+
+
+def _markdown(result: Any, plots: list[tuple[str, str]]) -> str:
+    s, st = result.summary, result.settings
+    md = ["# gearctl sweep", "", "```", *_text(result), "```", ""]
+    md += ["| figure | min | p5 | median | p95 | p99 | max |", "|---|---:|---:|---:|---:|---:|---:|"]
+    for k in ("rms_error", "max_error"):
+        q = s[k]
+        if q:
+            md.append(f"| {k.replace('_', ' ')} [urad] | " + " | ".join(
+                f"{q[c] * 1e6:.4g}" for c in ("min", "p5", "median", "p95", "p99", "max")) + " |")
+    md += ["", "| health | fraction of runs |", "|---|---:|"]
+    md += [f"| {k.replace('_', ' ')} | {v:.1%} |" for k, v in s["fractions"].items()]
+    if s["sensitivity"]:
+        md += ["", "| key | rank correlation with RMS | elasticity d ln RMS / d ln key |", "|---|---:|---:|"]
+        for k, sens in s["sensitivity"].items():
+            rho, el = sens["rank_correlation"], sens["elasticity"]
+            md.append(f"| {k} | {'-' if rho is None else f'{rho:+.3f}'} | {'-' if el is None else f'{el:+.3g}'} |")
+    w = s["worst"]
+    if w is not None:
+        md += ["", f"Worst run ({w['index']}): RMS {w['rms_error'] * 1e6:.4g} urad, max {w['max_error'] * 1e6:.4g} "
+               f"urad; reproduce it alone with", "", "```", w["command"], "```"]
+    if s["failures"]:
+        md += ["", "Failed runs (first ten):", ""]
+        md += [f"- run {r['index']}: {r['message']} (`{r['command']}`)" for r in s["failures"]]
+    md += ["", f"Table of every run: [runs.csv](runs.csv). Settings: {st['runs']} runs, seed {st['seed']}, "
+           f"vary {', '.join(f'{k}={v}' for k, v in st['vary'].items()) or 'nothing'}.", ""]
+    md += [f"![{what}]({name})" for name, what in plots]
+    return "\n".join(md) + "\n"
+
+
+def _write_csv(result: Any, path: Path) -> None:
+    head, rows = result.table()
+
+    def cell(v: Any) -> Any:
+        if v is None:
+            return ""
+        return repr(v) if isinstance(v, float) else v  # repr: the exact double, read back bit for bit
+
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(head)
+        for r in rows:
+            w.writerow([cell(v) for v in r])
+
+
+def _write_out(result: Any, out: Path) -> None:
+    from ..plots import plot_sweep_histogram, plot_sweep_map, plot_sweep_scatter
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        _write_csv(result, out / "runs.csv")
+    except OSError as exc:
+        raise InputError(f"cannot write {out}: {exc.strerror}") from None
+    plots: list[tuple[str, str]] = []
+    ok = any(r["status"] == "ok" for r in result.runs)
+    if ok:
+        save_figure(plot_sweep_histogram(result), str(out / "histogram.png"))
+        plots.append(("histogram.png", "RMS and max error over the runs"))
+        for k in result.keys:
+            save_figure(plot_sweep_scatter(result, k), str(out / f"error_vs_{k}.png"))
+            plots.append((f"error_vs_{k}.png", f"error against {k}"))
+        if result.settings["grid"] and len(result.keys) == 2:
+            save_figure(plot_sweep_map(result), str(out / "map.png"))
+            plots.append(("map.png", f"RMS error over {result.keys[0]} and {result.keys[1]}"))
+    try:
+        (out / "summary.md").write_text(_markdown(result, plots))
+    except OSError as exc:
+        raise InputError(f"cannot write {out / 'summary.md'}: {exc.strerror}") from None
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from ..sweep import sweep
+
+    if args.scheduler and args.workers:
+        warn("sweep", ["--workers sizes the local cluster; with --scheduler the cluster's own workers run the sweep"])
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=0, desc="gearctl sweep", unit="run", file=sys.stderr, leave=False, disable=None)
+
+    def progress(done: int, total: int) -> None:
+        if bar is not None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+    try:
+        result = sweep(args.model, args.controller, vary=args.vary or [], runs=args.runs, grid=args.grid,
+                       reference_kind=args.reference, duration=args.duration, seed=args.seed, plant=args.plant,
+                       precision=args.precision, workers=args.workers, scheduler=args.scheduler, batch=args.batch,
+                       progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    if args.json:
+        try:
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.json).write_text(dump_json(result.as_dict()))
+        except OSError as exc:
+            raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
+    if args.out:
+        _write_out(result, Path(args.out))
+    print("\n".join(_text(result)))
+    if result.summary["failed"]:
+        warn("sweep", [f"{result.summary['failed']} of {result.summary['runs']} runs failed: see their message "
+                       f"and command in the table"])
+    if args.json:
+        print(f"  wrote {args.json} (JSON)")
+    if args.out:
+        print(f"  wrote {args.out}/runs.csv, summary.md and plots")
+    return 0
+
+
+def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
+    """Add the ``sweep`` command to the subparsers; return name -> function."""
+    p = sub.add_parser("sweep", help="robustness sweep: one design against many perturbed plants (Dask)",
+                       epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
+    p.add_argument("controller", nargs="?", default="deadzone_inverse",
+                   help="controller: catalog name or TOML path (default deadzone_inverse)")
+    p.add_argument("--vary", action="append", metavar="KEY=SPEC", help="a key and its tolerance (repeat for more)")
+    p.add_argument("--runs", type=spec_arg(_COUNT), help="Monte Carlo runs (default 100); with --grid, points per "
+                                                         "key (default 5)")
+    p.add_argument("--grid", action="store_true", help="a full grid over the keys instead of Monte Carlo draws")
+    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved",
+                   help="true plant (default improved; the design is on the improved plant)")
+    p.add_argument("--reference", choices=("sine", "step", "ramp", "move"), default="sine",
+                   help="reference (default sine)")
+    p.add_argument("--duration", type=spec_arg(DURATION), help="simulated time of each run [s] (default per "
+                                                               "reference)")
+    p.add_argument("--seed", type=spec_arg(SEED), default=0, help="seed of the draws and the sensor noise (default 0)")
+    p.add_argument("--workers", type=spec_arg(_WORKERS), help="processes of the local cluster (default: all cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="a running Dask scheduler, tcp://HOST:PORT (default DASK_SCHEDULER_ADDRESS, else a local "
+                        "cluster)")
+    p.add_argument("--batch", type=spec_arg(_COUNT),
+                   help="runs per Dask task (default: about 0.5 s of work, at least 4 tasks per worker)")
+    p.add_argument("--precision", action="store_true", help="also the ISO 230-2 test on each plant (slow)")
+    p.add_argument("--json", metavar="FILE", help="write settings, summary and every run as JSON")
+    p.add_argument("--out", metavar="DIR", help="write runs.csv, plots and summary.md")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return {"sweep": _cmd_sweep}

@@ -1,0 +1,1242 @@
+"""Robustness sweeps: one controller design against many perturbed plants, on Dask.distributed.
+
+A designer signs off a controller only when it holds over the tolerances the servo will meet. A sweep
+designs the controller ONCE on the nominal model (a :class:`~gearctl.runs.Design`) and runs it on each
+perturbed plant, as in reality: Monte Carlo draws or a full grid over model keys (``backlash``,
+``mesh_stiffness``, ``coulomb_friction2``, ``load_inertia``, ``load_noise``, ...) and the controller's
+backlash ``estimate``.
+
+Specs (the text after ``KEY=``; numbers in SI, a trailing ``x`` means "times the nominal value")
+
+============================  =============================================  =================================
+spec                          Monte Carlo draw                               grid of N points
+============================  =============================================  =================================
+``a:b``, ``uniform(a,b)``     uniform on [a, b]                              N points a..b, ends included
+``loguniform(a,b)``           log-uniform on [a, b] (0 < a)                  N geometric points a..b
+``normal(m,s)``               Gaussian, mean m, std s                        N equal-probability quantiles
+``normal(m,s,lo,hi)``         the same truncated to [lo, hi]                 (midpoints ``(j + 1/2) / N``)
+``lognormal(m,s[,lo,hi])``    ``m exp(s Z)``: median m, log-std s            likewise
+``a,b,c`` (one value: fixed)  one of the values, equally likely              every value
+============================  =============================================  =================================
+
+Keys: every numeric field :func:`gearctl.catalog.load_model` accepts as an override (the fields of
+:class:`~gearctl.geometry.GearPair`, :class:`~gearctl.params.MeshDynamics`, :class:`~gearctl.params.Servo`,
+:class:`~gearctl.params.Sensors`; for a train a stage key sets every stage), plus ``estimate`` (the
+controller's backlash estimate [m]; ``x`` scales the nominal estimate) and ``estimate_error`` (the
+estimate's relative error against each run's true backlash: ``estimate = (1 + e) b``).
+
+Determinism: run ``i`` draws each key from ``SeedSequence([seed, i, crc32(key)])`` (one uniform number
+put through the spec's quantile function, so a key's draws do not depend on which other keys vary) and
+takes its sensor-noise seed from ``SeedSequence([seed, i])``. The draws are made here, before any run,
+so the results are the same on one worker, on many, and after a lost worker's batch is run again.
+
+Decisions
+---------
+- A drawn value outside its key's range is an error before any run, naming the run, the draw and the
+  range; never clipped. Clipping would pile a fraction of the runs on the bound (a point mass the user
+  did not ask for, which moves quantiles and sensitivities) and hide it. A distribution meant to stay
+  in range says so: ``normal(0.2,0.05,0,inf)`` is truncated at 0 (drawn by inverse CDF, exact).
+- The engine is Dask.distributed: a ``LocalCluster`` of one-thread processes sized to the machine, or a
+  running scheduler (``scheduler=`` or ``DASK_SCHEDULER_ADDRESS``). Each task is a batch of runs
+  (:func:`batch_size`: a task costs about 5 ms of CPU in the client and scheduler on the two-core machine,
+  a 1 s run of a linear controller 10-15 ms); the shared context (nominal model, design, reference,
+  2.5 kB pickled) goes by value with each batch: it survives the loss of every worker holding it, which a
+  scattered copy does not, and scattering it once measured no cheaper (50 tasks: 0.23-0.26 s of client
+  CPU either way).
+- :func:`run_batch` is the one place where closed loops run (the compiled loop of issue 14 plugs in
+  there); everything a worker returns is a small dict per run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import os
+import re
+import shlex
+import time
+import uuid
+import zlib
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .catalog import load_model
+from .errors import GearctlError, InputError
+from .geometry import GearPair, pair_geometry
+from .model import GearModel, check_model
+from .params import MeshDynamics, Sensors, Servo
+from .plant import PlantKind, build_plant
+from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
+from .runs import Design, Run, RunResult, controller_spec, design_controller, execute
+from .units import BACKLASH, DURATION, SEED, Spec, check_number
+
+__all__ = ["Vary", "SweepResult", "SweepContext", "SweepPlan", "sweep", "plan_sweep", "run_batch", "parse_vary",
+           "parse_set", "perturb_model", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
+           "ROW_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size", "default_workers",
+           "SWEEP_RUNS", "GRID_POINTS", "METRICS", "FLAGS", "ISO_FIGURES", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
+
+#: Monte Carlo runs of one sweep.
+SWEEP_RUNS = Spec(unit="1", doc="runs", low=1, high=10_000_000, integer=True)
+#: Points per key of a grid.
+GRID_POINTS = Spec(unit="1", doc="grid points per key", low=1, high=10_000, integer=True)
+#: Memory one run's result takes on the client, measured on a row with three varied keys and its
+#: command (``sys.getsizeof`` over the dict, its keys and values: 2.6 kB), rounded up [bytes].
+ROW_BYTES = 4096
+#: Figures of each run (from :class:`~gearctl.metrics.TrackingMetrics`; timing figures are left out: they
+#: differ from one machine, or one run, to the next, and the results must not).
+METRICS = ("rms_error", "max_error", "final_error", "impacts", "max_impact_velocity", "torque_rms",
+           "saturated_fraction", "fallbacks")
+#: Health flags of each run (:class:`~gearctl.metrics.LoopHealth`).
+FLAGS = ("limit_cycle", "saturated", "impact_rate_high", "growing")
+#: Seconds to wait for a scheduler to answer, then for its first worker.
+CONNECT_TIMEOUT, WORKER_TIMEOUT = 10.0, 60.0
+#: ISO 230-2 figures of each run with ``precision=True``.
+ISO_FIGURES = ("reversal_value", "repeatability", "accuracy")
+
+_MODEL_CLASSES: tuple[type, ...] = (GearPair, MeshDynamics, Servo, Sensors)
+_ESTIMATE = Spec(unit="m", doc="backlash estimate of the controller", low=BACKLASH.low, high=BACKLASH.high,
+                 high_open=BACKLASH.high_open)
+_ESTIMATE_ERROR = Spec(unit="1", doc="relative error of the backlash estimate against the true backlash",
+                       low=-1.0, high=10.0)
+_DISTS = {"uniform": 2, "loguniform": 2, "normal": (2, 4), "lognormal": (2, 4)}
+_NUM = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?inf)\s*(x?)\s*$")
+
+
+# --- keys -----------------------------------------------------------------------------------------------
+
+def sweep_keys() -> dict[str, dict[str, Any]]:
+    """The keys a sweep can vary: ``key -> field metadata`` (unit, range, doc; ``owner``: the dataclass).
+
+    Every numeric field of the model's dataclasses, then ``estimate`` and ``estimate_error``. Fields that
+    are not numbers (``contact_law``, ``friction_law``) or lists (``intermediate_*``) are not keys.
+    """
+    out: dict[str, dict[str, Any]] = {}
+    for cls in _MODEL_CLASSES:
+        for f in dataclasses.fields(cls):
+            if "unit" in f.metadata and not f.metadata.get("sequence") and f.name not in out:
+                out[f.name] = {**f.metadata, "owner": cls.__name__}
+    out["estimate"] = {**_ESTIMATE.meta(), "owner": "controller"}
+    out["estimate_error"] = {**_ESTIMATE_ERROR.meta(), "owner": "controller"}
+    return out
+
+
+_KEYS = sweep_keys()
+_OWNER_FIELDS = {cls: {f.name for f in dataclasses.fields(cls)} for cls in _MODEL_CLASSES}
+
+
+def _key_meta(key: str) -> dict[str, Any]:
+    if key in _KEYS:
+        return _KEYS[key]
+    every = {f.name for cls in _MODEL_CLASSES for f in dataclasses.fields(cls)}
+    if key in every:
+        raise InputError(f"{key} is not a number a sweep can vary: vary numeric keys (e.g. backlash, "
+                         f"mesh_stiffness, coulomb_friction2, load_inertia, load_noise, estimate)", field=key)
+    import difflib
+
+    close = difflib.get_close_matches(key, list(_KEYS), n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    raise InputError(f"unknown sweep key {key!r}: expected a model key (backlash, mesh_stiffness, "
+                     f"coulomb_friction2, load_inertia, load_noise, ...), estimate or estimate_error{hint}",
+                     field=key)
+
+
+def parse_set(text: str) -> tuple[str, float | int]:
+    """Parse ``KEY=VALUE`` (one model key and one plain number), checked against the key's range.
+
+    The reading ``gearctl track --set`` uses, so a sweep's ``command`` rebuilds the very same plant:
+    whole-number keys become ``int``, every other value ``float``.
+
+    Raises
+    ------
+    InputError
+        Unknown key, a value that is not a number, or out of the key's range.
+    """
+    key, sep, value = text.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise InputError(f"{text!r} is not KEY=VALUE (e.g. backlash=6e-5)", field="set")
+    meta = _key_meta(key)
+    if meta["owner"] == "controller":
+        raise InputError(f"{key} is not a model key: the estimate is an option of its own (--estimate)", field=key)
+    try:
+        v = float(value)
+    except ValueError:
+        raise InputError(f"{key} = {value.strip()!r} is not a number", field=key) from None
+    check_number(key, v, meta)
+    return key, (int(v) if meta["integer"] else v)
+
+
+def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel:
+    """The model with some fields changed (every stage's, for a stage key), checked like a model file.
+
+    The same values as :func:`gearctl.catalog.load_model` with ``**overrides`` gives for the model's file,
+    built from the loaded model (a remote worker needs no file).
+
+    Raises
+    ------
+    InputError
+        A value out of its range, or a model the changed value makes invalid (:func:`check_model`).
+    """
+    per: dict[type, dict[str, Any]] = {cls: {} for cls in _MODEL_CLASSES}
+    for key, value in overrides.items():
+        owner = next((cls for cls in _MODEL_CLASSES if key in _OWNER_FIELDS[cls]), None)
+        if owner is None:
+            _key_meta(key)  # raises the unknown-key message
+            raise InputError(f"{key} is not a model key", field=key)
+        per[owner][key] = value
+    stages = tuple(dataclasses.replace(
+        sm, pair=dataclasses.replace(sm.pair, **per[GearPair]) if per[GearPair] else sm.pair,
+        dynamics=dataclasses.replace(sm.dynamics, **per[MeshDynamics]) if per[MeshDynamics] else sm.dynamics)
+        for sm in model.stages)
+    out = dataclasses.replace(
+        model, stages=stages,
+        servo=dataclasses.replace(model.servo, **per[Servo]) if per[Servo] else model.servo,
+        sensors=dataclasses.replace(model.sensors, **per[Sensors]) if per[Sensors] else model.sensors)
+    check_model(out)
+    return out
+
+
+def _nominal(key: str, model: GearModel, spec: Mapping[str, Any]) -> float | None:
+    """The nominal value a relative spec (``1.5x``) scales, or None if there is none."""
+    if key == "estimate":
+        b = spec.get("backlash")
+        return float(b) if isinstance(b, int | float) else float(build_plant(model).equivalent_pair().backlash)
+    if key == "estimate_error":
+        return None
+    meta = _KEYS[key]
+    if meta["owner"] in ("Servo", "Sensors"):
+        v = getattr(model.servo if meta["owner"] == "Servo" else model.sensors, key)
+        return None if v is None or not math.isfinite(v) else float(v)
+    vals = []
+    plant = None
+    for i, sm in enumerate(model.stages):
+        v = getattr(sm.pair if meta["owner"] == "GearPair" else sm.dynamics, key)
+        if v is None:  # computed: the plant's value
+            if key in ("inertia1", "inertia2"):
+                v = pair_geometry(sm.pair).inertia[0 if key == "inertia1" else 1]
+            else:
+                plant = plant or build_plant(model)
+                v = plant.stages[i].k if key == "mesh_stiffness" else plant.stages[i].c
+        vals.append(float(v))
+    if len(set(vals)) > 1:
+        raise InputError(f"{key} differs between the stages of {model.name} ({', '.join(f'{v:g}' for v in vals)}): "
+                         f"a relative spec has no one nominal value; give absolute values", field=key)
+    return vals[0]
+
+
+# --- specs ----------------------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class Vary:
+    """One varied key: its spec parsed to absolute values.
+
+    Attributes
+    ----------
+    key : str
+    text : str
+        The spec as typed (``0.5x:2x``).
+    kind : str
+        ``range``, ``loguniform``, ``normal``, ``lognormal`` or ``list``.
+    args : tuple of float
+        Absolute parameters: (a, b) of a range; (m, s, lo, hi) of a normal or lognormal (``lo, hi``
+        infinite when not truncated); the values of a list.
+    nominal : float or None
+        The nominal value relative numbers scaled.
+    unit : str
+    """
+
+    key: str
+    text: str
+    kind: str
+    args: tuple[float, ...]
+    nominal: float | None
+    unit: str
+
+    @property
+    def bounded(self) -> bool:
+        """Whether grid points include the ends (ranges) rather than quantile midpoints."""
+        return self.kind in ("range", "loguniform")
+
+    def quantile(self, u: np.ndarray) -> np.ndarray:
+        """Values at probabilities ``u`` in (0, 1) (the spec's inverse CDF; for a list, the ``floor(u n)``-th)."""
+        from scipy.special import ndtr, ndtri
+
+        u = np.asarray(u, dtype=float)
+        a = self.args
+        if self.kind == "range":
+            return a[0] + u * (a[1] - a[0])
+        if self.kind == "loguniform":
+            return np.exp(math.log(a[0]) + u * (math.log(a[1]) - math.log(a[0])))
+        if self.kind == "list":
+            return np.asarray(a)[np.minimum((u * len(a)).astype(int), len(a) - 1)]
+        m, s, lo, hi = a
+        if self.kind == "normal":
+            zlo, zhi = (lo - m) / s, (hi - m) / s
+        else:
+            zlo = math.log(lo / m) / s if lo > 0 else -math.inf
+            zhi = math.log(hi / m) / s if math.isfinite(hi) else math.inf
+        plo, phi = float(ndtr(zlo)), float(ndtr(zhi))
+        z = ndtri(plo + u * (phi - plo))
+        return m + s * z if self.kind == "normal" else m * np.exp(s * z)
+
+    def grid(self, n: int) -> np.ndarray:
+        """The grid points: every value of a list; n points, ends included, of a range; else n quantiles."""
+        if self.kind == "list":
+            return np.asarray(self.args)
+        if self.bounded:
+            if n == 1:
+                return self.quantile(np.array([0.5]))
+            pts = self.quantile(np.linspace(0.0, 1.0, n))
+            pts[0], pts[-1] = self.args[0], self.args[1]  # the ends exactly
+            return pts
+        return self.quantile((np.arange(n) + 0.5) / n)
+
+    def describe(self) -> str:
+        """``backlash = 0.5x:2x (2.5e-05 .. 0.0001 m)``."""
+        unit = "" if self.unit == "1" else f" {self.unit}"
+        if self.kind == "list":
+            span = ", ".join(f"{v:.4g}" for v in self.args[:6]) + (", ..." if len(self.args) > 6 else "")
+        elif self.kind in ("range", "loguniform"):
+            span = f"{self.args[0]:.4g} .. {self.args[1]:.4g}"
+        else:
+            m, s, lo, hi = self.args
+            span = f"{'mean' if self.kind == 'normal' else 'median'} {m:.4g}, " + \
+                   f"{'std' if self.kind == 'normal' else 'log-std'} {s:.4g}" + \
+                   (f", in [{lo:.4g}, {hi:.4g}]" if math.isfinite(lo) or math.isfinite(hi) else "")
+        return f"{self.key} = {self.text} ({span}{unit})"
+
+
+def _number(token: str, where: str, nominal: float | None, key: str, *, relative: bool = True,
+            allow_inf: bool = False) -> float:
+    m = _NUM.match(token)
+    if not m:
+        raise InputError(f"{where}: {token.strip()!r} is not a number (e.g. 2e-5, 1.5x)", field=key)
+    v = float(m.group(1))
+    if math.isinf(v) and not allow_inf:
+        raise InputError(f"{where}: {token.strip()!r}: inf is allowed only as a truncation bound", field=key)
+    if m.group(2):
+        if not relative:
+            raise InputError(f"{where}: {token.strip()!r}: this parameter is not relative to the nominal value "
+                             f"(no 'x')", field=key)
+        if nominal is None:
+            raise InputError(f"{where}: {token.strip()!r}: {key} has no nominal value to scale; give absolute "
+                             f"values", field=key)
+        v *= nominal
+    return v
+
+
+def parse_vary(text: str, nominal: Callable[[str], float | None] | Mapping[str, float | None] | None = None) -> Vary:
+    """Parse ``KEY=SPEC`` (see the module docstring for the specs).
+
+    Parameters
+    ----------
+    text : str
+        E.g. ``backlash=0.5x:2x``, ``coulomb_friction2=normal(0.2,0.05,0,inf)``, ``load_noise=0,1e-6,2e-6``.
+    nominal : callable or mapping, optional
+        The nominal value of a key, for relative numbers (``1.5x``); without it relative numbers are errors.
+
+    Returns
+    -------
+    Vary
+
+    Raises
+    ------
+    InputError
+        One line naming the key and what is wrong: unknown key, bad syntax, bad parameters, a bounded
+        spec reaching outside the key's range.
+    """
+    key, sep, spec = text.partition("=")
+    key, spec = key.strip(), spec.strip()
+    if not sep or not key or not spec:
+        raise InputError(f"--vary {text!r} is not KEY=SPEC (e.g. backlash=0.5x:2x, "
+                         f"coulomb_friction2=normal(0.2,0.05))", field="vary")
+    meta = _key_meta(key)
+    where = f"--vary {key}={spec}"
+    lazy: dict[str, float | None] = {}
+
+    def nom() -> float | None:
+        if "v" not in lazy:
+            lazy["v"] = nominal(key) if callable(nominal) else (nominal or {}).get(key)
+        return lazy["v"]
+
+    def num(tok: str, *, relative: bool = True, allow_inf: bool = False) -> float:
+        needs = bool(_NUM.match(tok) and _NUM.match(tok).group(2))  # type: ignore[union-attr]
+        return _number(tok, where, nom() if needs else None, key, relative=relative, allow_inf=allow_inf)
+
+    dist = re.fullmatch(r"([a-z]+)\s*\((.*)\)", spec)
+    if dist:
+        name, body = dist.group(1), dist.group(2).split(",")
+        if name not in _DISTS:
+            import difflib
+
+            close = difflib.get_close_matches(name, list(_DISTS), n=1)
+            hint = f"; did you mean {close[0]}(...)?" if close else ""
+            raise InputError(f"{where}: unknown distribution {name!r}: expected uniform(a,b), loguniform(a,b), "
+                             f"normal(mean,std[,low,high]) or lognormal(median,log_std[,low,high]){hint}", field=key)
+        counts = _DISTS[name] if isinstance(_DISTS[name], tuple) else (_DISTS[name],)
+        if len(body) not in counts:
+            want = " or ".join(str(c) for c in counts)
+            raise InputError(f"{where}: {name} takes {want} numbers, got {len(body)}", field=key)
+        if name in ("uniform", "loguniform"):
+            a, b = num(body[0]), num(body[1])
+            kind, args = ("range" if name == "uniform" else "loguniform"), (a, b)
+        else:
+            m = num(body[0])
+            s = num(body[1], relative=name == "normal")
+            lo = num(body[2], allow_inf=True) if len(body) == 4 else -math.inf
+            hi = num(body[3], allow_inf=True) if len(body) == 4 else math.inf
+            if not (s > 0 and math.isfinite(s)):
+                raise InputError(f"{where}: the {'std' if name == 'normal' else 'log-std'} must be > 0, got {s:g}",
+                                 field=key)
+            if name == "lognormal" and not m > 0:
+                raise InputError(f"{where}: the median of a lognormal must be > 0, got {m:g}", field=key)
+            if not lo < hi:
+                raise InputError(f"{where}: the truncation needs low < high, got [{lo:g}, {hi:g}]", field=key)
+            if name == "lognormal" and hi <= 0:
+                raise InputError(f"{where}: a lognormal is positive: the upper bound must be > 0", field=key)
+            kind, args = name, (m, s, lo, hi)
+    elif ":" in spec:
+        parts = spec.split(":")
+        if len(parts) != 2:
+            raise InputError(f"{where}: a range is a:b (e.g. 0.5x:2x)", field=key)
+        a, b = num(parts[0]), num(parts[1])
+        kind, args = "range", (a, b)
+    else:
+        vals = tuple(num(t) for t in spec.split(","))
+        kind, args = "list", vals
+    if kind in ("range", "loguniform"):
+        a, b = args
+        if not a <= b:
+            raise InputError(f"{where}: the range needs low <= high, got {a:g} > {b:g}", field=key)
+        if kind == "loguniform" and not a > 0:
+            raise InputError(f"{where}: a log-uniform range needs 0 < low, got {a:g}", field=key)
+        for v in (a, b):  # a bounded spec inside the range is checked once, here
+            _check_value(key, v, meta, where)
+    if kind == "list":
+        for v in args:
+            _check_value(key, v, meta, where)
+    return Vary(key=key, text=spec, kind=kind, args=tuple(float(a) for a in args), nominal=lazy.get("v"),
+                unit=meta["unit"])
+
+
+def _check_value(key: str, v: float, meta: Mapping[str, Any], where: str, run: int | None = None) -> None:
+    try:
+        check_number(key, v, dict(meta))
+    except InputError as exc:
+        drew = f"run {run} draws {key} = {v!r}, which" if run is not None else f"{key} = {v!r}"
+        hint = "; truncate the distribution, e.g. normal(m,s,low,high)" if run is not None else ""
+        if meta.get("integer") and "whole" in (exc.rule or ""):
+            hint = "; a whole-number key takes a list (e.g. 20,21,22)"
+        raise InputError(f"{where}: {drew} {exc.rule}{hint}", field=key, rule=exc.rule) from None
+
+
+def _uniforms(seed: int, index: int, key: str) -> float:
+    """Run ``index``'s uniform number in (0, 1) for ``key``: 53 random bits from SeedSequence([seed, index, crc])."""
+    word = int(np.random.SeedSequence([seed, index, zlib.crc32(key.encode())]).generate_state(1, np.uint64)[0])
+    return ((word >> 11) + 0.5) / 2.0**53
+
+
+def noise_seed(seed: int, index: int) -> int:
+    """Run ``index``'s sensor-noise seed: 53 bits of SeedSequence([seed, index]) (a CLI number keeps them exactly)."""
+    return int(np.random.SeedSequence([seed, index]).generate_state(1, np.uint64)[0]) >> 11
+
+
+# --- the plan: what to run, as values -------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class SweepContext:
+    """What every run of a sweep shares (sent with each batch; a few kB).
+
+    Attributes
+    ----------
+    model : GearModel
+        The nominal model.
+    design : Design
+        The controller designed on the nominal model (improved plant), estimate as in its file.
+    plant : str
+        True plant kind.
+    reference : Reference
+    duration : float
+        Simulated time of each run [s].
+    precision : bool
+        Also run the ISO 230-2 test on each perturbed plant.
+    command : tuple of str
+        ``gearctl track MODEL CONTROLLER --plant .. --reference .. --duration ..`` (each run adds its own
+        ``--seed``, ``--set`` and ``--estimate``).
+    precision_command : tuple of str
+        The same for ``gearctl precision``.
+    """
+
+    model: GearModel
+    design: Design
+    plant: str
+    reference: Reference
+    duration: float
+    precision: bool
+    command: tuple[str, ...]
+    precision_command: tuple[str, ...]
+
+
+#: A run of a sweep as a worker receives it: (index, {key: value}, sensor-noise seed).
+Job = tuple[int, dict[str, float], int]
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class SweepPlan:
+    """A sweep, planned and checked: the shared context and one job per run."""
+
+    context: SweepContext
+    jobs: list[Job]
+    vary: tuple[Vary, ...]
+    grid: bool
+    points: int
+    seed: int
+    settings: dict[str, Any]
+
+
+def _count(vary: Sequence[Vary], points: int, grid: bool) -> int:
+    if not grid:
+        return points
+    return math.prod(len(v.args) if v.kind == "list" else points for v in vary)
+
+
+def check_memory(n: int, *, grid: bool) -> None:
+    """Refuse a sweep whose results would not fit in half of the free memory (:data:`ROW_BYTES` a run).
+
+    Raises
+    ------
+    InputError
+        Saying how much the table needs, how much there is, and which option makes it smaller.
+    """
+    import psutil
+
+    need = n * ROW_BYTES
+    free = psutil.virtual_memory().available
+    if need > free / 2:
+        what = "fewer points per key (--runs) or fewer keys" if grid else "fewer runs (--runs)"
+        raise InputError(f"runs = {n} would hold about {need / 1e9:.3g} GB of results ({ROW_BYTES} B a run) and "
+                         f"{free / 1e9:.3g} GB of memory is free (at most half of it is used): ask for {what}",
+                         field="runs")
+
+
+def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadzone_inverse", *,
+               vary: Sequence[str] | Mapping[str, str] = (), runs: int | None = None, grid: bool = False,
+               reference_kind: str = "sine", duration: float | None = None, seed: int = 0,
+               plant: str = "improved", precision: bool = False) -> SweepPlan:
+    """Parse, draw and check a sweep before anything runs.
+
+    Parameters are those of :func:`sweep`.
+
+    Returns
+    -------
+    SweepPlan
+
+    Raises
+    ------
+    InputError
+        A bad spec, a draw out of its key's range, a perturbed model that is invalid (naming the run and
+        its values), a controller that cannot be designed on the nominal model, or too many runs.
+    """
+    if reference_kind not in REFERENCES:
+        raise InputError(f"reference = {reference_kind!r} is not a reference: expected one of "
+                         f"{', '.join(REFERENCES)}", field="reference")
+    try:
+        PlantKind(plant)
+    except ValueError:
+        raise InputError(f"plant = {plant!r} is not a plant: expected one of "
+                         f"{', '.join(k.value for k in PlantKind)}", field="plant") from None
+    SEED.check("seed", seed)
+    dur = float(duration) if duration is not None else DEFAULT_DURATION[reference_kind]
+    DURATION.check("duration", dur)
+    points = runs if runs is not None else (5 if grid else 100)
+    (GRID_POINTS if grid else SWEEP_RUNS).check("runs", points)
+    points = int(points)
+    texts = [f"{k}={v}" for k, v in vary.items()] if isinstance(vary, Mapping) else list(vary)
+    nominal_model = load_model(model)
+    spec, label = controller_spec(controller)
+    varies = tuple(parse_vary(t, lambda k: _nominal(k, nominal_model, spec)) for t in texts)
+    keys = [v.key for v in varies]
+    dup = sorted({k for k in keys if keys.count(k) > 1})
+    if dup:
+        raise InputError(f"--vary {dup[0]} is given twice", field=dup[0])
+    if "estimate" in keys and "estimate_error" in keys:
+        raise InputError("--vary estimate and estimate_error set the same thing: give one", field="estimate")
+    n = _count(varies, points, grid)
+    if n > SWEEP_RUNS.high:
+        raise InputError(f"the grid has {n} runs: expected at most {SWEEP_RUNS.high:.0f}; use fewer points per key "
+                         f"(--runs) or fewer keys", field="runs")
+    check_memory(n, grid=grid)
+    # the design, once, on the nominal model: a controller that cannot be designed stops here
+    design = Design(spec=spec, nominal=build_plant(nominal_model), label=label)
+    ctrl = design_controller(design)
+    if {"estimate", "estimate_error"} & set(keys) and not _uses_estimate(ctrl):
+        raise InputError(f"--vary {'estimate' if 'estimate' in keys else 'estimate_error'}: "
+                         f"{Path(label).stem} uses no backlash estimate (vary it for deadzone_inverse or mpc)",
+                         field="estimate")
+    # the values of every run, drawn and checked here
+    columns = _draw(varies, n, points, grid, seed)
+    metas = {v.key: _KEYS[v.key] for v in varies}
+    model_keys = [v.key for v in varies if metas[v.key]["owner"] != "controller"]
+    jobs: list[Job] = []
+    b_nominal = nominal_model.stages[0].pair.backlash if nominal_model.n_stages == 1 else None
+    err_text = next((v.text for v in varies if v.key == "estimate_error"), "")
+    for i in range(n):
+        params = {}
+        for v in varies:
+            x = columns[v.key][i]
+            x = int(round(x)) if metas[v.key]["integer"] and float(x).is_integer() else float(x)
+            _check_value(v.key, x, metas[v.key], f"--vary {v.key}={v.text}", run=i)
+            params[v.key] = x
+        overrides = {k: params[k] for k in model_keys}
+        if overrides:
+            try:
+                perturb_model(nominal_model, overrides)
+            except InputError as exc:
+                shown = ", ".join(f"{k} = {params[k]:.6g}" for k in model_keys)
+                raise InputError(f"run {i} ({shown}): {exc}", field=exc.field, rule=exc.rule) from None
+        if "estimate_error" in params and b_nominal is not None:  # a pair: the estimate is known here
+            e = (1.0 + params["estimate_error"]) * float(params.get("backlash", b_nominal))
+            _check_value("estimate", e, _KEYS["estimate"], f"--vary estimate_error={err_text}", run=i)
+        jobs.append((i, params, noise_seed(seed, i)))
+    head = ["gearctl", "track", str(model), str(controller), "--plant", plant, "--reference", reference_kind,
+            "--duration", repr(dur)]
+    iso = ["gearctl", "precision", str(model), str(controller), "--plant", plant]
+    ctx = SweepContext(model=nominal_model, design=design, plant=plant, reference=reference(reference_kind),
+                       duration=dur, precision=precision, command=tuple(head), precision_command=tuple(iso))
+    settings = {"model": str(model), "controller": str(controller), "plant": plant, "reference": reference_kind,
+                "duration": dur, "seed": seed, "grid": grid, "points": points, "runs": n, "precision": precision,
+                "vary": {v.key: v.text for v in varies},
+                "nominal": {k: x for k, x in ((v.key, _shown_nominal(v, nominal_model, spec)) for v in varies)
+                            if x is not None},
+                "design": ctrl.describe()}
+    return SweepPlan(context=ctx, jobs=jobs, vary=varies, grid=grid, points=points, seed=seed, settings=settings)
+
+
+def _shown_nominal(v: Vary, model: GearModel, spec: Mapping[str, Any]) -> float | None:
+    """The nominal value of a varied key for reports and plots (None where there is no single one)."""
+    if v.nominal is not None:
+        return v.nominal
+    try:
+        return _nominal(v.key, model, spec)
+    except InputError:
+        return None
+
+
+def _uses_estimate(ctrl: Any) -> bool:
+    d = ctrl.describe()
+    return hasattr(ctrl, "set_backlash") or "backlash_estimate" in d or "backlash" in d
+
+
+def _draw(varies: Sequence[Vary], n: int, points: int, grid: bool, seed: int) -> dict[str, np.ndarray]:
+    if grid:
+        axes = [v.grid(points) for v in varies]
+        mesh = np.meshgrid(*axes, indexing="ij") if axes else []
+        return {v.key: m.ravel() for v, m in zip(varies, mesh, strict=True)}
+    return {v.key: v.quantile(np.array([_uniforms(seed, i, v.key) for i in range(n)])) for v in varies}
+
+
+# --- the worker side ------------------------------------------------------------------------------------
+
+def _build_run(ctx: SweepContext, job: Job) -> tuple[Run, float | None]:
+    """The Run of a job: the perturbed true plant, the nominal design with the run's estimate."""
+    index, params, seed = job
+    overrides = {k: v for k, v in params.items() if _KEYS[k]["owner"] != "controller"}
+    model = perturb_model(ctx.model, overrides) if overrides else ctx.model
+    true = build_plant(model, ctx.plant)
+    estimate = params.get("estimate")
+    if "estimate_error" in params:
+        estimate = (1.0 + params["estimate_error"]) * float(true.equivalent_pair().backlash)
+    if estimate is not None:
+        BACKLASH.check("estimate", estimate)
+    design = ctx.design if estimate is None else dataclasses.replace(ctx.design, backlash=float(estimate))
+    run = Run(plant=true, design=design, reference=ctx.reference, duration=ctx.duration, seed=seed,
+              sensors=model.sensors, tags={"index": index})
+    return run, (None if estimate is None else float(estimate))
+
+
+def run_batch(runs: Sequence[Run], *, precision: bool = False) -> list[tuple[RunResult, dict[str, Any] | None]]:
+    """Run closed loops: THE place a sweep runs them (a compiled loop for the linear controllers plugs in here).
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Each run's controller is built once per process per design; a run whose design differs from
+        another only in the backlash estimate reuses that design through ``set_backlash`` where the
+        controller has it (the dead-zone inverse: the same numbers as a fresh design, without the
+        30 ms PID design each time).
+    precision : bool
+        Also run the ISO 230-2 test (``gearctl precision``'s defaults) on each run's plant.
+
+    Returns
+    -------
+    list of (RunResult, dict or None)
+        Each run's result (a failure is a result, never an exception) and, with ``precision``, the ISO
+        figures ``reversal_value``, ``repeatability``, ``accuracy`` [rad] or ``{"error": message}``.
+    """
+    out = []
+    for run in runs:
+        base = run.design if run.design.backlash is None else dataclasses.replace(run.design, backlash=None)
+        try:
+            ctrl = design_controller(base)
+        except GearctlError:
+            ctrl = None
+        shared = (ctrl is not None and run.design.backlash is not None and hasattr(ctrl, "set_backlash")
+                  and hasattr(ctrl, "backlash"))
+        old = getattr(ctrl, "backlash", None)
+        try:
+            if shared:
+                ctrl.set_backlash(run.design.backlash)  # type: ignore[union-attr]
+                run = dataclasses.replace(run, design=base)
+            res = execute(run)
+            iso = _precision(run) if precision else None
+        finally:
+            if shared:
+                ctrl.set_backlash(old)  # type: ignore[union-attr]
+        out.append((res, iso))  # type: ignore[arg-type]
+    return out
+
+
+def _precision(run: Run) -> dict[str, Any]:
+    from .bench import ISO_SETTINGS
+    from .precision import precision_test
+
+    try:
+        ctrl = design_controller(run.design)
+        res = precision_test(run.plant, ctrl, sensors=run.sensors, seed=run.seed, **ISO_SETTINGS)
+    except GearctlError as exc:
+        return {"error": str(exc)}
+    return {k: float(res.stats[k]) for k in ISO_FIGURES}
+
+
+def _command(head: Sequence[str], job: Job, estimate: float | None) -> str:
+    _, params, seed = job
+    argv = [*head, "--seed", str(seed)]
+    for k, v in params.items():
+        if _KEYS[k]["owner"] != "controller":
+            argv += ["--set", f"{k}={v!r}"]
+    if estimate is not None:
+        argv += ["--estimate", repr(estimate)]
+    return shlex.join(argv)
+
+
+def _row(ctx: SweepContext, job: Job, res: RunResult | None, iso: dict[str, Any] | None, estimate: float | None,
+         message: str | None = None) -> dict[str, Any]:
+    index, params, seed = job
+    row: dict[str, Any] = {"index": index, "params": dict(params), "seed": seed}
+    if "estimate_error" in params or "estimate" in params:
+        row["estimate"] = estimate
+    m = res.metrics if res is not None else None
+    row["status"] = "ok" if res is not None and res.ok else "failed"
+    row["message"] = res.message if res is not None else message
+    for k in METRICS:
+        row[k] = None if m is None else m[k]
+    for k in FLAGS:
+        row[k] = None if m is None else bool(m.health[k])
+    row["command"] = _command(ctx.command, job, estimate)
+    if ctx.precision:
+        for k in ISO_FIGURES:
+            row[k] = None if not iso or "error" in iso else iso[k]
+        row["precision_message"] = "ok" if iso and "error" not in iso else (iso or {}).get("error", message)
+        row["precision_command"] = _command(ctx.precision_command, job, estimate)
+    return row
+
+
+def sweep_task(ctx: SweepContext, jobs: Sequence[Job]) -> list[dict[str, Any]]:
+    """One Dask task: build a batch of runs, run them (:func:`run_batch`), return a small dict per run."""
+    built: list[tuple[int, Run, float | None]] = []
+    rows: list[dict[str, Any] | None] = [None] * len(jobs)
+    for k, job in enumerate(jobs):
+        try:
+            run, est = _build_run(ctx, job)
+        except GearctlError as exc:
+            rows[k] = _row(ctx, job, None, None, None, message=str(exc))
+            continue
+        built.append((k, run, est))
+    results = run_batch([r for _, r, _ in built], precision=ctx.precision)
+    for (k, _, est), (res, iso) in zip(built, results, strict=True):
+        rows[k] = _row(ctx, jobs[k], res, iso, est)
+    return rows  # type: ignore[return-value]
+
+
+def _worker_version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+# --- the engine -----------------------------------------------------------------------------------------
+
+def default_workers() -> int:
+    """Worker processes of the local cluster: the cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover (not Linux)
+        return os.cpu_count() or 1
+
+
+def batch_size(n: int, workers: int, duration: float) -> int:
+    """Runs per task: about half a second of work, and at least four tasks per worker; 1 to 256.
+
+    A task costs about 5 ms of CPU in the client and the scheduler (measured on the two-core machine;
+    shipping the context by value or scattered once made no difference there), a simulated second of a
+    linear controller's loop about 15 ms: half a second of work per task keeps Dask's share near 1 %,
+    four tasks per worker keep the workers evenly loaded to the end and make a lost worker cost little.
+    """
+    work = math.ceil(0.5 / (0.015 * max(duration, 1e-3)))
+    return max(1, min(256, work, math.ceil(n / (4 * max(workers, 1)))))
+
+
+class _Engine:
+    """A Dask client on a local cluster or a running scheduler; closes what it opened."""
+
+    def __init__(self, *, workers: int | None, scheduler: str | None, client: Any = None) -> None:
+        import distributed
+
+        self.cluster = None
+        self.own = client is None
+        address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+        if client is not None:
+            self.client = client
+            self.where = str(getattr(client.scheduler, "address", "client"))
+        elif address:
+            try:
+                self.client = distributed.Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+            except (OSError, TimeoutError) as exc:
+                raise InputError(f"cannot reach the Dask scheduler at {address}: {exc}", field="scheduler") from None
+            try:
+                self.client.wait_for_workers(1, timeout=WORKER_TIMEOUT)
+            except TimeoutError:
+                self.client.close()
+                raise InputError(f"no worker joined the Dask scheduler at {address} within {WORKER_TIMEOUT:g} s: "
+                                 f"start one with "
+                                 f"`dask worker {address} --nthreads 1`", field="scheduler") from None
+            self.where = address
+        else:
+            from .kernel import compiled_available
+
+            compiled_available()  # compile the kernel once, before the workers start
+            n = workers or default_workers()
+            self.cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                    dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
+            self.client = distributed.Client(self.cluster, set_as_default=False)
+            self.where = f"local cluster ({n} process{'es' if n > 1 else ''})"
+        if self.cluster is None:
+            from . import __version__
+
+            try:
+                versions = set(self.client.run(_worker_version).values())
+            except Exception as exc:  # the workers' environment, not gearctl: say it in one line
+                self.close()
+                raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",
+                                 field="scheduler") from None
+            if versions - {__version__}:
+                self.close()
+                raise InputError(f"the workers of {self.where} run gearctl {', '.join(sorted(versions))}, this is "
+                                 f"{__version__}: install the same version on every worker", field="scheduler")
+
+    @property
+    def workers(self) -> int:
+        return max(1, len(self.client.scheduler_info(n_workers=-1)["workers"]))
+
+    def close(self) -> None:
+        if self.own:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
+
+
+def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: str | None, client: Any,
+              batch: int | None, progress: Callable[[int, int], Any] | None) -> tuple[list[dict[str, Any]], dict]:
+    jobs = plan.jobs
+    n = len(jobs)
+    rows: list[dict[str, Any] | None] = [None] * n
+    done = 0
+    info: dict[str, Any] = {"engine": engine}
+    if engine == "serial":
+        size = batch or batch_size(n, 1, plan.context.duration)
+        info.update(workers=1, where="this process", batch=size)
+        for i0 in range(0, n, size):
+            for r in sweep_task(plan.context, jobs[i0:i0 + size]):
+                rows[r["index"]] = r
+            done = min(n, i0 + size)
+            if progress:
+                progress(done, n)
+        return rows, info  # type: ignore[return-value]
+    if engine != "dask":
+        raise InputError(f"engine = {engine!r}: expected 'dask' or 'serial'", field="engine")
+    from distributed import KilledWorker, as_completed
+
+    eng = _Engine(workers=workers, scheduler=scheduler, client=client)
+    try:
+        w = eng.workers
+        size = batch or batch_size(n, w, plan.context.duration)
+        info.update(workers=w, where=eng.where, batch=size)
+        tag = uuid.uuid4().hex[:12]
+        futures = {}
+        for b, i0 in enumerate(range(0, n, size)):
+            part = jobs[i0:i0 + size]
+            fut = eng.client.submit(sweep_task, plan.context, part, key=f"gearctl-sweep-{tag}-{b}", pure=False)
+            futures[fut] = part
+        try:
+            for fut in as_completed(list(futures), loop=eng.client.loop):
+                part = futures.pop(fut)
+                try:
+                    got = fut.result()
+                except KilledWorker as exc:  # the batch killed its workers again and again: record, go on
+                    got = [_row(plan.context, j, None, None, None, message=f"the batch killed its worker "
+                                f"({exc.__class__.__name__})") for j in part]
+                fut.release()
+                for r in got:
+                    if rows[r["index"]] is not None:
+                        raise RuntimeError(f"run {r['index']} came back twice")
+                    rows[r["index"]] = r
+                done += len(got)
+                if progress:
+                    progress(done, n)
+        finally:
+            for fut in futures:
+                fut.cancel()
+    finally:
+        eng.close()
+    missing = [i for i, r in enumerate(rows) if r is None]
+    if missing:
+        raise RuntimeError(f"runs {missing[:5]} never came back")
+    return rows, info  # type: ignore[return-value]
+
+
+# --- results --------------------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class SweepResult:
+    """A sweep's runs and summary.
+
+    Attributes
+    ----------
+    settings : dict
+        Model, controller, plant, reference, duration, seed, grid, points, runs, vary {key: spec},
+        nominal {key: value}, the nominal design (``describe()``).
+    vary : tuple of Vary
+    runs : list of dict
+        One per run, by index: ``index``, ``params`` {key: value}, ``seed`` (sensor noise), ``estimate``
+        (when varied), ``status`` (``ok`` or ``failed``), ``message``, :data:`METRICS`, :data:`FLAGS`,
+        ``command`` (the ``gearctl track`` line that reproduces the run alone) and with ``precision`` the
+        ISO 230-2 figures and ``precision_command``. Failed runs keep the figures of their partial run
+        where there is one, else None.
+    summary : dict
+        :func:`summarize`.
+    engine : dict
+        ``engine``, ``workers``, ``where``, ``batch`` (runs per task), ``wall_time`` [s].
+    """
+
+    settings: dict[str, Any]
+    vary: tuple[Vary, ...]
+    runs: list[dict[str, Any]]
+    summary: dict[str, Any]
+    engine: dict[str, Any]
+
+    @property
+    def keys(self) -> list[str]:
+        """The varied keys, in the order given."""
+        return [v.key for v in self.vary]
+
+    def column(self, name: str) -> np.ndarray:
+        """A column over the runs as floats (a parameter or a figure; None -> nan)."""
+        vals = [r["params"].get(name) if name in r["params"] else r.get(name) for r in self.runs]
+        return np.array([np.nan if v is None else float(v) for v in vals])
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready: ``settings``, ``engine``, ``summary``, ``runs``."""
+        return {"settings": self.settings, "engine": self.engine, "summary": self.summary, "runs": self.runs}
+
+    def table(self) -> tuple[list[str], list[list[Any]]]:
+        """The runs as a flat table: header and rows (parameters as columns, None for missing values)."""
+        first = self.runs[0] if self.runs else {}
+        head = ["index", "status", *self.keys, *(["estimate"] if "estimate" in first else []), *METRICS, *FLAGS,
+                "seed"]
+        if self.settings.get("precision"):
+            head += [*ISO_FIGURES, "precision_message"]
+        head += ["message", "command"] + (["precision_command"] if self.settings.get("precision") else [])
+        rows = [[r["params"][h] if h in self.keys else r.get(h) for h in head] for r in self.runs]
+        return head, rows
+
+
+def _quantiles(x: np.ndarray) -> dict[str, float] | None:
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return None
+    q = np.percentile(x, [5, 50, 95, 99])
+    return {"min": float(x.min()), "p5": float(q[0]), "median": float(q[1]), "p95": float(q[2]), "p99": float(q[3]),
+            "max": float(x.max()), "mean": float(x.mean())}
+
+
+def summarize(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[str, Any]:
+    """Summary of a sweep's runs.
+
+    Returns
+    -------
+    dict
+        ``runs``, ``ok``, ``failed`` (counts); ``rms_error`` and ``max_error``: {min, p5, median, p95,
+        p99, max, mean} over the runs that ran to their end [rad]; ``fractions`` of all runs with a
+        ``limit_cycle``, ``saturated`` actuator, ``impact_rate_high``, ``growing`` error, ``failed``, and
+        ``diverged`` (failed or growing); ``worst``: the run of largest RMS error (index, params, figures,
+        command); ``failures``: the first ten failed runs (index, params, message, command);
+        ``sensitivity`` {key: {``rank_correlation``: Spearman's rho of the key with the RMS error,
+        ``elasticity``: d ln(RMS) / d ln(key) from a joint least-squares fit of ln RMS on the ln of every
+        positive varied key (None where a key takes non-positive values)}}.
+    """
+    from scipy.stats import rankdata
+
+    n = len(runs)
+    ok = [r for r in runs if r["status"] == "ok"]
+    rms = np.array([r["rms_error"] for r in ok], dtype=float)
+    mx = np.array([r["max_error"] for r in ok], dtype=float)
+    flag = {k: sum(bool(r.get(k)) for r in runs) for k in FLAGS}
+    failed = n - len(ok)
+    diverged = sum(r["status"] != "ok" or bool(r.get("growing")) for r in runs)
+    out: dict[str, Any] = {"runs": n, "ok": len(ok), "failed": failed, "rms_error": _quantiles(rms),
+                           "max_error": _quantiles(mx),
+                           "fractions": {**{k: v / max(n, 1) for k, v in flag.items()}, "failed": failed / max(n, 1),
+                                         "diverged": diverged / max(n, 1)}}
+    if ok:
+        w = ok[int(np.argmax(rms))]
+        out["worst"] = {"index": w["index"], "params": w["params"], "rms_error": w["rms_error"],
+                        "max_error": w["max_error"], "command": w["command"],
+                        **({"estimate": w["estimate"]} if "estimate" in w else {})}
+    else:
+        out["worst"] = None
+    out["failures"] = [{"index": r["index"], "params": r["params"], "message": r["message"], "command": r["command"]}
+                       for r in runs if r["status"] != "ok"][:10]
+    sens: dict[str, Any] = {}
+    good = rms > 0
+    cols = {k: np.array([r["params"][k] for r in ok], dtype=float) for k in keys}
+    logk = [k for k in keys if cols[k].size and np.all(cols[k] > 0) and np.ptp(cols[k]) > 0]
+    elastic: dict[str, float] = {}
+    if len(ok) > len(logk) + 1 and logk and np.all(good):
+        A = np.column_stack([np.ones(len(ok)), *[np.log(cols[k]) for k in logk]])
+        coef = np.linalg.lstsq(A, np.log(rms), rcond=None)[0]
+        elastic = {k: float(c) for k, c in zip(logk, coef[1:], strict=True)}
+    for k in keys:
+        x = cols[k]
+        rho = None
+        if x.size > 2 and np.ptp(x) > 0 and np.ptp(rms) > 0:
+            rho = float(np.corrcoef(rankdata(x), rankdata(rms))[0, 1])
+        sens[k] = {"rank_correlation": rho, "elasticity": elastic.get(k)}
+    out["sensitivity"] = sens
+    return out
+
+
+def grid_axes(result: SweepResult, metric: str = "rms_error") -> tuple[list[str], list[np.ndarray], np.ndarray]:
+    """A grid sweep's figure as an array over its axes.
+
+    Returns
+    -------
+    keys : list of str
+    axes : list of ndarray
+        The points of each key.
+    values : ndarray
+        ``metric`` of each grid point, shape ``[len(a) for a in axes]`` (nan where a run failed).
+
+    Raises
+    ------
+    InputError
+        If the sweep is not a grid.
+    """
+    if not result.settings.get("grid"):
+        raise InputError("grid_axes needs a grid sweep (grid=True)", field="grid")
+    axes = [v.grid(result.settings["points"]) for v in result.vary]
+    vals = result.column(metric)
+    fail = np.array([r["status"] != "ok" for r in result.runs])
+    vals[fail] = np.nan
+    return result.keys, axes, vals.reshape([a.size for a in axes])
+
+
+def compare_grids(results: Mapping[str, SweepResult], baseline: str,
+                  metric: str = "rms_error") -> dict[str, Any]:
+    """Each controller's error over a baseline controller's, on grids that share their first key.
+
+    Parameters
+    ----------
+    results : mapping
+        Controller name -> grid sweep. The baseline's grid has one key ``x``; every other grid has ``x``
+        as its first key, at the same points, and at most one more key ``y`` (e.g. ``estimate_error``).
+    baseline : str
+        The name of the baseline (e.g. ``pid``).
+    metric : str
+        The run figure compared.
+
+    Returns
+    -------
+    dict
+        ``x_key``, ``x`` (points), ``x_nominal``, ``baseline``, ``baseline_values`` (along x), and
+        ``controllers`` {name: {``y_key``, ``y`` (None for a one-key grid), ``values`` and ``ratio``
+        (controller over baseline at the same x), shaped (x,) or (x, y)}}.
+
+    Raises
+    ------
+    InputError
+        If the grids do not line up.
+    """
+    if baseline not in results:
+        raise InputError(f"baseline {baseline!r} is not among the results ({', '.join(results)})", field="baseline")
+    bkeys, baxes, bvals = grid_axes(results[baseline], metric)
+    if len(bkeys) != 1:
+        raise InputError(f"the baseline grid must vary one key, {baseline}'s varies {', '.join(bkeys)}",
+                         field="baseline")
+    out: dict[str, Any] = {"x_key": bkeys[0], "x": baxes[0], "baseline": baseline, "baseline_values": bvals,
+                           "x_nominal": results[baseline].settings.get("nominal", {}).get(bkeys[0]),
+                           "controllers": {}}
+    for name, res in results.items():
+        if name == baseline:
+            continue
+        keys, axes, vals = grid_axes(res, metric)
+        if keys[0] != bkeys[0] or len(keys) > 2 or axes[0].shape != baxes[0].shape or \
+                not np.allclose(axes[0], baxes[0], rtol=1e-12, atol=0.0):
+            raise InputError(f"{name}'s grid ({', '.join(keys)}) does not share {baseline}'s points of {bkeys[0]}",
+                             field="results")
+        ratio = vals / (bvals[:, None] if vals.ndim == 2 else bvals)
+        out["controllers"][name] = {"y_key": keys[1] if len(keys) == 2 else None,
+                                    "y": axes[1] if len(keys) == 2 else None, "values": vals, "ratio": ratio}
+    return out
+
+
+# --- the entry point ------------------------------------------------------------------------------------
+
+def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadzone_inverse", *,
+          vary: Sequence[str] | Mapping[str, str] = (), runs: int | None = None, grid: bool = False,
+          reference_kind: str = "sine", duration: float | None = None, seed: int = 0, plant: str = "improved",
+          precision: bool = False, workers: int | None = None, scheduler: str | None = None, client: Any = None,
+          engine: str = "dask", batch: int | None = None,
+          progress: Callable[[int, int], Any] | None = None) -> SweepResult:
+    """Run a controller, designed once on the nominal model, on many perturbed plants.
+
+    Parameters
+    ----------
+    model, controller : str or Path
+        Catalog names or TOML paths.
+    vary : sequence of str or mapping
+        ``"KEY=SPEC"`` strings or ``{key: spec}`` (module docstring). No key: every run is the nominal
+        plant with its own sensor-noise seed.
+    runs : int, optional
+        Monte Carlo runs (default 100), or with ``grid`` the points per key (default 5).
+    grid : bool
+        A full grid (the product of every key's points) instead of Monte Carlo draws.
+    reference_kind : str
+        ``sine``, ``step``, ``ramp`` or ``move``.
+    duration : float, optional
+        Simulated time of each run [s] (default per reference).
+    seed : int
+        Seed of the draws and of each run's sensor noise.
+    plant : str
+        True plant kind (``improved``, ``yang-sun``, ``tvms``); the design is always on the improved one.
+    precision : bool
+        Also the ISO 230-2 test per run (much longer: about 30 s simulated per run).
+    workers : int, optional
+        Processes of the local cluster (default: the cores available).
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``); default ``DASK_SCHEDULER_ADDRESS``,
+        else a local cluster.
+    client : distributed.Client, optional
+        Use this client (left open).
+    engine : str
+        ``dask``, or ``serial``: every batch in this process, one after the other (the plain loop).
+    batch : int, optional
+        Runs per task (default :func:`batch_size`).
+    progress : callable, optional
+        ``progress(done, total)`` after each batch.
+
+    Returns
+    -------
+    SweepResult
+
+    Raises
+    ------
+    InputError
+        Before any run: a bad spec or setting, a draw outside its key's range, an invalid perturbed model,
+        a design that fails on the nominal model, too many runs for the memory; a scheduler that cannot be
+        reached or has no worker.
+    """
+    t0 = time.perf_counter()
+    plan = plan_sweep(model, controller, vary=vary, runs=runs, grid=grid, reference_kind=reference_kind,
+                      duration=duration, seed=seed, plant=plant, precision=precision)
+    if batch is not None:
+        SWEEP_RUNS.check("batch", batch)
+    rows, info = _run_jobs(plan, engine=engine, workers=workers, scheduler=scheduler, client=client, batch=batch,
+                           progress=progress)
+    info["wall_time"] = time.perf_counter() - t0
+    return SweepResult(settings=plan.settings, vary=plan.vary, runs=rows,
+                       summary=summarize(rows, [v.key for v in plan.vary]), engine=info)
+
+
+def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), *, runs: int = 200,
+               duration: float = 1.0, model: str = "shing1993_servo", workers: int | None = None,
+               batch: int | None = None) -> dict[str, dict[str, Any]]:
+    """Throughput of sweeps: the Dask path against a plain sequential loop of the same runs, in one call.
+
+    Each controller runs ``runs`` sine runs of ``duration`` seconds on plants with the backlash drawn from
+    0.5x to 2x nominal: first a plain loop in this process (:func:`sweep_task` over the batches), then the
+    same runs through a local Dask cluster started beforehand (its start-up is reported apart, and every
+    worker has designed the controller before the clock starts, as this process has).
+
+    Returns
+    -------
+    dict
+        controller -> {``per_run_s``: CPU seconds of one run in the plain loop; ``runs_per_s``: runs per
+        second per worker through Dask (``runs / (dask wall time x workers)``); ``dask_overhead``: the CPU
+        time Dask adds over the loop, ``(workers' + this process's CPU time during the Dask sweep) / loop
+        CPU time - 1`` (this process hosts the scheduler); ``dask_overhead_wall``: ``workers x Dask wall
+        time / loop wall time - 1``, which only means something on an otherwise idle machine; ``loop_s``,
+        ``dask_s`` (wall), ``loop_cpu_s``, ``dask_cpu_s`` [s]; ``runs``, ``workers``, ``batch``,
+        ``duration``, ``cluster_start_s``; ``load``: the 1-minute load average after the measurement;
+        ``identical``: whether both paths gave the same results}.
+
+    Notes
+    -----
+    CPU times (``time.process_time`` of each process) are what this measures best: on a shared machine the
+    wall times follow the other users' load, the CPU time a run needs much less.
+    """
+    import distributed
+
+    from .kernel import compiled_available
+
+    compiled_available()
+    w = workers or default_workers()
+    out: dict[str, dict[str, Any]] = {}
+    t = time.perf_counter()
+    with distributed.LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
+                                  silence_logs=logging.ERROR) as cluster, \
+            distributed.Client(cluster, set_as_default=False) as client:
+        client.run(_warm)  # import gearctl in every worker: start-up, not sweep
+        start = time.perf_counter() - t
+        for c in controllers:
+            plan = plan_sweep(model, c, vary=["backlash=0.5x:2x"], runs=runs, duration=duration)
+            sweep_task(plan.context, plan.jobs[:1])  # the design, once per process, as every worker does below
+            t, c0 = time.perf_counter(), time.process_time()
+            loop_rows, _ = _run_jobs(plan, engine="serial", workers=None, scheduler=None, client=None, batch=batch,
+                                     progress=None)
+            loop_s, loop_cpu = time.perf_counter() - t, time.process_time() - c0
+            client.run(_design, plan.context)
+            w0 = client.run(time.process_time)
+            t, c0 = time.perf_counter(), time.process_time()
+            dask_rows, info = _run_jobs(plan, engine="dask", workers=None, scheduler=None, client=client,
+                                        batch=batch, progress=None)
+            dask_s, here = time.perf_counter() - t, time.process_time() - c0
+            w1 = client.run(time.process_time)
+            dask_cpu = here + sum(w1[k] - w0[k] for k in w1)
+            out[c] = {"per_run_s": loop_cpu / runs, "runs_per_s": runs / dask_s / w,
+                      "dask_overhead": dask_cpu / loop_cpu - 1.0, "dask_overhead_wall": w * dask_s / loop_s - 1.0,
+                      "loop_s": loop_s, "dask_s": dask_s, "loop_cpu_s": loop_cpu, "dask_cpu_s": dask_cpu,
+                      "runs": runs, "workers": w, "batch": info["batch"], "duration": duration,
+                      "cluster_start_s": start, "load": os.getloadavg()[0], "identical": loop_rows == dask_rows}
+    return out
+
+
+def _warm() -> None:
+    from . import closedloop, runs  # noqa: F401
+
+
+def _design(ctx: SweepContext) -> None:
+    design_controller(ctx.design)

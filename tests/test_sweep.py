@@ -1,0 +1,452 @@
+"""Robustness sweeps (gearctl.sweep): specs, draws, determinism across engines and workers, reproduction of a run
+by its command, a real scheduler with worker subprocesses, a worker lost mid-sweep, the CLI and the example.
+
+Runs are short (0.3-1 s simulated) so the file stays within a minute on one core; the Dask clusters are the
+costly part (a local cluster starts in about 1 s, a subprocess scheduler and worker in 3-5 s).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import io
+import json
+import math
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from gearctl import InputError, load_model
+from gearctl.cli import main
+from gearctl.plant import build_plant
+from gearctl.references import reference
+from gearctl.runs import Design, Run, controller_spec, execute
+from gearctl.sweep import (
+    compare_grids,
+    grid_axes,
+    noise_seed,
+    parse_set,
+    parse_vary,
+    perturb_model,
+    plan_sweep,
+    sweep,
+)
+
+MODEL = "shing1993_servo"
+B0 = 5e-5  # the model's backlash [m] (models/shing1993_servo.toml)
+NOMINAL = {"backlash": B0, "load_inertia": 5e-3, "coulomb_friction2": 0.0}
+FIGURES = ("rms_error", "max_error", "final_error", "impacts", "max_impact_velocity", "torque_rms")
+
+
+def _cli(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(argv)
+    return rc, out.getvalue(), err.getvalue()
+
+
+# --- specs ----------------------------------------------------------------------------------------------
+
+def test_model_backlash_is_the_nominal_used_here() -> None:
+    assert load_model(MODEL).pair.backlash == B0  # guards the constants of this file
+
+
+@pytest.mark.parametrize(("text", "kind", "args"), [
+    ("backlash=0.5x:2x", "range", (0.5 * B0, 2 * B0)),
+    ("backlash=uniform(2e-5,8e-5)", "range", (2e-5, 8e-5)),
+    ("load_inertia=loguniform(0.5x,2x)", "loguniform", (2.5e-3, 1e-2)),
+    ("coulomb_friction2=normal(0.2,0.05)", "normal", (0.2, 0.05, -math.inf, math.inf)),
+    ("coulomb_friction2=normal(0.2,0.05,0,inf)", "normal", (0.2, 0.05, 0.0, math.inf)),
+    ("load_inertia=lognormal(1x,0.2)", "lognormal", (5e-3, 0.2, -math.inf, math.inf)),
+    ("backlash=normal(1x,0.1x,0.5x,1.5x)", "normal", (B0, 0.1 * B0, 0.5 * B0, 1.5 * B0)),
+    ("backlash=2e-5, 5e-5 ,1.5x", "list", (2e-5, 5e-5, 1.5 * B0)),
+    ("backlash=3e-5", "list", (3e-5,)),
+    ("estimate_error=-0.5:0.5", "range", (-0.5, 0.5)),
+])
+def test_each_spec_form_parses_to_absolute_values(text: str, kind: str, args: tuple[float, ...]) -> None:
+    v = parse_vary(text, NOMINAL)
+    assert v.kind == kind
+    np.testing.assert_allclose(v.args, args, rtol=1e-15)
+
+
+def test_quantiles_match_scipy_distributions() -> None:
+    """Each spec's inverse CDF against scipy.stats (an independent implementation), at a few probabilities."""
+    u = np.array([1e-6, 0.02, 0.3, 0.5, 0.77, 0.999])
+    cases = [
+        ("backlash=2e-5:8e-5", stats.uniform(2e-5, 6e-5)),
+        ("load_inertia=loguniform(1e-3,1e-2)", stats.loguniform(1e-3, 1e-2)),
+        ("coulomb_friction2=normal(0.2,0.05)", stats.norm(0.2, 0.05)),
+        ("coulomb_friction2=normal(0.2,0.1,0,inf)", stats.truncnorm(-2.0, np.inf, loc=0.2, scale=0.1)),
+        ("load_inertia=lognormal(5e-3,0.3)", stats.lognorm(0.3, scale=5e-3)),
+        ("load_inertia=lognormal(5e-3,0.3,4e-3,9e-3)",
+         stats.truncnorm(math.log(0.8) / 0.3, math.log(1.8) / 0.3)),
+    ]
+    for text, dist in cases:
+        v = parse_vary(text)
+        got = v.quantile(u)
+        want = dist.ppf(u)
+        if text.endswith("4e-3,9e-3)"):  # truncated lognormal: scipy's truncnorm of the log
+            want = 5e-3 * np.exp(0.3 * want)
+        np.testing.assert_allclose(got, want, rtol=1e-9, err_msg=text)
+
+
+def test_grid_points() -> None:
+    np.testing.assert_allclose(parse_vary("backlash=1e-5:5e-5").grid(5), [1e-5, 2e-5, 3e-5, 4e-5, 5e-5], rtol=1e-15)
+    np.testing.assert_allclose(parse_vary("load_inertia=loguniform(1e-3,1e-1)").grid(3), [1e-3, 1e-2, 1e-1],
+                               rtol=1e-12)
+    # distributions: equal-probability midpoints, the median in the middle
+    g = parse_vary("coulomb_friction2=normal(0.2,0.05)").grid(3)
+    np.testing.assert_allclose(g, 0.2 + 0.05 * stats.norm.ppf([1 / 6, 0.5, 5 / 6]), rtol=1e-12)
+    assert list(parse_vary("backlash=3e-5,1e-5").grid(7)) == [3e-5, 1e-5]  # a list keeps its values
+
+
+@pytest.mark.parametrize(("text", "match"), [
+    ("backlash", "is not KEY=SPEC"),
+    ("backlsh=1e-5:2e-5", "did you mean 'backlash'"),
+    ("contact_law=1,2", "not a number a sweep can vary"),
+    ("backlash=1e-5:2e-5:3e-5", "a range is a:b"),
+    ("backlash=2e-5:1e-5", "low <= high"),
+    ("backlash=0.5y:2x", "'0.5y' is not a number"),
+    ("backlash=gauss(1,2)", "unknown distribution 'gauss'"),
+    ("backlash=normal(1e-5)", "normal takes 2 or 4 numbers"),
+    ("backlash=normal(5e-5,-1e-6)", "std must be > 0"),
+    ("backlash=normal(5e-5,1e-6,6e-5,5e-5)", "low < high"),
+    ("load_inertia=lognormal(5e-3,0.2x)", "not relative"),
+    ("load_inertia=lognormal(-1,0.2)", "median of a lognormal"),
+    ("load_inertia=loguniform(0,1e-3)", "0 < low"),
+    ("backlash=0:0.02", r"backlash = 0.02 is out of range: expected 0 <= value <= 0.01 \[m\]"),
+    ("backlash=1e-5,-1e-5", "backlash = -1e-05 is out of range"),
+    ("teeth1=20.5,21", "a whole-number key takes a list"),
+    ("mesh_stiffness=1:inf", "inf is allowed only as a truncation bound"),
+    ("motor_encoder_cpr=0.5x:2x", "has no nominal value"),
+])
+def test_bad_specs_are_one_line_errors(text: str, match: str) -> None:
+    nominal = {**NOMINAL, "motor_encoder_cpr": None}
+    with pytest.raises(InputError, match=match) as exc:
+        parse_vary(text, nominal)
+    assert "\n" not in str(exc.value)
+
+
+def test_bad_spec_at_the_cli_is_exit_2_one_line() -> None:
+    rc, out, err = _cli(["sweep", MODEL, "--vary", "backlash=normal(5e-5)", "--quiet"])
+    assert rc == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith("gearctl sweep: error: --vary backlash=normal(5e-5)")
+
+
+def test_parse_set() -> None:
+    assert parse_set("backlash=7e-05") == ("backlash", 7e-05)
+    key, v = parse_set("motor_encoder_cpr=4096")
+    assert (key, v, type(v)) == ("motor_encoder_cpr", 4096, int)
+    for bad, match in (("backlash", "KEY=VALUE"), ("backlash=abc", "not a number"), ("estimate=1e-5", "--estimate"),
+                       ("backlash=1", "out of range")):
+        with pytest.raises(InputError, match=match):
+            parse_set(bad)
+
+
+# --- plans: draws, checks, memory -----------------------------------------------------------------------
+
+def test_draws_are_seeded_by_seed_index_and_key() -> None:
+    a = plan_sweep(MODEL, "pid", vary=["backlash=0.5x:2x"], runs=30, duration=0.3, seed=4)
+    b = plan_sweep(MODEL, "pid", vary=["backlash=0.5x:2x", "load_inertia=0.8x:1.2x"], runs=30, duration=0.3, seed=4)
+    c = plan_sweep(MODEL, "pid", vary=["backlash=0.5x:2x"], runs=30, duration=0.3, seed=5)
+    bl = [j[1]["backlash"] for j in a.jobs]
+    assert bl == [j[1]["backlash"] for j in b.jobs]  # another key varied: this key's draws unchanged
+    assert [j[2] for j in a.jobs] == [noise_seed(4, i) for i in range(30)] == [j[2] for j in b.jobs]
+    assert len(set(bl)) == 30 and bl != [j[1]["backlash"] for j in c.jobs]
+    assert min(bl) >= 0.5 * B0 and max(bl) <= 2 * B0
+    assert all(s < 2**53 for _, _, s in a.jobs)  # a CLI number (read through a float) keeps the seed exactly
+
+
+def test_grid_plan_is_the_product_in_key_order() -> None:
+    p = plan_sweep(MODEL, "deadzone_inverse", vary=["backlash=1x,2x", "estimate_error=-0.5:0.5"], grid=True,
+                   runs=3, duration=0.3)
+    got = [(j[1]["backlash"], j[1]["estimate_error"]) for j in p.jobs]
+    assert got == [(B0, -0.5), (B0, 0.0), (B0, 0.5), (2 * B0, -0.5), (2 * B0, 0.0), (2 * B0, 0.5)]
+
+
+def test_a_draw_out_of_range_stops_the_sweep_before_any_run() -> None:
+    # a std of 0.3 N m around 0.2 N m draws negative friction in about a quarter of the runs
+    with pytest.raises(InputError, match=r"run \d+ draws coulomb_friction2 = -.* is out of range.*truncate"):
+        plan_sweep(MODEL, "pid", vary=["coulomb_friction2=normal(0.2,0.3)"], runs=20, duration=0.3)
+    p = plan_sweep(MODEL, "pid", vary=["coulomb_friction2=normal(0.2,0.3,0,inf)"], runs=20, duration=0.3)
+    assert min(j[1]["coulomb_friction2"] for j in p.jobs) >= 0.0
+
+
+def test_a_perturbed_model_the_schema_refuses_is_named_with_its_run() -> None:
+    # backlash at most half the module (2 mm): 1.5 mm passes the key's range, not the model's check
+    with pytest.raises(InputError, match=r"run 0 \(backlash = 0\.0015\).*at most 0\.5 x module"):
+        plan_sweep(MODEL, "pid", vary=["backlash=1.5e-3"], runs=1, duration=0.3)
+
+
+def test_estimate_needs_a_controller_that_has_one() -> None:
+    with pytest.raises(InputError, match="pid uses no backlash estimate"):
+        plan_sweep(MODEL, "pid", vary=["estimate=0.5x:2x"], runs=2, duration=0.3)
+
+
+def test_too_many_runs_are_refused_with_the_figure_and_the_flag(monkeypatch: pytest.MonkeyPatch) -> None:
+    import psutil
+
+    class Free:
+        available = 1e9
+
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: Free())
+    with pytest.raises(InputError, match=r"runs = 1000000 would hold about 4\.1 GB .*1 GB of memory is free.*--runs"):
+        plan_sweep(MODEL, "pid", vary=["backlash=0.5x:2x"], runs=1_000_000, duration=0.3)
+    with pytest.raises(InputError, match="the grid has 1000000000 runs"):
+        plan_sweep(MODEL, "pid", vary=["backlash=0.5x:2x", "load_inertia=0.5x:2x", "damping_ratio=0.01:0.1"],
+                   grid=True, runs=1000, duration=0.3)
+
+
+def test_perturb_model_equals_load_model_overrides() -> None:
+    nominal = load_model(MODEL)
+    for overrides in ({"backlash": 7e-5}, {"mesh_stiffness": 3e8, "damping_ratio": 0.02},
+                      {"coulomb_friction2": 0.05, "load_inertia": 4e-3, "load_noise": 1e-6},
+                      {"motor_encoder_cpr": 4096, "teeth1": 21}):
+        assert perturb_model(nominal, overrides) == load_model(MODEL, **overrides), overrides
+
+
+# --- runs: the sweep's figures are those of the run built by hand ---------------------------------------
+
+def test_each_row_is_the_run_built_by_hand_with_a_fresh_design() -> None:
+    """The inverse reuses one design and sets the estimate per run: the figures of a freshly designed controller."""
+    res = sweep(MODEL, "deadzone_inverse", vary=["backlash=0.5x:2x", "estimate_error=-0.4:0.4",
+                                                 "coulomb_friction2=0:0.02"], runs=4, duration=0.6, engine="serial")
+    spec, label = controller_spec("deadzone_inverse")
+    nominal = build_plant(load_model(MODEL))
+    for row in res.runs:
+        p = row["params"]
+        model = load_model(MODEL, backlash=p["backlash"], coulomb_friction2=p["coulomb_friction2"])
+        est = (1 + p["estimate_error"]) * p["backlash"]
+        assert row["estimate"] == est
+        run = Run(plant=build_plant(model), design=Design(spec=spec, nominal=nominal, backlash=est, label=label),
+                  reference=reference("sine"), duration=0.6, seed=row["seed"], sensors=model.sensors)
+        want = execute(run)
+        assert row["status"] == "ok" and want.ok
+        assert {k: row[k] for k in FIGURES} == {k: want.metrics[k] for k in FIGURES}
+
+
+def test_a_failing_run_is_recorded_and_the_sweep_goes_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    import gearctl.runs
+    from gearctl.errors import SimulationError
+
+    real = gearctl.runs.simulate_closed_loop
+
+    def flaky(plant, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
+        if plant.backlash > 1.5 * B0:
+            raise SimulationError("closed loop failed: diverged (test)")
+        return real(plant, *args, **kw)
+
+    monkeypatch.setattr(gearctl.runs, "simulate_closed_loop", flaky)
+    res = sweep(MODEL, "pid", vary=["backlash=1x,2x"], grid=True, duration=0.3, engine="serial")
+    ok, bad = res.runs
+    assert ok["status"] == "ok" and bad["status"] == "failed" and "diverged (test)" in bad["message"]
+    assert bad["rms_error"] is None and bad["command"].startswith("gearctl track")
+    s = res.summary
+    assert (s["ok"], s["failed"], s["fractions"]["diverged"]) == (1, 1, 0.5)
+    assert s["worst"]["index"] == 0 and s["failures"][0]["index"] == 1
+
+
+def test_summary_quantiles_and_sensitivities() -> None:
+    res = sweep(MODEL, "pid", vary=["backlash=0.5x:3x", "load_noise=0:1e-9"], runs=12, duration=1.0, engine="serial")
+    rms = np.array([r["rms_error"] for r in res.runs])
+    q = res.summary["rms_error"]
+    assert q["min"] == rms.min() and q["max"] == rms.max() and q["median"] == np.median(rms)
+    assert res.summary["worst"]["rms_error"] == rms.max()
+    # the PID's error grows with the gap it cannot see (measured rho 0.99 on this seed)
+    assert res.summary["sensitivity"]["backlash"]["rank_correlation"] > 0.8
+    assert res.summary["sensitivity"]["backlash"]["elasticity"] > 0.3
+    # the 1e-9 rad noise is below the 6e-6 rad encoder count: no effect on the error's ranking to speak of
+    assert abs(res.summary["sensitivity"]["load_noise"]["rank_correlation"]) < 0.8
+
+
+# --- the command reproduces the run ---------------------------------------------------------------------
+
+def _track_has_set() -> bool:
+    rc, out, _ = _cli(["track", "--help"])
+    return rc == 0 and "--set" in out and "--estimate" in out
+
+
+def test_a_runs_command_reproduces_its_figures_exactly(tmp_path: Path) -> None:
+    if not _track_has_set():
+        pytest.skip("gearctl track has no --set KEY=VALUE yet (asked for in issue 15's report)")
+    res = sweep(MODEL, "deadzone_inverse", vary=["backlash=0.5x:2x", "estimate_error=-0.3:0.3",
+                                                 "load_inertia=lognormal(1x,0.2)"], runs=6, duration=0.8, seed=3,
+                engine="serial")
+    for row in (res.runs[1], res.runs[4]):
+        argv = shlex.split(row["command"])
+        assert argv[:2] == ["gearctl", "track"]
+        rc, out, err = _cli([*argv[1:], "--json"])
+        assert rc == 0, err
+        got = json.loads(out)
+        assert {k: got[k] for k in FIGURES} == {k: row[k] for k in FIGURES}, row["command"]
+
+
+# --- the Dask engine ------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def cluster() -> Iterator[str]:
+    """A local Dask cluster of two one-thread worker processes, shared by the tests below; its address."""
+    import logging
+
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
+                      silence_logs=logging.ERROR) as c:
+        yield c.scheduler_address
+
+
+def test_two_workers_and_the_plain_loop_agree(cluster: str) -> None:
+    from distributed import Client
+
+    kw = {"vary": ["backlash=0.5x:2x", "estimate=0.8x:1.2x"], "runs": 10, "duration": 0.3, "seed": 11}
+    loop = sweep(MODEL, "deadzone_inverse", engine="serial", **kw)
+    with Client(cluster, set_as_default=False) as client:
+        two = sweep(MODEL, "deadzone_inverse", client=client, batch=3, **kw)
+    assert two.engine["workers"] == 2 and two.engine["batch"] == 3
+    assert [r["index"] for r in two.runs] == list(range(10)) and two.runs == loop.runs
+
+
+def test_the_command_line_on_a_local_cluster_of_one_worker(tmp_path: Path) -> None:
+    args = ["--vary", "backlash=0.5x:2x", "--vary", "estimate=0.8x:1.2x", "--runs", "6", "--duration", "0.3", "--seed",
+            "11"]
+    loop = sweep(MODEL, "deadzone_inverse", vary=["backlash=0.5x:2x", "estimate=0.8x:1.2x"], runs=6, duration=0.3,
+                 seed=11, engine="serial")
+    rc, out, err = _cli(["sweep", MODEL, "deadzone_inverse", *args, "--workers", "1", "--quiet",
+                         "--json", str(tmp_path / "s.json"), "--out", str(tmp_path / "o")])
+    assert rc == 0, err
+    assert "local cluster (1 process)" in out and "worst" in out
+    data = json.loads((tmp_path / "s.json").read_text())
+    assert data["runs"] == loop.runs and data["engine"]["workers"] == 1
+    assert {"rms_error", "max_error", "fractions", "worst", "sensitivity"} <= set(data["summary"])
+    o = tmp_path / "o"
+    assert {p.name for p in o.iterdir()} == {"runs.csv", "summary.md", "histogram.png", "error_vs_backlash.png",
+                                             "error_vs_estimate.png"}
+    lines = (o / "runs.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    assert len(lines) == 7 and head[:4] == ["index", "status", "backlash", "estimate"]
+    assert float(lines[1].split(",")[head.index("rms_error")]) == loop.runs[0]["rms_error"]  # exact doubles
+    assert "gearctl track" in (o / "summary.md").read_text()
+
+
+def _free_scheduler(tmp_path: Path) -> tuple[subprocess.Popen, str]:
+    sched_file = tmp_path / "scheduler.json"
+    proc = subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+                             "--no-dashboard", "--scheduler-file", str(sched_file)], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if sched_file.exists():
+            with contextlib.suppress(json.JSONDecodeError):
+                return proc, json.loads(sched_file.read_text())["address"]
+        if proc.poll() is not None:
+            break
+        time.sleep(0.1)
+    raise RuntimeError("the dask scheduler did not start")
+
+
+def _worker(tmp_path: Path, address: str, name: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nworkers", "1", "--nthreads", "1",
+                             "--no-nanny", "--no-dashboard", "--host", "127.0.0.1", "--name", name,
+                             "--local-directory", str(tmp_path / name)], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+@contextlib.contextmanager
+def _cluster(tmp_path: Path, workers: int) -> Iterator[tuple[str, list[subprocess.Popen]]]:
+    procs: list[subprocess.Popen] = []
+    try:
+        sched, address = _free_scheduler(tmp_path)
+        procs.append(sched)
+        ws = [_worker(tmp_path, address, f"w{k}") for k in range(workers)]
+        procs += ws
+        from distributed import Client
+
+        with Client(address, timeout=30, set_as_default=False) as c:
+            c.wait_for_workers(workers, timeout=90)
+        yield address, ws
+    finally:
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
+
+
+def test_a_sweep_through_a_running_scheduler_equals_the_local_one(tmp_path: Path) -> None:
+    kw = ["--vary", "backlash=0.5x:2x", "--vary", "coulomb_friction2=0:0.01", "--runs", "6", "--duration", "0.3"]
+    local = sweep(MODEL, "pid", vary=["backlash=0.5x:2x", "coulomb_friction2=0:0.01"], runs=6, duration=0.3,
+                  engine="serial")
+    with _cluster(tmp_path, 1) as (address, _):
+        rc, out, err = _cli(["sweep", MODEL, "pid", *kw, "--scheduler", address, "--quiet", "--json",
+                             str(tmp_path / "remote.json")])
+    assert rc == 0, err
+    assert address in out
+    remote = json.loads((tmp_path / "remote.json").read_text())
+    assert remote["runs"] == local.runs and remote["engine"]["where"] == address
+
+
+@pytest.mark.slow
+def test_every_result_arrives_once_after_a_worker_is_killed(tmp_path: Path) -> None:
+    kw = {"vary": ["backlash=0.5x:2x"], "runs": 16, "duration": 0.4, "seed": 2}
+    local = sweep(MODEL, "deadzone_inverse", engine="serial", **kw)
+    seen: list[int] = []
+    with _cluster(tmp_path, 2) as (address, workers):
+        def progress(done: int, total: int) -> None:
+            seen.append(done)
+            if len(seen) == 1:  # the first result is in: the other worker is busy with a batch; kill one
+                os.killpg(workers[0].pid, signal.SIGKILL)
+
+        remote = sweep(MODEL, "deadzone_inverse", scheduler=address, batch=1, progress=progress, **kw)
+        from distributed import Client
+
+        with Client(address, timeout=30, set_as_default=False) as c:
+            left = len(c.scheduler_info(n_workers=-1)["workers"])
+    assert workers[0].poll() is not None and left == 1  # a worker was lost mid-sweep
+    assert [r["index"] for r in remote.runs] == list(range(16)) and remote.runs == local.runs
+    assert seen[-1] == 16
+
+
+def test_an_unreachable_scheduler_is_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
+    import gearctl.sweep
+
+    monkeypatch.setattr(gearctl.sweep, "CONNECT_TIMEOUT", 1.0)
+    rc, _, err = _cli(["sweep", MODEL, "pid", "--vary", "backlash=1x", "--scheduler", "tcp://127.0.0.1:9",
+                       "--quiet"])
+    assert rc == 2 and err.count("\n") == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err
+
+
+# --- grids, comparison, the example ---------------------------------------------------------------------
+
+def test_grid_axes_and_compare_grids() -> None:
+    pid = sweep(MODEL, "pid", vary=["backlash=1x,2x"], grid=True, duration=0.5, engine="serial")
+    inv = sweep(MODEL, "deadzone_inverse", vary=["backlash=1x,2x", "estimate_error=-0.2,0.2"], grid=True,
+                duration=0.5, engine="serial")
+    keys, axes, vals = grid_axes(inv)
+    assert keys == ["backlash", "estimate_error"] and vals.shape == (2, 2)
+    assert vals[1, 0] == inv.runs[2]["rms_error"]  # (backlash 2x, error -0.2) is run 2 of the product
+    cmp = compare_grids({"pid": pid, "deadzone_inverse": inv}, baseline="pid")
+    d = cmp["controllers"]["deadzone_inverse"]
+    np.testing.assert_array_equal(d["ratio"], vals / np.array([r["rms_error"] for r in pid.runs])[:, None])
+    with pytest.raises(InputError, match="grid sweep"):
+        grid_axes(sweep(MODEL, "pid", runs=1, duration=0.3, engine="serial"))
+
+
+def test_tolerance_study_example(tmp_path: Path, capsys: pytest.CaptureFixture[str], cluster: str) -> None:
+    path = Path(__file__).resolve().parents[1] / "examples" / "06_tolerance_study.py"
+    spec = importlib.util.spec_from_file_location("tolerance_study", path)
+    mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    spec.loader.exec_module(mod)  # type: ignore[union-attr]
+    mod.main(["--out", str(tmp_path), "--points", "2", "--errors", "0,0.5", "--duration", "0.6",
+              "--scheduler", cluster])
+    out = capsys.readouterr().out
+    assert out.count("| deadzone_inverse |") == 2 and out.count("| mpc |") == 2
+    assert (tmp_path / "tolerance.png").stat().st_size > 0 and "| controller |" in (tmp_path / "report.md").read_text()
+
