@@ -247,11 +247,14 @@ def plot_bench_bars(result: dict[str, Any]) -> Figure:
     width = 0.8 / max(len(plants), 1)
     x = np.arange(len(ctrls))
     for ax, ref in zip(axs, refs, strict=False):
+        positive = False
         for k, p in enumerate(plants):
             vals = [cell.get((c, ref, p), np.nan) * 1e6 for c in ctrls]
+            vals = [v if v > 0 else np.nan for v in vals]  # an exact zero (a loop that never moved) has no log
+            positive = positive or any(np.isfinite(vals))
             ax.bar(x + (k - (len(plants) - 1) / 2) * width, vals, width, label=p)
         ax.set_xticks(x, ctrls, rotation=20, ha="right")
-        ax.set(yscale="log", ylabel="RMS error [urad]", title=ref)
+        ax.set(yscale="log" if positive else "linear", ylabel="RMS error [urad]", title=ref)
         ax.grid(True, axis="y", alpha=0.3, which="both")
     axs[0].legend(fontsize=8)
     return fig

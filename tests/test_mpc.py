@@ -462,8 +462,9 @@ def test_backlash_free_compiled_and_casadi_paths_agree(free_servo) -> None:
 def test_backlash_free_plant_is_the_better_bound(servo, free_servo) -> None:
     # the catalog MPC designed on the backlash-free plant and run on it (as the benchmark's backlash-free
     # runs) against the catalog MPC on the backlash plant, 3 s of the 1 Hz sine: measured RMS 8.4e-7 rad
-    # against 2.7e-5 rad (ratio 32), no impact; a factor 5 is kept. The mesh carries torque both ways
-    # (its deflection s changes sign): the rigid coupling pulls as well as pushes
+    # against 2.86e-6 rad (ratio 3.4) since the MPC solves its QPs exactly (gearctl's dense active-set solver;
+    # with DAQP's approximate solutions it was 2.7e-5, ratio 32), no impact; a factor 2 is kept. The mesh
+    # carries torque both ways (its deflection s changes sign): the rigid coupling pulls as well as pushes
     model, free = free_servo
     _, plant = servo
     ref = reference("sine")
@@ -473,7 +474,7 @@ def test_backlash_free_plant_is_the_better_bound(servo, free_servo) -> None:
     m_b = tracking_metrics(simulate_closed_loop(plant, load_controller("mpc", plant), ref, DURATION,
                                                 sensors=model.sensors))
     assert res.success and m["impacts"] == 0 and len(res.impacts) == 0
-    assert m["rms_error"] < 0.2 * m_b["rms_error"], (m["rms_error"], m_b["rms_error"])
+    assert m["rms_error"] < 0.5 * m_b["rms_error"], (m["rms_error"], m_b["rms_error"])
     assert res.s.min() < 0.0 < res.s.max()
     assert not res.fallbacks  # no failed solve (overruns are only counted: realtime is off)
 

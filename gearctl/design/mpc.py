@@ -17,7 +17,8 @@ Per sample the controller
    plan (full cost, constant part included). Floating, it solves the landing on the target flank after
    a countdown that only decreases (so the plan cannot keep postponing the landing) and, after an
    unplanned float (a bounce, start-up), the landing on the other flank too;
-4. checks every solution (solver flag, KKT residual, feasibility) and the step's solve time; on a
+4. checks every solution (solver status; for CasADi plugins the KKT residual and feasibility too) and
+   the step's solve time; on a
    failure or an overrun of ``max_solve_time`` it applies the previous plan's next input, saturated,
    and records the event in :attr:`~gearctl.design.base.Controller.fallbacks`.
 
@@ -72,26 +73,55 @@ mode and never needs the mode. The gap filter predicts with the separation model
 applies the reduced model's plastic impact (``v = 0``). With the motor encoder alone the gap is
 predicted open loop and pinned at the flank it reaches.
 
-*Solver path.* The QP has ``horizon`` variables and ``horizon + 2`` constraint rows, dense. Called from
-Python, a CasADi Function costs 25-40 us of call overhead on the 2-core benchmark machine before the
-solver runs (daqp through ``casadi.conic``: 65-130 us median, up to 250 us at the 99th percentile). So
-for ``daqp`` and ``qrqp`` the conic, with the KKT check appended, is generated as C by CasADi's code
-generator, compiled once with the system C compiler into the per-user cache (as
-:mod:`gearctl.kernel` does) and called through :mod:`ctypes` on preallocated buffers: 5-30 us per solve
-with daqp. Without a C compiler (or with ``GEARCTL_NO_COMPILE=1``) the conic is called through
-CasADi. ``osqp`` and ``proxqp`` always go through CasADi (0.5-1 ms per step here), and qrqp's
-generated code needs about 2 ms on this QP: daqp is the default. Python's cyclic garbage collector is
-paused during the solver call (and restored at once), so that a collection (4-8 ms here) lands in the
-step overhead, which :attr:`MPC.step_times` measures, not inside the solve.
+*Solver path.* The QP has ``horizon`` variables and ``horizon + 2`` constraint rows, dense. The default
+solver, ``solver = "gearctl"``, is gearctl's own dense dual active-set solver (:class:`gearctl.qp.DenseQP`,
+``csrc/qp/gearctl_qp.c``), the code the exported C controller runs, so that Python and C give the same
+torques: each pattern's Hessian is factored once (one :class:`~gearctl.qp.QPFactor` per pattern, its rows
+kept in C order), and a solve copies the gradient and the row bounds into the solver's buffers and starts
+cold (from the unconstrained minimiser; no primal warm start, so a solution does not depend on the
+history of solves). It is exact: its status (solved, infeasible, iteration limit, numerical) replaces the
+KKT check, and inactive multipliers are exact zeros, which the crossing decision reads. On the benchmark
+servo it solves in 4 us median (50 us p99) per step, and tracks the 1 Hz sine to 2.9e-6 rad RMS against
+2.7e-5 rad with DAQP through CasADi, which stops at constraint violations of up to its ``primal_tol``
+(1e-6) on some landing QPs (``tests/test_qp.py``). Without a C compiler (or with ``GEARCTL_NO_COMPILE=1``)
+``gearctl`` falls back to CasADi's ``qrqp`` plugin called through ``casadi.conic`` (an exact active-set
+solver too: the same torques, measured to 1e-10 N m, but 70 us median and up to 0.2 s per solve here);
+:meth:`MPC.describe` then says so (``qp_solver``, ``solver_note``).
 
-*Checking a solve.* CasADi's generated daqp code reports success on an infeasible QP (the setup
-failure is ignored), so every solution is checked: primal feasibility and the stationarity residual
+The CasADi plugins stay available (``daqp``, ``qrqp``, ``osqp``, ``proxqp``). Called from Python, a CasADi
+Function costs 25-40 us of call overhead on the 2-core benchmark machine before the solver runs (daqp
+through ``casadi.conic``: 65-130 us median, up to 250 us at the 99th percentile). So for ``daqp`` and
+``qrqp`` the conic, with the KKT check appended, is generated as C by CasADi's code generator, compiled
+once with the system C compiler into the per-user cache (as :mod:`gearctl.kernel` does) and called
+through :mod:`ctypes` on preallocated buffers: 5-30 us per solve with daqp. Without a C compiler the conic
+is called through CasADi. ``osqp`` and ``proxqp`` always go through CasADi (0.5-1 ms per step here), and
+qrqp's generated code needs about 2 ms on this QP. Python's cyclic garbage collector is paused during the
+solver call (and restored at once), so that a collection (4-8 ms here) lands in the step overhead, which
+:attr:`MPC.step_times` measures, not inside the solve.
+
+*Checking a CasADi solve.* CasADi's generated daqp code reports success on an infeasible QP (the setup
+failure is ignored), so every CasADi solution is checked: primal feasibility and the stationarity residual
 ``H x + g + lam_x + A' lam_a`` relative to the data, against a tolerance per solver (rows are scaled to
 O(1): the gap in ``b``, its rate in ``b / Ts``, mesh torques in N m).
 
-*Warm starts.* The shifted previous plan and bound multipliers are passed as ``x0`` and ``lam_x0`` to
-every solver; qrqp, osqp and proxqp use them, DAQP's CasADi interface starts from the unconstrained
-minimiser. The shifted plan is also the fallback.
+*Warm starts.* For the CasADi plugins the shifted previous plan and bound multipliers are passed as
+``x0`` and ``lam_x0``; qrqp, osqp and proxqp use them, DAQP's CasADi interface starts from the
+unconstrained minimiser. The shifted plan is also the fallback (for every solver).
+
+*Standstill.* While the previewed reference rests (constant over the whole horizon) and the load is
+within ``standstill_deadband`` of it, the plan holds its flank: no crossing is planned in contact, a load
+that floats off its flank is not chased or flipped to (the plan waits, and lands on the flank the gap
+closes on by itself when it does, at 5 % of ``landing_velocity``, without the ``smoothing`` push); if the
+load comes to rest on the other flank, that flank holds it. A larger error is corrected as in motion.
+Without it the plan hunts across the gap after errors the encoders barely resolve: every crossing lands
+at up to ``landing_velocity`` and kicks the free load (measured on ``shing1993_servo``'s 5-cycle ISO
+230-2 test: 65 flank changes at rest over 3 cycles without the deadband, 10 over 5 cycles with it, for 10
+reversals of the reference).
+
+*Preview.* The MPC reads ``horizon + 1`` reference samples per step (``r(t)`` to ``r(t + N Ts)``, with the
+feedforward over the horizon): :attr:`MPC.preview` and ``describe()["preview"]`` say so, and the bench
+table shows it beside the PIDs' 1. It therefore starts moving up to ``horizon`` samples before a step of
+the reference, which a controller that reads ``r(t)`` only cannot.
 
 *A solver plugin that is not installed* is an :class:`~gearctl.errors.InputError` when the controller is
 built (not a silent switch to another solver, which would make the solve-time figures describe a
@@ -106,6 +136,8 @@ M. Nordin, P.-O. Gutman, "Controlling mechanical systems with backlash - a surve
 to modelling, control and state estimation of mechanical systems with backlash", Int. J. Control 80
 (2007) 1729-1740. D. Arnstrom, A. Bemporad, D. Axehill, "A dual active-set solver for embedded
 quadratic programming using recursive LDL' updates", IEEE Trans. Automatic Control 67 (2022) 4362-4369.
+D. Goldfarb, A. Idnani, "A numerically stable dual method for solving strictly convex quadratic
+programs", Math. Programming 27 (1983) 1-33 (the ``gearctl`` solver).
 """
 
 from __future__ import annotations
@@ -141,7 +173,7 @@ KIND = "mpc"
 #: the exported C controller runs the same code) and CasADi conic plugins (``daqp`` and ``qrqp`` compiled).
 SOLVERS = ("daqp", "qrqp", "osqp", "proxqp", "gearctl")
 #: The CasADi plugin the ``gearctl`` setting falls back to where the C solver cannot be built.
-FALLBACK_SOLVER = "daqp"
+FALLBACK_SOLVER = "qrqp"
 _COMPILABLE = ("daqp", "qrqp")
 # quiet options per plugin, and the relative KKT tolerance a solution of that solver must meet
 _PLUGIN_OPTIONS: dict[str, dict[str, Any]] = {
@@ -168,7 +200,8 @@ class MPCSettings:
     horizon : int
         Prediction and control horizon [samples].
     solver : str
-        CasADi conic plugin, one of :data:`SOLVERS`.
+        QP solver, one of :data:`SOLVERS`: ``"gearctl"`` (default; :class:`gearctl.qp.DenseQP`, exact,
+        the solver the exported C controller runs) or a CasADi conic plugin.
     feedback : str
         ``"load"``: motor and load encoders (the gap is measured); ``"motor"``: motor encoder only (the
         load and the gap are predicted open loop in separation).
@@ -199,6 +232,9 @@ class MPCSettings:
         disturbance's change per sample [N m].
     measurement_noise : float
         Observer: std of each encoder's error [rad].
+    standstill_deadband : float
+        Load error [rad] within which the plan holds its flank while the previewed reference rests (see
+        *Standstill* in the module docstring); ``0 <= value <= 1``.
     backlash : float
         Backlash estimate ``b`` [m], ``0 <= b < 0.01``. With ``b = 0`` the train is taken as backlash-free
         (see *The backlash-free limit* in the module docstring): the landing settings (``soft_landing``,
@@ -207,7 +243,7 @@ class MPCSettings:
 
     horizon: int = quantity(unit="samples", doc="prediction and control horizon", low=1, high=200, integer=True,
                             default=20)
-    solver: str = "daqp"
+    solver: str = "gearctl"
     feedback: str = "load"
     tracking: float = quantity(unit="1/rad^2", doc="load-angle error weight", low=0.0, low_open=True, high=1e15,
                                default=1e8)
@@ -227,6 +263,8 @@ class MPCSettings:
     measurement_noise: float = quantity(unit="rad", doc="observer measurement noise", low=0.0, low_open=True,
                                         high=1.0, default=2e-6)
     backlash: float = BACKLASH.field(default=5e-5, doc="backlash estimate (0: a backlash-free train)")
+    standstill_deadband: float = quantity(unit="rad", doc="load error below which the plan does not cross the gap "
+                                          "while the previewed reference rests", low=0.0, high=1.0, default=2e-4)
 
     def __post_init__(self) -> None:
         if isinstance(self.soft_landing, bool):  # true/false in a file: the penalty alone / off
@@ -328,7 +366,7 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
 #: The keys of an ``mpc`` controller file and the settings fields they feed.
 MPC_LAYOUT: Layout = {
     "": {k: (MPCSettings, k) for k in ("feedback", "horizon", "solver", "backlash", "soft_landing",
-                                       "landing_velocity", "max_solve_time", "smoothing")} | {
+                                       "landing_velocity", "max_solve_time", "smoothing", "standstill_deadband")} | {
         "sample_time": (MPCSettings, "_sample_time")},
     "weights": {k: (MPCSettings, k) for k in ("tracking", "torque", "torque_rate", "relative_velocity",
                                               "terminal")},
@@ -486,6 +524,13 @@ class _QP:
         fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
         self._fn, self._lib = fn, lib
 
+    def prepare(self, pat: _Pattern) -> None:
+        """Per-pattern work done once (nothing here: the compiled path reads ``pat.ptr``)."""
+
+    def use(self, pat: _Pattern, sig: int) -> None:
+        """Use the Hessian and the rows of pattern ``pat`` (flank ``sig``) for the next solves."""
+        self.set_matrices(pat.H, pat.A[sig], pat.ptr[sig])
+
     def set_matrices(self, H: NDArray[np.float64], A: NDArray[np.float64], ptr: tuple[int, int]) -> None:
         """Use ``H`` (symmetric) and ``A`` (Fortran order, data addresses ``ptr``) for the next solves.
 
@@ -531,11 +576,95 @@ class _QP:
         return "ok"
 
 
+class _GearctlQP:
+    """The same interface as :class:`_QP` on gearctl's exact dense solver (:class:`gearctl.qp.DenseQP`).
+
+    One :class:`~gearctl.qp.QPFactor` per pattern Hessian and the pattern's rows in C order are prepared
+    once (:meth:`prepare`); a solve copies the gradient and the row bounds into the solver's buffers and
+    calls it cold (from the unconstrained minimiser): no primal warm start, so the solution does not
+    depend on the history of solves, as in the exported C controller. The solver is exact (an active-set
+    method): its status replaces CasADi's KKT check, and inactive multipliers are exact zeros.
+
+    Raises
+    ------
+    SolverError
+        Where the C solver cannot be built (no compiler, ``GEARCTL_NO_COMPILE``).
+    """
+
+    plugin = "gearctl"
+    compiled = True
+    tol = 0.0  # ``kkt`` is 0 for a solved QP, inf otherwise
+
+    def __init__(self, n: int, m: int) -> None:
+        from ..qp import DenseQP
+
+        self._dqp = q = DenseQP(n, m)
+        self.n, self.m = n, m
+        self.lbx, self.ubx = q.lbx, q.ubx
+        self.x0, self.lam_x0 = np.zeros(n), np.zeros(n)  # the shifted plan: the fallback (not a warm start)
+        self.gl = np.zeros(n + m)
+        self.g, self.lba = self.gl[:n], self.gl[n:]
+        self.uba = q.uba
+        self.x, self.lam_x, self.lam_a, self.cost = q.x, q.lam_x, q.lam_a, q.cost
+        self.kkt = np.zeros(1)
+        self.h: NDArray[np.float64] = np.eye(n)
+        self.a: NDArray[np.float64] = q.a
+        self._factor: Any = None
+        self.note = "gearctl dense QP (Goldfarb-Idnani dual active set, C99), cold start"
+
+    def prepare(self, pat: _Pattern) -> None:
+        """Factor the pattern's Hessian and keep its rows in C order (once per pattern)."""
+        pat.solver_data = (self._dqp.factor(pat.H), {sig: np.ascontiguousarray(A) for sig, A in pat.A.items()})
+
+    def use(self, pat: _Pattern, sig: int) -> None:
+        """Use the Hessian factor and the rows of pattern ``pat`` (flank ``sig``) for the next solves."""
+        factor, rows = pat.solver_data
+        self._factor = factor
+        self.h, self.a = pat.H, rows[sig]
+        self._dqp.use_rows(self.a)
+
+    def solve(self) -> str:
+        """Solve with the current buffers; ``"ok"`` or the solver's status name."""
+        q, n = self._dqp, self.n
+        q.g[:] = self.gl[:n]
+        q.lba[:] = self.gl[n:]
+        status = q.solve(self._factor)
+        if status:  # not SOLVED: the outputs describe the last iterate
+            self.kkt[0] = math.inf
+            return f"gearctl QP: {status.name.lower().replace('_', ' ')}"
+        self.kkt[0] = 0.0
+        return "ok"
+
+
+def _make_qp(n: int, m: int, solver: str, compiled: bool | None) -> _QP | _GearctlQP:
+    """The QP backend of a solver setting (``gearctl`` falls back to CasADi's :data:`FALLBACK_SOLVER`).
+
+    ``compiled``: True forces compiled code (an error if it cannot be built), False forbids it (``gearctl``
+    then runs the fallback through CasADi), None takes compiled code where a C compiler exists.
+    """
+    if solver != "gearctl":
+        return _QP(n, m, solver, compiled=compiled)
+    if compiled is not False:
+        try:
+            return _GearctlQP(n, m)
+        except SolverError as exc:
+            if compiled:
+                raise
+            why = str(exc)
+    else:
+        why = "compiled code not wanted (compiled=False)"
+    qp = _QP(n, m, FALLBACK_SOLVER, compiled=False)
+    qp.note = (f"gearctl QP solver unavailable ({why}); solving with CasADi's {FALLBACK_SOLVER} plugin "
+               f"through casadi.conic instead")
+    return qp
+
+
 # --- the controller --------------------------------------------------------------------------------------
 
 _INF = 1e20  # "no bound" for constraint rows (finite: some plugins reject inf)
 _CROSS_MARGIN = 2e-3  # a crossing must lower the plan's cost by this fraction (no flank change on a tie)
 _FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this much cheaper to land on
+_STANDSTILL_LANDING = 0.05  # at standstill, landings close at most this fraction of landing_velocity
 
 
 @dataclasses.dataclass(slots=True)
@@ -557,6 +686,7 @@ class _Pattern:
     has_landing: bool
     land_row: int  # mesh-torque row of the first contact sample after the landing (-1: none in the horizon)
     gap_rows: NDArray[np.intp]  # rows that bound the gap (floating samples): -b <= s <= b, width 2 in units of b
+    solver_data: Any = None  # what the QP backend prepared for this pattern (a Hessian factor, rows in C order)
 
 
 class MPC(Controller):
@@ -615,6 +745,7 @@ class MPC(Controller):
         self.inject_failures = set(inject_failures or ())
         p = info.plant
         self.N = n = st.horizon
+        self.preview = n + 1  # reference samples a step reads: r(t) .. r(t + N Ts)
         self._b = st.backlash
         self._rigid = st.backlash == 0.0  # backlash-free: one rigid train, the mesh pushes and pulls
         self._tol = 0.02 * st.backlash  # contact when |s| >= b - tol (encoder resolution ~1 % of b)
@@ -634,7 +765,9 @@ class MPC(Controller):
         self.n_p = 8 + 2 * n
         self._build_patterns()
         self._build_observer()
-        self._qp = _QP(n, n + 2, st.solver, compiled=compiled)
+        self._qp = _make_qp(n, n + 2, st.solver, compiled)
+        for pat in self._patterns.values():
+            self._qp.prepare(pat)
         self._qp.lbx[:] = -self._umax
         self._qp.ubx[:] = self._umax
         self._qp.uba[:n] = _INF
@@ -642,6 +775,7 @@ class MPC(Controller):
         self._f_land = st.smoothing
         # in the velocity row's units, b / Ts (no landing rows without backlash)
         self._v_land = 0.0 if self._rigid else st.landing_velocity * Ts / st.backlash
+        self._v_land_now = self._v_land  # the bound of the step being solved (smaller at standstill)
         self.statuses: list[str] = []
         self.step_times: list[float] = []
         self.reset()
@@ -883,6 +1017,23 @@ class MPC(Controller):
         l0, l1, l2 = self._Lc
         z[0], z[1], z[2], z[3], z[4] = phi_p + l0 * inn, om_p + l1 * inn, s_n, v_n, d + l2 * inn
 
+    def _holding(self, i: int, z: NDArray[np.float64]) -> bool:
+        """Whether the plan holds its flank: the previewed reference rests and the load is within
+        ``standstill_deadband`` of it.
+
+        At standstill a flank change is then never planned (no crossing decision in contact, no flip when
+        floating); a load that floats off its flank is met on the flank it drifts towards, which is the one
+        that can stop it. A larger error (a load disturbance, a move that ended badly) is corrected as in
+        motion, so the deadband bounds the hunting without bounding the correction.
+        """
+        win = self._win[i]
+        n = self.N
+        r = self._R[i]
+        if win[n] != 0.0 or not (win[:n] == r).all():
+            return False
+        theta2 = float(z[0]) / self.model.N - self.model.kappa2 * float(z[2])
+        return abs(r - theta2) <= self.settings.standstill_deadband
+
     def _steps_to_land(self, s: float, flank: int, torque_share: float = 0.25) -> int:
         """Samples to close the gap to ``flank`` from ``s``, accelerating then decelerating."""
         dist = max(self._b - flank * s, 0.0)
@@ -910,20 +1061,21 @@ class MPC(Controller):
             uba[g_rows] = lba[g_rows] + 1.0
             lba[g_rows] -= 1.0
             self._gap_bounded = True
-        if pat.land_row >= 0:  # land onto a loaded flank: the impacts then die out instead of re-landing
-            lba[pat.land_row] += self._f_land
+        if pat.land_row >= 0 and self._v_land_now == self._v_land:  # land onto a loaded flank: the impacts then
+            lba[pat.land_row] += self._f_land  # die out instead of re-landing (not at standstill: it would push)
         if pat.has_landing:
             uba[n] = lba[n]
             if self._bound_landing:  # closing, at most landing_velocity: 0 <= sigma v <= v_L
                 c = lba[n + 1]
-                uba[n + 1] = c + (self._v_land if p_new > 0.0 else 0.0)
-                lba[n + 1] = c - (0.0 if p_new > 0.0 else self._v_land)
+                v_l = self._v_land_now
+                uba[n + 1] = c + (v_l if p_new > 0.0 else 0.0)
+                lba[n + 1] = c - (0.0 if p_new > 0.0 else v_l)
             else:
                 lba[n + 1], uba[n + 1] = -_INF, _INF
         else:
             lba[n] = lba[n + 1] = -_INF
             uba[n] = uba[n + 1] = _INF
-        qp.set_matrices(pat.H, pat.A[sig], pat.ptr[sig])
+        qp.use(pat, sig)
         # Python's cyclic collector is paused for the call (and restored at once): a collection triggered by
         # the few objects the call allocates would otherwise land inside the solve (4-8 ms on the benchmark
         # machine); it runs at the next allocation instead, in the step overhead that step_times measures
@@ -1000,6 +1152,10 @@ class MPC(Controller):
         sig = self._flank
         if sig == 0:  # first sample: in contact, or floating (both flanks are then tried, front first)
             self._flank = sig = side or 1
+        hold = not self._rigid and self._holding(i, z)
+        self._v_land_now = _STANDSTILL_LANDING * self._v_land if hold else self._v_land
+        if hold and self._land is None and side == -sig:  # at rest on the other flank: that flank now holds it
+            self._flank = sig = side
         if self._rigid:  # backlash-free: the rigid-train QP alone (no flank, no crossing, no landing)
             key = self._all_contact
             status, solve_time, _ = self._solve(key, 0.0, 1)
@@ -1008,7 +1164,7 @@ class MPC(Controller):
             key = self._all_contact
             status, solve_time, _ = self._solve(key, sig * b, sig)
             lam = qp.lam_a[:n]
-            if status == "ok" and lam.any():  # active-set solvers give exact zeros for inactive rows
+            if status == "ok" and not hold and lam.any():  # active-set solvers give exact zeros for inactive rows
                 la = np.abs(lam)
                 binding = np.flatnonzero(la > 1e-9 * (1.0 + la.max()))
                 if binding.size:
@@ -1029,9 +1185,22 @@ class MPC(Controller):
                 self._land = self.n_cross
             # a countdown only decreases (the plan may not postpone its landing); a new landing is planned with
             # a quarter of the torque limit, and never in less than two samples (accelerate, then decelerate)
-            e = max(self._land, 1) if self._land is not None else max(self._steps_to_land(s, sig), 2)
+            if hold and side == 0 and self._land is None:  # at rest, floating (see _holding)
+                e, v = n + 1, float(z[3])
+                if v * sig < -_STANDSTILL_LANDING * self._v_land * b / self.Ts:
+                    # drifting off its flank towards the other: meet it there, slowly (the flank it approaches is
+                    # the one that can stop it), at the standstill landing speed
+                    self._flank = sig = -sig
+                    e = n  # the slowest landing the horizon holds
+                elif v != 0.0:  # the flank the gap closes on by itself, and when (else: wait)
+                    fl = 1 if v > 0.0 else -1
+                    e = min(n + 1, max(1, math.ceil((fl * b - s) / (v * self.Ts))))
+                    if e <= n:
+                        self._flank = sig = fl
+            else:
+                e = max(self._land, 1) if self._land is not None else max(self._steps_to_land(s, sig), 2)
             status, solve_time, cost, key = self._land_on(sig, e, s)
-            if side == 0:
+            if side == 0 and not hold:
                 self._set_aside()
                 e2 = max(self._steps_to_land(s, -sig), 2)
                 st2, dt, cost2, key2 = self._land_on(-sig, e2, s)
@@ -1042,7 +1211,7 @@ class MPC(Controller):
                 else:
                     self._restore()
             if status == "ok":  # the landing actually planned (it may have been put off), counted down from now
-                self._land = key[1]
+                self._land = key[1] if key[1] <= n or not hold else None  # waiting at rest is not a landing
         self.solve_times.append(solve_time)
         if self._k in self.inject_failures:
             status = "injected failure"
@@ -1079,5 +1248,6 @@ class MPC(Controller):
     def describe(self) -> dict[str, Any]:
         """Settings for reports: horizon, solver and how it is called, weights, crossing length."""
         d = dataclasses.asdict(self.settings)
-        return {"name": self.name, "kind": "mpc", "Ts": self.Ts, **d, "compiled": self._qp.compiled,
-                "solver_note": self._qp.note, "crossing_samples": self.n_cross, "patterns": len(self._patterns)}
+        return {"name": self.name, "kind": "mpc", "Ts": self.Ts, "preview": self.preview, **d,
+                "qp_solver": self._qp.plugin, "compiled": self._qp.compiled, "solver_note": self._qp.note,
+                "crossing_samples": self.n_cross, "patterns": len(self._patterns)}
