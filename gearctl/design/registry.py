@@ -19,13 +19,13 @@ from ..errors import InputError
 from ..files import Layout, check_source
 from ..plant import Plant
 from ..units import BACKLASH, SAMPLE_TIME
-from . import deadzone, mpc, pid, reversal
+from . import adaptive, deadzone, mpc, pid, reversal
 from .base import Controller, loop_info
 
 __all__ = ["build_controller", "MODULES", "LAYOUTS", "CONTROLLER_KEYS"]
 
 #: The controller kinds: one module each (``KIND``, ``LAYOUT``, ``build``).
-MODULES: dict[str, ModuleType] = {m.KIND: m for m in (pid, deadzone, reversal, mpc)}
+MODULES: dict[str, ModuleType] = {m.KIND: m for m in (pid, deadzone, reversal, adaptive, mpc)}
 #: kind -> layout of its file
 LAYOUTS: dict[str, Layout] = {k: m.LAYOUT for k, m in MODULES.items()}
 #: kind -> (top-level keys, {table: keys}) for documentation and the README

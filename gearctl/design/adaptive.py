@@ -1,0 +1,235 @@
+"""Adaptive dead-zone inverse: the backlash inverse whose estimate of ``b`` learns from the encoders.
+
+The inverse itself is :class:`gearctl.design.deadzone.DeadzoneInverse`, used through its public interface
+only (``step``, ``reset``, ``describe``, ``set_backlash``, ``backlash``, ``pid``); this module adds the
+estimate. It reads both encoders: ``s = r_b1 theta1 - r_b2 theta2`` is the relative displacement along
+the line of action up to the encoders' zeros, and the flanks are its two extremes, ``+b`` and ``-b`` (plus
+the mesh deflection ``F / k``, removed as ``u / (r_b1 k)`` with the commanded torque ``u``). Whenever the
+motor has crossed the gap, a stretch of ``s`` around the crossing holds both extremes, whatever the zeros:
+
+    b_m = (s_hi - s_lo) / 2
+
+over a ``window`` of samples (examined every half window; windows that measure do not overlap), with
+``s_hi`` and ``s_lo`` the third largest and smallest values (an impact's penetration is a spike of one or
+two samples). The window counts if the span exceeds ``0.8 b_j`` (one flank's bounces or a partial
+crossing span less) and each extreme was visited: the fifth largest (smallest) value lies within
+``max(plateau_tolerance, 0.02 b_j)`` of the third. The same rule reads a servo that rests on the flanks
+between crossings (the improved plant: flat plateaus), one whose motor keeps bouncing on the driving
+flank (the Yang–Sun plant's stiff, lively contact: the flank is the top of the bounces) and one that
+rattles across the gap (the extremes are the impacts).
+
+This is a recursive estimate from the gap crossings, in the spirit of Tao & Kokotović's adaptive inverse
+(an online estimate of the dead-zone parameter with projection onto known bounds), but driven by the
+measured gap rather than by the tracking error, so that the estimate does not absorb the loop's own lag.
+
+The adaptation law (bounded)
+----------------------------
+At the ``j``-th measurement
+
+    b_(j+1) = clip( b_j + gain (b_m - b_j),  (1 - max_step) b_j,  (1 + max_step) b_j )
+
+projected onto ``[min_backlash, max_backlash]``, and handed to the inverse (``set_backlash``) only when
+it differs from the estimate the inverse holds by more than ``apply_threshold`` (1 %): each change moves
+the inverse's offset along its crossing ramp, which is a small disturbance of its own.
+
+``gain`` in (0, 1] filters measurement noise (the error
+shrinks by ``1 - gain`` per crossing, so from -50 % it is within 5 % after three crossings at the
+default 0.6), ``max_step`` bounds any single change (a corrupt measurement moves the estimate by at most
+that fraction), and the bounds keep it physical. Between measurements the estimate is held. The steps are
+relative, so an initial estimate of 0 (the backlash-free plant of the benchmark) stays 0: the inverse is then
+its PID.
+
+References
+----------
+G. Tao, P. V. Kokotović, *Adaptive Control of Systems with Actuator and Sensor Nonlinearities*, Wiley
+(1996), ch. 4-5 (adaptive backlash inverse, parameter projection). M. Nordin, P.-O. Gutman, "Controlling
+mechanical systems with backlash - a survey", Automatica 38 (2002) 1633-1649 (the gap between motor and
+load positions).
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+from ..controller import ReferenceLike
+from ..errors import InputError
+from ..files import Layout, build_dataclass, spec_values
+from ..units import BACKLASH, quantity, validate_fields
+from . import deadzone
+from .base import Controller, LoopInfo
+
+__all__ = ["AdaptationSettings", "AdaptiveInverse", "KIND", "LAYOUT", "build", "MAX_HISTORY"]
+
+#: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
+KIND = "adaptive_inverse"
+#: Most estimate updates kept in :attr:`AdaptiveInverse.history` (one per gap crossing).
+MAX_HISTORY = 10_000
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class AdaptationSettings:
+    """The ``[adaptation]`` table of an ``adaptive_inverse`` file: the bounded update law."""
+
+    gain: float = quantity(unit="1", doc="share of the measured error taken per gap crossing", low=0.0,
+                           low_open=True, high=1.0, default=0.6)
+    max_step: float = quantity(unit="1", doc="largest relative change of the estimate per crossing", low=0.0,
+                               low_open=True, high=1.0, default=0.5)
+    min_backlash: float | None = BACKLASH.field(default=None, optional=True, doc="lower bound of the estimate "
+                                                "(default: 0.2 x the initial estimate)")
+    max_backlash: float | None = BACKLASH.field(default=None, optional=True, doc="upper bound of the estimate "
+                                                "(default: 5 x the initial estimate)")
+    window: float = quantity(unit="s", doc="stretch of s examined for both flanks, every half of it", low=0.0,
+                             low_open=True, high=10.0, default=0.2)
+    plateau_tolerance: float = quantity(unit="m", doc="how near its extreme a flank's samples lie (about twice "
+                                        "the encoders' flicker of s)", low=0.0, low_open=True, high=1e-3,
+                                        default=1e-6)
+    apply_threshold: float = quantity(unit="1", doc="relative change of the estimate that is handed to the "
+                                      "inverse", low=0.0, high=0.5, default=0.01)
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+        if self.min_backlash is not None and self.max_backlash is not None and \
+                self.min_backlash > self.max_backlash:
+            raise InputError(f"min_backlash = {self.min_backlash!r} is out of range: expected at most max_backlash "
+                             f"= {self.max_backlash!r} [m]", field="min_backlash")
+
+
+class AdaptiveInverse(Controller):
+    """A dead-zone inverse whose backlash estimate updates at every gap crossing (see the module docstring).
+
+    Parameters
+    ----------
+    inverse : DeadzoneInverse
+        The inverse it wraps; its backlash is the initial estimate.
+    settings : AdaptationSettings
+        The update law.
+    name : str
+        Label.
+
+    Attributes
+    ----------
+    history : list of tuple
+        ``(t [s], measured b_m [m], estimate after the update [m])`` per crossing, at most
+        :data:`MAX_HISTORY`.
+    """
+
+    def __init__(self, inverse: deadzone.DeadzoneInverse, settings: AdaptationSettings | None = None, *,
+                 name: str = "adaptive_inverse") -> None:
+        super().__init__()
+        self.inner = inverse
+        self.settings = settings or AdaptationSettings()
+        self.name = name
+        self.Ts = inverse.Ts
+        self.preview = inverse.preview
+        self.uses_load_encoder = True  # the gap is measured between the two encoders
+        self.initial = float(inverse.backlash)
+        st = self.settings
+        self.min_backlash = st.min_backlash if st.min_backlash is not None else 0.2 * self.initial
+        self.max_backlash = st.max_backlash if st.max_backlash is not None else min(5.0 * self.initial, 0.0099)
+        if not (self.min_backlash <= self.initial <= self.max_backlash):
+            raise InputError(f"backlash = {self.initial!r} is out of range: the initial estimate must lie within "
+                             f"[min_backlash, max_backlash] = [{self.min_backlash:g}, {self.max_backlash:g}] [m]",
+                             field="backlash")
+        plant = inverse.pid.info.plant
+        self._rb1, self._rb2, self._k = plant.rb1, plant.rb2, plant.k
+        self._window = max(10, int(round(st.window / self.Ts)))
+        self.history: list[tuple[float, float, float]] = []
+        self.reset()
+
+    @property
+    def backlash(self) -> float:
+        """The current estimate ``b`` [m] (the inverse holds it within ``apply_threshold``)."""
+        return self._b
+
+    def reset(self) -> None:
+        """Back to the initial estimate; the wrapped inverse and the window reset."""
+        self._b = self.initial
+        self.inner.set_backlash(self.initial)
+        self.inner.reset()
+        self._recent: collections.deque[float] = collections.deque(maxlen=self._window)
+        self._count = 0  # samples since the window was last examined
+        self._fresh = 0  # samples since the last measurement (measuring windows do not overlap)
+        self._u = 0.0
+        self.history = []
+        self.solve_times, self.fallbacks = self.inner.solve_times, self.inner.fallbacks
+
+    def update(self, t: float, b_m: float) -> float:
+        """Apply one measurement ``b_m`` [m] taken at ``t`` [s] by the bounded law; return the new estimate [m].
+
+        The law of the module docstring: a step of ``gain`` towards ``b_m``, at most ``max_step`` of the
+        estimate, projected onto ``[min_backlash, max_backlash]``; the inverse gets it beyond ``apply_threshold``.
+        """
+        st = self.settings
+        b = self.backlash
+        new = b + st.gain * (b_m - b)
+        new = min(max(new, (1.0 - st.max_step) * b), (1.0 + st.max_step) * b)
+        new = min(max(new, self.min_backlash), self.max_backlash)
+        self._b = new
+        held = float(self.inner.backlash)
+        if abs(new - held) > st.apply_threshold * held:
+            self.inner.set_backlash(new)
+        if len(self.history) < MAX_HISTORY:
+            self.history.append((t, b_m, new))
+        return new
+
+    def _observe(self, t: float, s: float) -> None:
+        """Add a sample of ``s``; every half window, measure the gap if the window holds both flanks."""
+        self._recent.append(s)
+        self._count += 1
+        self._fresh += 1
+        n = self._window
+        if self._count < n // 2 or len(self._recent) < n or self._fresh < n:
+            return
+        self._count = 0
+        v = sorted(self._recent)
+        hi, lo = v[-3], v[2]
+        b = self.backlash
+        near = max(self.settings.plateau_tolerance, 0.02 * b)
+        if hi - lo > 0.8 * b and hi - v[-5] <= near and v[4] - lo <= near:
+            self._fresh = 0
+            self.update(t, 0.5 * (hi - lo))
+
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
+        if y_load is not None:
+            self._observe(t, self._rb1 * y_motor - self._rb2 * float(y_load) - self._u / (self._rb1 * self._k))
+        u = self.inner.step(t, y_motor, y_load if self.inner.uses_load_encoder else None, ref)
+        self._u = u
+        return u
+
+    def describe(self) -> dict[str, Any]:
+        """The inverse's settings, the law's, and the estimate's history."""
+        st = self.settings
+        return {**self.inner.describe(), "name": self.name, "kind": KIND, "backlash_initial": self.initial,
+                "backlash_estimate": self.backlash, "backlash_applied": float(self.inner.backlash),
+                "gain": st.gain, "max_step": st.max_step,
+                "min_backlash": self.min_backlash, "max_backlash": self.max_backlash,
+                "window": st.window, "plateau_tolerance": st.plateau_tolerance,
+                "apply_threshold": st.apply_threshold,
+                "backlash_history": [list(h) for h in self.history]}
+
+
+#: The keys of an ``adaptive_inverse`` file: the inverse's (:data:`gearctl.design.deadzone.LAYOUT`) and the
+#: ``[adaptation]`` table.
+LAYOUT: Layout = {**deadzone.LAYOUT,
+                  "adaptation": {f.name: (AdaptationSettings, f.name) for f in dataclasses.fields(AdaptationSettings)}}
+
+
+def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
+          backlash: float | None = None) -> AdaptiveInverse:
+    """The adaptive inverse of a ``kind = "adaptive_inverse"`` file; ``backlash`` overrides the initial estimate.
+
+    Every key but the ``[adaptation]`` table is the inverse's, built by :func:`gearctl.design.deadzone.build`
+    (so the two kinds read the same keys the same way).
+    """
+    values = spec_values(path, spec, LAYOUT, kind=KIND)
+    settings = build_dataclass(path, AdaptationSettings, values.get(AdaptationSettings, {}))
+    inner_spec = {k: v for k, v in spec.items() if k != "adaptation"}
+    inner_spec["kind"] = deadzone.KIND
+    inverse = deadzone.build(path, inner_spec, info, name=name + "/inverse", backlash=backlash)
+    try:
+        return AdaptiveInverse(inverse, settings, name=name)
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}", field=exc.field, rule=exc.rule) from None

@@ -1,0 +1,1461 @@
+"""Backlash and friction identification from encoder logs: the log format, reading it, the estimate.
+
+A servo log is what a drive or a data logger exports (:func:`read_log`, :func:`write_log`): CSV, optional
+``#`` comment lines, a header row, then one row per sample at a fixed period with the columns
+
+- ``t`` [s], evenly spaced (within :data:`PERIOD_TOLERANCE` of the period);
+- ``torque`` [N m], the motor torque command, held from its sample to the next (zero-order hold);
+- ``theta1`` [rad], the motor encoder's reading (quantised, noisy, any zero);
+- ``theta2`` [rad], the load encoder's reading, optional;
+
+any other column is kept and ignored. A bad log is one :class:`~gearctl.errors.InputError` naming the file
+and the line or the column; a log above :data:`MAX_LOG_BYTES` or :data:`MAX_LOG_SAMPLES` is refused with
+its size, so the memory a run takes is bounded (about 30 float arrays of the log's length).
+
+:func:`identify` estimates from a log of ordinary closed-loop operation (moves, sines, reversals) and a
+model of the gear pair (geometry, mesh stiffness, nominal inertias and friction): the backlash ``b`` with a
+95 % interval, the viscous and Coulomb friction of each shaft and the shaft inertias, and it re-simulates
+the motion around the gap crossings (:class:`Identification`). With both encoders ``b`` is read off the
+plateaus of ``r_b1 theta1 - r_b2 theta2`` (gap-crossing geometry); with the motor encoder alone the exact
+piecewise-linear plant is re-simulated around each crossing and fitted by least squares (output error).
+The Notes of :func:`identify` give the method and the literature. :func:`identified_model` and
+:func:`write_identified_model` turn the result into a model file for ``track``, ``precision`` and ``bench``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import InputError
+from .units import SAMPLE_TIME
+
+__all__ = ["EncoderLog", "read_log", "write_log", "Identification", "ReversalWindow", "identify", "identified_model",
+           "write_identified_model", "ENCODERS", "MAX_LOG_BYTES", "MAX_LOG_SAMPLES", "MIN_LOG_SAMPLES",
+           "PERIOD_TOLERANCE", "MIN_SWITCHES", "MAX_WINDOWS"]
+
+#: Largest log file read [bytes] (a 1 kHz log of 17 min with five columns is about 60 MB).
+MAX_LOG_BYTES = 100_000_000
+#: Most samples a log may hold (1000 s at 1 kHz; the estimate then holds about 250 MB of arrays).
+MAX_LOG_SAMPLES = 1_000_000
+#: Fewest samples a log must hold (0.5 s at 1 kHz).
+MIN_LOG_SAMPLES = 500
+#: Samples must be evenly spaced: each interval within this fraction of the period.
+PERIOD_TOLERANCE = 0.01
+#: The columns of a log: required, then optional.
+REQUIRED_COLUMNS = ("t", "torque", "theta1")
+OPTIONAL_COLUMNS = ("theta2",)
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class EncoderLog:
+    """A servo log: torque command and encoder readings at a fixed period.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Sample times [s], evenly spaced.
+    torque : ndarray, shape (n,)
+        Motor torque command [N m], held from each sample to the next (zero-order hold).
+    theta1 : ndarray, shape (n,)
+        Motor encoder reading [rad] (quantised, noisy; any zero).
+    theta2 : ndarray or None, shape (n,)
+        Load encoder reading [rad], or None without a load encoder.
+    extra : mapping
+        Other columns, by name (ignored by the identification).
+    sample_time : float
+        The period [s].
+    comments : tuple of str
+        The ``#`` lines before the header, without the ``#``.
+    path : Path or None
+        The file read.
+    """
+
+    t: NDArray[np.float64]
+    torque: NDArray[np.float64]
+    theta1: NDArray[np.float64]
+    theta2: NDArray[np.float64] | None = None
+    extra: Mapping[str, NDArray[np.float64]] = dataclasses.field(default_factory=dict)
+    sample_time: float
+    comments: tuple[str, ...] = ()
+    path: Path | None = None
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.t.size)
+
+    @property
+    def name(self) -> str:
+        """The file's name (or ``<log>``)."""
+        return str(self.path) if self.path is not None else "<log>"
+
+
+def _fail(path: Path, where: str, what: str, field: str | None = None) -> InputError:
+    return InputError(f"{path}: {where}: {what}" if where else f"{path}: {what}", field=field)
+
+
+def read_log(path: str | Path) -> EncoderLog:
+    """Read a servo log (CSV, see :class:`EncoderLog`), checking every line.
+
+    The file may start with ``#`` comment lines; then a header row naming the columns; then one row per
+    sample. Columns ``t`` [s], ``torque`` [N m], ``theta1`` [rad] are required, ``theta2`` [rad] is
+    optional, any other column is kept in :attr:`EncoderLog.extra` and ignored.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    EncoderLog
+
+    Raises
+    ------
+    InputError
+        One line naming the file and the line or column: unreadable, binary or non-UTF-8, larger than
+        :data:`MAX_LOG_BYTES` or :data:`MAX_LOG_SAMPLES`, no header, a missing or repeated column, a row
+        with the wrong number of fields, a value that is not a finite number, time that does not increase
+        or is not evenly spaced (within :data:`PERIOD_TOLERANCE`), fewer than :data:`MIN_LOG_SAMPLES`
+        samples.
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read: {exc.strerror}", field="log") from None
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, not a log file", field="log")
+    if size > MAX_LOG_BYTES:
+        raise InputError(f"{path}: {size:,} bytes is too large for a log (at most {MAX_LOG_BYTES:,} bytes, about "
+                         f"{MAX_LOG_SAMPLES:,} samples): cut the log to the part with the reversals", field="log")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read: {exc.strerror}", field="log") from None
+    if b"\0" in raw:
+        line = raw[: raw.index(b"\0")].count(b"\n") + 1
+        raise _fail(path, f"line {line}", "is binary (a NUL byte), not CSV text", "log")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise _fail(path, f"line {line}", f"is not UTF-8 text (byte {exc.start}): expected a CSV log", "log") from None
+    del raw
+    lines = text.splitlines()
+    del text
+    comments: list[str] = []
+    i = 0
+    while i < len(lines) and (lines[i].lstrip().startswith("#") or not lines[i].strip()):
+        if lines[i].lstrip().startswith("#"):
+            comments.append(lines[i].lstrip()[1:].strip())
+        i += 1
+    if i == len(lines):
+        raise _fail(path, "", "has no header row: expected a line naming the columns t, torque, theta1[, theta2]",
+                    "log")
+    header_line = i + 1
+    names = [c.strip() for c in lines[i].split(",")]
+    seen: set[str] = set()
+    for c in names:
+        if c in seen:
+            raise _fail(path, f"line {header_line}", f"column {c!r} appears twice in the header", c or "log")
+        seen.add(c)
+    for c in REQUIRED_COLUMNS:
+        if c not in names:
+            got = ", ".join(repr(x) for x in names[:8])
+            raise _fail(path, f"line {header_line}", f"missing column {c!r} (the header has {got}): expected t [s], "
+                        f"torque [N m], theta1 [rad] and optionally theta2 [rad]", c)
+    rows = lines[i + 1:]
+    n = sum(1 for r in rows if r.strip())
+    if n > MAX_LOG_SAMPLES:
+        raise _fail(path, "", f"{n:,} samples is more than a log may hold ({MAX_LOG_SAMPLES:,}): cut the log to the "
+                    f"part with the reversals", "log")
+    ncol = len(names)
+    data = np.empty((n, ncol))
+    k = 0
+    for j, row in enumerate(rows, start=header_line + 1):
+        if not row.strip():
+            continue
+        fields = row.split(",")
+        if len(fields) != ncol:
+            raise _fail(path, f"line {j}", f"{len(fields)} fields, expected {ncol} (one per header column)", "log")
+        for c, f in enumerate(fields):
+            try:
+                v = float(f)
+            except ValueError:
+                raise _fail(path, f"line {j}", f"column {names[c]} = {f.strip()!r} is not a number",
+                            names[c]) from None
+            if not math.isfinite(v):
+                raise _fail(path, f"line {j}", f"column {names[c]} = {f.strip()} is not a finite number", names[c])
+            data[k, c] = v
+        k += 1
+    del lines, rows
+    if n < 2:
+        raise _fail(path, "", f"{n} sample(s) is too short: expected at least {MIN_LOG_SAMPLES} (with at least two "
+                    f"reversals of the motion)", "log")
+    col = {c: data[:, names.index(c)].copy() for c in names if c}
+    t = col["t"]
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        j = int(bad[0])
+        raise _fail(path, f"line {header_line + 2 + j}", f"t = {float(t[j + 1]):.10g} does not increase (previous "
+                    f"sample t = {float(t[j]):.10g}): expected time in increasing order", "t")
+    Ts = float(np.median(dt))
+    try:
+        SAMPLE_TIME.check("sample period", Ts)
+    except InputError as exc:
+        raise _fail(path, "column t", f"sample period {Ts:g} s {exc.rule}", "t") from None
+    off = np.flatnonzero(np.abs(dt - Ts) > PERIOD_TOLERANCE * Ts)
+    if off.size:
+        j = int(off[0])
+        raise _fail(path, f"line {header_line + 2 + j}", f"t = {float(t[j + 1]):.10g} is {dt[j]:.6g} s after the "
+                    f"previous sample; the log's period is {Ts:.6g} s: expected evenly spaced samples (within "
+                    f"{PERIOD_TOLERANCE:.0%}); resample the log or cut it at the gap", "t")
+    if n < MIN_LOG_SAMPLES:
+        raise _fail(path, "", f"{n} samples ({n * Ts:.3g} s) is too short: expected at least {MIN_LOG_SAMPLES} (with "
+                    f"at least two reversals of the motion)", "log")
+    extra = {c: v for c, v in col.items() if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS}
+    return EncoderLog(t=t, torque=col["torque"], theta1=col["theta1"], theta2=col.get("theta2"), extra=extra,
+                      sample_time=Ts, comments=tuple(comments), path=path)
+
+
+def write_log(path: str | Path, log: EncoderLog, *, comments: Sequence[str] = ()) -> None:
+    """Write a log in the format :func:`read_log` reads (``#`` comments, header, 10 significant digits).
+
+    Raises
+    ------
+    InputError
+        If the file cannot be written.
+    """
+    path = Path(path)
+    names = ["t", "torque", "theta1"] + (["theta2"] if log.theta2 is not None else []) + list(log.extra)
+    cols = [log.t, log.torque, log.theta1] + ([log.theta2] if log.theta2 is not None else []) + \
+        [np.asarray(v) for v in log.extra.values()]
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "w") as fh:
+            for c in (*log.comments, *comments):
+                for line in str(c).splitlines():
+                    fh.write(f"# {line}\n")
+            fh.write(",".join(names) + "\n")
+            chunk = 50_000
+            for i0 in range(0, log.n, chunk):
+                block = np.column_stack([np.asarray(c[i0:i0 + chunk], dtype=float) for c in cols])
+                np.savetxt(fh, block, fmt="%.10g", delimiter=",")
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror}") from None
+
+
+# --- identification ------------------------------------------------------------------------------------------
+
+#: What ``encoders`` may say: both encoders, or the motor encoder alone.
+ENCODERS = ("motor+load", "motor")
+#: Fewest changes of the flank in contact (gap crossings) a log must show.
+MIN_SWITCHES = 2
+#: Most gap crossings fitted by re-simulation (spread evenly over a longer log).
+MAX_WINDOWS = 16
+#: Gap crossings whose re-simulation the result keeps for the plot.
+MAX_PLOT_WINDOWS = 12
+#: Gap crossings fitted to split the Coulomb friction between the shafts from the motor encoder alone.
+SPLIT_WINDOWS = 4
+#: Time the flanks take to settle after an impact (bounces) before a plateau of ``s`` counts [s].
+SETTLE_TIME = 0.015
+#: A re-simulated window starts this long before a gap crossing and ends this long after it [s].
+WINDOW_BEFORE, WINDOW_AFTER = 0.03, 0.06
+#: Relative 95 % uncertainty of the model's motor-shaft inertia (motor rotor from its data sheet, pinion from
+#: the drawing), used when only the motor encoder is read: the log gives the lumped inertia, not which part
+#: of it turns with the motor (the motor's free flights in the gap are short and cut by impacts).
+MOTOR_INERTIA_TOLERANCE = 0.1
+#: A re-simulation whose RMS residual exceeds this many times the encoders' noise is reported as not fitting.
+RESIDUAL_WARNING = 20.0
+#: Order of the friction and inertia parameters.
+PARAMS = ("J1", "J2", "d1", "d2", "tc1", "tc2")
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class ReversalWindow:
+    """Measured and re-simulated motion around one gap crossing (for the plot and the residual).
+
+    Attributes
+    ----------
+    t_switch : float
+        When the flank in contact changed [s] (the middle of the crossing).
+    flanks : tuple of int
+        Flank before and after (+1 front, -1 back).
+    t : ndarray
+        Sample times of the window [s].
+    theta1, theta1_sim : ndarray
+        Motor angle measured and re-simulated [rad].
+    theta2, theta2_sim : ndarray or None
+        Load angle measured (in the simulation's zero, see :attr:`Identification.offset`) and re-simulated
+        [rad]; ``theta2`` is None without a load encoder.
+    backlash : float
+        The backlash this window was simulated with [m] (its own estimate with the motor encoder alone).
+    rms : float
+        RMS of measured minus re-simulated angles in this window, in load-angle units [rad].
+    """
+
+    t_switch: float
+    flanks: tuple[int, int]
+    t: NDArray[np.float64]
+    theta1: NDArray[np.float64]
+    theta1_sim: NDArray[np.float64]
+    theta2: NDArray[np.float64] | None
+    theta2_sim: NDArray[np.float64]
+    backlash: float
+    rms: float
+
+
+@dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
+class Identification:
+    """What :func:`identify` found in a log.
+
+    Attributes
+    ----------
+    backlash : float
+        Backlash ``b`` along the line of action [m] (half the gap).
+    backlash_ci : tuple of float
+        95 % confidence interval of ``b`` [m].
+    lost_motion, lost_motion_ci : float, tuple
+        The same as lost motion at the load, ``2 b / r_b2`` [rad].
+    friction : dict
+        ``viscous1``, ``viscous2`` [N m s/rad], ``coulomb1``, ``coulomb2`` [N m] (1 motor shaft, 2 load shaft).
+    friction_ci : dict
+        95 % intervals of the same.
+    inertia, inertia_ci : dict
+        ``J1``, ``J2``: total inertia of the motor and the load shaft [kg m^2], estimate and 95 % interval.
+    nominal : dict
+        The model's values of the same quantities (``backlash``, ``J1``, ``J2``, ``viscous1`` ...).
+    encoders : str
+        ``"motor+load"`` or ``"motor"``.
+    rms_residual : float
+        RMS of measured minus re-simulated angles around the gap crossings, in load-angle units (motor angle
+        divided by the gear ratio) [rad].
+    residual_motor, residual_load : float
+        The same per encoder, in its own shaft's angle [rad] (``residual_load`` NaN without a load encoder).
+    estimates : ndarray
+        Backlash estimate of each crossing (motor encoder alone) or of each pair of plateaus [m].
+    estimate_times : ndarray
+        Times of those estimates [s].
+    switches : int
+        Gap crossings found in the log.
+    offset : float
+        Zero of the measured relative displacement ``r_b1 theta1 - r_b2 theta2`` [m] (the middle of the gap;
+        0 without a load encoder).
+    sample_time : float
+        The log's period [s].
+    samples : int
+        Samples in the log.
+    method : str
+        How ``b`` and the friction were estimated, in words.
+    model : str
+        The model's name.
+    log : str
+        The log file.
+    windows : tuple of ReversalWindow
+        Re-simulated motion around up to :data:`MAX_PLOT_WINDOWS` crossings.
+    gear_ratio : float
+        ``r_b2 / r_b1``.
+    base_radius : tuple of float
+        ``r_b1, r_b2`` [m].
+    warnings : tuple of str
+        What the figures should be read with (a re-simulation that does not fit the log).
+    """
+
+    backlash: float
+    backlash_ci: tuple[float, float]
+    lost_motion: float
+    lost_motion_ci: tuple[float, float]
+    friction: dict[str, float]
+    friction_ci: dict[str, tuple[float, float]]
+    inertia: dict[str, float]
+    inertia_ci: dict[str, tuple[float, float]]
+    nominal: dict[str, float]
+    encoders: str
+    rms_residual: float
+    residual_motor: float
+    residual_load: float
+    estimates: NDArray[np.float64]
+    estimate_times: NDArray[np.float64]
+    switches: int
+    offset: float
+    sample_time: float
+    samples: int
+    method: str
+    model: str
+    log: str
+    windows: tuple[ReversalWindow, ...]
+    gear_ratio: float
+    base_radius: tuple[float, float]
+    warnings: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        """The figures as plain data (JSON; the windows' arrays are left out)."""
+        return {
+            "log": self.log, "model": self.model, "encoders": self.encoders,
+            "backlash": self.backlash, "backlash_ci": list(self.backlash_ci),
+            "lost_motion": self.lost_motion, "lost_motion_ci": list(self.lost_motion_ci),
+            "friction": dict(self.friction), "friction_ci": {k: list(v) for k, v in self.friction_ci.items()},
+            "inertia": dict(self.inertia), "inertia_ci": {k: list(v) for k, v in self.inertia_ci.items()},
+            "nominal": dict(self.nominal), "rms_residual": self.rms_residual,
+            "residual_motor": self.residual_motor, "residual_load": self.residual_load,
+            "switches": self.switches, "estimates": self.estimates.tolist(),
+            "estimate_times": self.estimate_times.tolist(), "offset": self.offset,
+            "sample_time": self.sample_time, "samples": self.samples, "method": self.method,
+            "gear_ratio": self.gear_ratio, "base_radius": list(self.base_radius), "warnings": list(self.warnings),
+        }
+
+
+# --- signals ----------------------------------------------------------------------------------------------
+
+
+def _odd(x: float, lo: int, hi: int) -> int:
+    """An odd whole number near ``x`` within ``[lo, hi]`` (filter lengths)."""
+    n = int(min(max(round(x), lo), hi))
+    return n if n % 2 else n - 1 if n > lo else n + 1
+
+
+def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """``[i0, i1)`` of each run of True in ``mask``."""
+    d = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
+
+
+def _hann(W: int) -> NDArray[np.float64]:
+    """A Hann window of ``W`` samples, normalised to unit sum (the smoother of every signal)."""
+    h = np.hanning(W + 2)[1:-1]
+    return h / h.sum()
+
+
+def _smooth(x: NDArray[np.float64], h: NDArray[np.float64]) -> NDArray[np.float64]:
+    from scipy.ndimage import convolve1d
+
+    return convolve1d(x, h, mode="nearest")
+
+
+class _Encoder:
+    """One encoder's reading, smoothed, with its velocity and acceleration.
+
+    Derivatives are difference quotients smoothed by a Hann window ``S``: ``a = S[(theta_k+1 - 2 theta_k +
+    theta_k-1) / Ts^2]``, ``w = S[(theta_k+1 - theta_k-1) / (2 Ts)]``. The torque is smoothed by the same
+    ``S`` (``S[(u_k-1 + u_k) / 2]``), so that a torque balance holds for the smoothed signals exactly as for
+    the samples: for an inertia under a held torque the second difference is exactly ``Ts^2 (u_k-1 + u_k)
+    / (2 J)``, and for two shafts the mesh force cancels in the total balance even across an impact.
+    Two windows: ``W`` samples (about 21 ms) for whole motions, ``Wg`` for the short free flights inside the
+    gap (1: the raw quotients, whose three samples must all lie inside the gap; a loop that slams across the
+    gap bounces, and its free flights last a few samples). ``sigma`` is the reading's noise (the robust
+    scatter of third differences, which smooth motion leaves alone, or the quantisation's ``q / sqrt(12)`` if
+    larger); a shaft counts as moving where its velocity stays beyond five times the velocity noise.
+    """
+
+    def __init__(self, theta: NDArray[np.float64], Ts: float, W: int, Wg: int) -> None:
+        self.raw = theta
+        d1 = np.gradient(theta, Ts)
+        d2 = np.zeros_like(theta)
+        d2[1:-1] = (theta[2:] - 2 * theta[1:-1] + theta[:-2]) / Ts**2
+        h, hg = _hann(W), _hann(Wg)
+        self.p = _smooth(theta, h)
+        self.w, self.a = _smooth(d1, h), _smooth(d2, h)
+        self.wg, self.ag = _smooth(d1, hg), _smooth(d2, hg)
+        steps = np.abs(np.diff(theta))
+        steps = steps[steps > 0]
+        self.q = float(steps.min()) if steps.size else 0.0
+        # white noise from the third difference (which smooth motion leaves at jerk Ts^3); robust to impacts
+        d3 = np.diff(theta, 3)
+        mad = float(np.median(np.abs(d3 - np.median(d3)))) if d3.size else 0.0
+        self.sigma = max(1.4826 * mad / math.sqrt(20.0), self.q / math.sqrt(12.0), 1e-12)
+        hv = float(np.linalg.norm(np.convolve(h, [0.5, 0.0, -0.5]))) / Ts
+        hvg = float(np.linalg.norm(np.convolve(hg, [0.5, 0.0, -0.5]))) / Ts
+        self.v_thr = 5.0 * self.sigma * hv
+        self.vg_thr = 5.0 * self.sigma * hvg
+
+    @staticmethod
+    def moving(w: NDArray[np.float64], thr: float, W: int) -> NDArray[np.bool_]:
+        """Samples whose velocity keeps one sign beyond ``thr`` over ``W`` samples around them."""
+        from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+        return (minimum_filter1d(w, W, mode="nearest") > thr) | (maximum_filter1d(w, W, mode="nearest") < -thr)
+
+
+# --- the friction and inertia regression ---------------------------------------------------------------
+
+
+def _regress(blocks: list[tuple[NDArray[np.float64], NDArray[np.float64], float]], mean: NDArray[np.float64],
+             sd: NDArray[np.float64], lower: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Bounded least squares of torque balances with a prior: ``(theta, covariance)``.
+
+    Each block ``(A, y, correlation)`` holds rows ``A theta = y`` of one kind (their noise is estimated
+    from their own residuals, robustly, and rows beyond five times it are dropped); ``correlation`` is
+    the number of samples a filtered residual stays correlated over, by which the information of a row
+    is divided so that the covariance is honest. The prior ``N(mean, sd^2)`` keeps the directions the
+    data do not see (e.g. how the viscous friction splits between the shafts when they always move
+    together) at the model's values.
+    """
+    from scipy.optimize import lsq_linear
+
+    blocks = [blk for blk in blocks if len(blk[1]) >= 10]
+    theta = mean.copy()
+    keeps = [np.ones(len(y), bool) for _, y, _ in blocks]
+    sig = []
+    for A, y, _ in blocks:
+        r = y - A @ mean
+        sig.append(max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-12))
+    for _ in range(4):
+        rows, rhs = [], []
+        for (A, y, corr), s, keep in zip(blocks, sig, keeps, strict=True):
+            wgt = 1.0 / (s * math.sqrt(corr))
+            rows.append(A[keep] * sd * wgt)
+            rhs.append(y[keep] * wgt)
+        rows.append(np.eye(len(mean)))
+        rhs.append(mean / sd)
+        sol = lsq_linear(np.vstack(rows), np.concatenate(rhs), bounds=(lower / sd, np.full(len(mean), np.inf)))
+        theta = sol.x * sd
+        for j, (A, y, _) in enumerate(blocks):
+            r = y - A @ theta
+            s = max(1.4826 * float(np.median(np.abs(r[keeps[j]]))), 1e-12)
+            sig[j] = s
+            keeps[j] = np.abs(r) < 5 * s
+    info = np.diag(1.0 / sd**2)
+    for (A, _, corr), s, keep in zip(blocks, sig, keeps, strict=True):
+        Ak = A[keep]
+        info += Ak.T @ Ak / (s * s * corr)
+    return theta, np.linalg.inv(info)
+
+
+def _prior(plant: Any, ubar: NDArray[np.float64], w1: NDArray[np.float64], N: float) -> tuple[NDArray, NDArray]:
+    """The model's values of ``J1, J2, d1, d2, tc1, tc2`` and a weak prior spread about them.
+
+    Inertias: 30 % (a data sheet's and a drawing's figures). Friction: 100 % of the model's value, or where
+    the model has none, the log's own scale (its RMS torque; that over its RMS motor speed for viscous
+    friction), carried to the load shaft by the gear ratio. So a friction the model lacks is found from
+    the log, and what the log cannot split between the shafts is split as the model does.
+    """
+    mean = np.array([plant.J1, plant.J2, plant.d1, plant.d2, plant.tc1, plant.tc2])
+    u_rms = max(float(np.sqrt(np.mean(ubar**2))), 1e-9)
+    w_rms = max(float(np.sqrt(np.mean(w1**2))), 1e-9)
+    scale = np.array([0.0, 0.0, u_rms / w_rms, N * N * u_rms / w_rms, u_rms, N * u_rms])
+    sd = np.where(mean > 0, mean, scale)
+    sd[:2] = 0.3 * mean[:2]
+    return mean, sd
+
+
+# --- re-simulating a gap crossing ---------------------------------------------------------------------------
+
+
+def _with_values(nominal: Any, theta: NDArray[np.float64], b: float, floor: tuple[float, float] = (0.0, 0.0)) -> Any:
+    """The nominal pair with identified inertias, friction (stick-slip) and backlash, no torque limit.
+
+    A Coulomb friction below ``floor`` [N m, motor and load shaft] is left out: it changes nothing a log can
+    show, and a vanishing stick-slip friction makes the solver locate a stick and a slip at every turn.
+    """
+    from .params import FrictionLaw
+    from .plant import Plant, PlantKind, Shaft
+
+    tc1 = theta[4] if theta[4] > floor[0] else 0.0
+    tc2 = theta[5] if theta[5] > floor[1] else 0.0
+    st = dataclasses.replace(nominal.stages[0], backlash=b, kv_table=None)
+    return Plant(kind=PlantKind.IMPROVED, shafts=(Shaft(J=theta[0], d=theta[2], tc=tc1),
+                                                  Shaft(J=theta[1], d=theta[3], tc=tc2)),
+                 stages=(st,), contact_law=nominal.contact_law, friction_law=FrictionLaw.STICK_SLIP,
+                 coulomb_velocity=nominal.coulomb_velocity, torque_limit=math.inf, load_torque=nominal.load_torque)
+
+
+def _simulate(plant: Any, x0: NDArray[np.float64], torque: NDArray[np.float64], Ts: float,
+              kernel: Any = None) -> NDArray[np.float64]:
+    """Angles ``(2, m + 1)`` of the plant from ``x0`` under the held torques (NaN after a failure).
+
+    ``kernel``: a :class:`~gearctl.kernel.Kernel` of this plant to reuse (its state is replaced).
+    """
+    from .kernel import Kernel
+
+    out = np.full((2, torque.size + 1), np.nan)
+    out[:, 0] = x0[:2]
+    if kernel is None:
+        kn = Kernel(plant, x0, dt=Ts)
+    else:
+        kn = kernel
+        kn.set_state(x0)
+    tl = plant.load_torque
+    for j, u in enumerate(torque.tolist()):
+        if kn.advance(u, tl, Ts) != 0:
+            break
+        x = kn.x
+        if not (math.isfinite(x[0]) and math.isfinite(x[1])):
+            break
+        out[0, j + 1], out[1, j + 1] = x[0], x[1]
+    return out
+
+
+@dataclasses.dataclass
+class _Window:
+    """A gap crossing: samples ``[k0, k1]``, flank before and after, transmitted force at ``k0``."""
+
+    k0: int
+    k1: int
+    before: int
+    after: int
+    force0: float
+    t_switch: float
+
+
+def _start_state(plant: Any, th1: float, w1: float, flank: int, force: float) -> NDArray[np.float64]:
+    """A state in contact on ``flank`` carrying ``force`` [N] with the motor at ``th1``, ``w1``."""
+    s0 = flank * plant.backlash + force / plant.k
+    return np.array([th1, (plant.rb1 * th1 - s0) / plant.rb2, w1, w1 / plant.gear_ratio])
+
+
+# --- the estimate ---------------------------------------------------------------------------------------
+
+
+def _t95(dof: int) -> float:
+    from scipy import stats
+
+    return float(stats.t.ppf(0.975, max(dof, 1)))
+
+
+def _spread_evenly(items: list[Any], n: int) -> list[Any]:
+    """At most ``n`` of ``items``, evenly spread (all of them if there are fewer)."""
+    if len(items) <= n:
+        return list(items)
+    idx = np.unique(np.round(np.linspace(0, len(items) - 1, n)).astype(int))
+    return [items[i] for i in idx]
+
+
+class _Problem:
+    """Everything the estimate works on: the log's signals, the model's pair, the filters."""
+
+    def __init__(self, log: EncoderLog, nominal: Any, encoders: str, module: float) -> None:
+        self.log, self.nominal, self.encoders, self.module = log, nominal, encoders, module
+        self.Ts = Ts = log.sample_time
+        self.n = log.n
+        self.N = nominal.gear_ratio
+        self.W = _odd(0.021 / Ts, 7, min(2001, max(7, self.n // 8)))
+        self.Wg = 1  # the free flights between bounces last a few samples: raw difference quotients
+        u = log.torque
+        # the torque over [t_k-1, t_k+1] seen by a central second difference at t_k (zero-order hold)
+        self.ubar = np.concatenate(([u[0]], 0.5 * (u[1:] + u[:-1])))
+        #: Coulomb friction too small to matter in a re-simulation [N m, motor and load shaft]: 0.1 % of the RMS torque
+        u_rms = float(np.sqrt(np.mean(self.ubar**2)))
+        self.tc_floor = (1e-3 * u_rms, 1e-3 * u_rms * self.N)
+        self.uf = _smooth(self.ubar, _hann(self.W))
+        self.ug = _smooth(self.ubar, _hann(self.Wg))
+        self.m = _Encoder(log.theta1, Ts, self.W, self.Wg)
+        self.l = _Encoder(log.theta2, Ts, self.W, self.Wg) if encoders == "motor+load" else None
+        self.before = max(1, int(round(WINDOW_BEFORE / Ts)))
+        self.after = max(2, int(round(WINDOW_AFTER / Ts)))
+        self.settle = max(1, int(round(SETTLE_TIME / Ts)))
+
+    def transmitted(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Torque the mesh takes from the motor, ``r_b1 F = u - J1 theta1'' - d1 theta1' - T_c1 sign`` [N m]."""
+        m = self.m
+        mv = _Encoder.moving(m.w, m.v_thr, self.W)
+        return self.uf - theta[0] * m.a - theta[2] * m.w - theta[4] * np.where(mv, np.sign(m.w), 0.0)
+
+
+def _no_switch(p: _Problem, found: int, what: str) -> InputError:
+    col = "theta2" if p.encoders == "motor+load" else "theta1"
+    return InputError(f"{p.log.name}: column {col}: {found} gap crossing(s) found ({what}); identification needs at "
+                      f"least {MIN_SWITCHES}: record a motion that reverses (moves back and forth, a sine)",
+                      field=col)
+
+
+def _check_motion(p: _Problem) -> None:
+    """The motor must move and turn back at least once."""
+    w = p.m.w
+    mv = _Encoder.moving(w, p.m.v_thr, p.W)
+    signs = np.sign(w[mv])
+    if signs.size == 0:
+        raise InputError(f"{p.log.name}: column theta1: the motor does not move (its reading changes by "
+                         f"{float(np.ptp(p.log.theta1)):.3g} rad): no reversal in the log", field="theta1")
+    if np.all(signs == signs[0]):
+        span = float(np.ptp(p.log.theta1))
+        raise InputError(f"{p.log.name}: column theta1: the motor turns one way only ({span:.3g} rad): no reversal in "
+                         f"the log", field="theta1")
+
+
+def _episodes(p: _Problem) -> tuple[float, float, list[tuple[int, int, int]]]:
+    """Contact plateaus of the measured ``s = r_b1 theta1 - r_b2 theta2``: centre, half-gap, episodes.
+
+    An episode is a run of samples near one extreme of ``s`` (beyond 60 % of the half-range from the
+    middle, after a 5-sample median filter removes impact spikes); neighbouring runs on one flank are one
+    episode (a bounce that dipped), so episodes alternate between the flanks.
+    """
+    from scipy.ndimage import median_filter
+
+    pl = p.nominal
+    assert p.l is not None
+    s = pl.rb1 * p.log.theta1 - pl.rb2 * p.log.theta2  # type: ignore[operator]
+    sm = median_filter(s, size=5, mode="nearest")
+    hi, lo = float(sm.max()), float(sm.min())
+    c0, b0 = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    noise = math.hypot(pl.rb1 * p.m.sigma, pl.rb2 * p.l.sigma)
+    if b0 <= 10 * noise:
+        raise _no_switch(p, 0, f"r_b1 theta1 - r_b2 theta2 spans {2 * b0:.3g} m, within the encoders' noise")
+    eps = [(i0, i1, 1) for i0, i1 in _runs(sm - c0 > 0.6 * b0)] + \
+          [(i0, i1, -1) for i0, i1 in _runs(sm - c0 < -0.6 * b0)]
+    eps.sort()
+    merged: list[tuple[int, int, int]] = []
+    for e in eps:
+        if merged and merged[-1][2] == e[2]:
+            merged[-1] = (merged[-1][0], e[1], e[2])
+        else:
+            merged.append(e)
+    return c0, b0, merged
+
+
+def _flank_value(v: NDArray[np.float64], width: float, need: int) -> float:
+    """Where the flank is, from ``v = sigma (s - F/k)`` of samples that may touch it.
+
+    In contact ``v`` sits at the flank (up to the encoders' flicker); a sample inside the gap has ``v``
+    below it. The flank is the densest bin of width ``width`` in the top of the distribution (within 20
+    bins of the largest value), refined as the median of the samples within 1.5 bins of it; NaN if that
+    bin holds fewer than ``need`` samples.
+    """
+    top = float(v.max())
+    v = v[v >= top - 20 * width]
+    edges = np.arange(top - 20 * width, top + 1.5 * width, width)
+    counts, edges = np.histogram(v, bins=edges)
+    j = int(np.argmax(counts))
+    if counts[j] < need:
+        return math.nan
+    c = 0.5 * (edges[j] + edges[j + 1])
+    near = v[np.abs(v - c) <= 1.5 * width]
+    return float(np.median(near))
+
+
+def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[int, int, int]]
+                      ) -> tuple[float, tuple[float, float], float, NDArray, NDArray, float]:
+    """Backlash from the plateaus of ``s`` on either flank, corrected for the mesh deflection ``F / k``.
+
+    Returns ``b``, its 95 % interval, the centre of the gap, the estimate of each neighbouring pair of
+    plateaus with its time, and the mean deflection correction.
+    """
+    pl = p.nominal
+    ld = p.l
+    assert ld is not None
+    s = pl.rb1 * p.log.theta1 - pl.rb2 * p.log.theta2  # type: ignore[operator]
+    tau = p.transmitted(theta)
+    force = tau / pl.rb1
+    h = max(0.15 * float(np.percentile(np.abs(tau), 75)), 1e-12)
+    # in contact s moves only by the deflection and the encoders' flicker; inside the gap it travels
+    ds = np.abs(np.gradient(s))
+    still = ds <= (pl.rb1 * p.m.q + pl.rb2 * ld.q) + 6 * math.hypot(pl.rb1 * p.m.sigma, pl.rb2 * ld.sigma)
+    width = max(0.5 * (pl.rb1 * p.m.q + pl.rb2 * ld.q), 2 * math.hypot(pl.rb1 * p.m.sigma, pl.rb2 * ld.sigma))
+    vals: list[tuple[int, float, float]] = []  # (flank, plateau, time)
+    corr = []
+    need = max(3, int(round(0.003 / p.Ts)))
+    for i0, i1, sg in eps:
+        a = i0 + p.settle
+        # contact for sure: the mesh carries torque towards this flank and the flanks do not move apart
+        idx = a + np.flatnonzero((sg * tau[a:i1] > h) & still[a:i1]) if i1 > a else np.zeros(0, int)
+        value = _flank_value(sg * (s[idx] - force[idx] / pl.k), width, need) if idx.size >= need else math.nan
+        if not math.isfinite(value):
+            vals.append((sg, math.nan, float(p.log.t[i0])))
+            continue
+        corr.append(float(np.mean(np.abs(force[idx] / pl.k))))
+        vals.append((sg, sg * value, float(p.log.t[(a + i1) // 2])))
+    # a plateau can only be pulled into the gap (by samples of a contact too brief to settle), never out of
+    # it: on each side keep the plateaus within 4 bins of the upper quartile
+    for sign in (1, -1):
+        side = np.array([sign * v for sg, v, _ in vals if sg == sign and math.isfinite(v)])
+        if side.size:
+            ref = float(np.percentile(side, 75))
+            vals = [(sg, v if sg != sign or not math.isfinite(v) or sign * v >= ref - 4 * width else math.nan, t)
+                    for sg, v, t in vals]
+    front = np.array([v for sg, v, _ in vals if sg > 0 and math.isfinite(v)])
+    back = np.array([v for sg, v, _ in vals if sg < 0 and math.isfinite(v)])
+    if front.size == 0 or back.size == 0:
+        raise _no_switch(p, len(eps) - 1, "the flanks never rest in contact carrying torque on one side: the "
+                         "loop rattles in the gap or the load floats")
+    b = 0.5 * (float(front.mean()) - float(back.mean()))
+    centre = 0.5 * (float(front.mean()) + float(back.mean()))
+    var = 0.0
+    for arr in (front, back):
+        var += float(arr.var(ddof=1)) / arr.size if arr.size > 1 else 0.0
+    se = 0.5 * math.sqrt(var)
+    dof = min(front.size, back.size) - 1
+    # quantisation of a plateau at rest does not average out: one reading's error per plateau, both flanks
+    q_s = math.hypot(pl.rb1 * p.m.q, pl.rb2 * p.l.q) / math.sqrt(12.0)  # type: ignore[union-attr]
+    defl = float(np.mean(corr)) if corr else 0.0
+    half = math.sqrt((_t95(dof) * se) ** 2 + (1.96 * q_s / math.sqrt(2.0)) ** 2 + (0.3 * defl) ** 2)
+    est, times = [], []
+    for (s1, v1, t1), (s2, v2, t2) in zip(vals[:-1], vals[1:], strict=True):
+        if s1 != s2 and math.isfinite(v1) and math.isfinite(v2):
+            est.append(0.5 * s1 * (v1 - v2))
+            times.append(0.5 * (t1 + t2))
+    return b, (b - half, b + half), centre, np.array(est), np.array(times), defl
+
+
+def _gap_windows(p: _Problem, eps: list[tuple[int, int, int]], theta: NDArray[np.float64]) -> list[_Window]:
+    """Windows around the changes of plateau (both encoders)."""
+    tau = p.transmitted(theta)
+    out = []
+    for (a0, a1, sa), (b0, b1, sb) in zip(eps[:-1], eps[1:], strict=True):
+        k0 = max(a0 + p.settle, a1 - p.before)
+        k1 = min(b1 - 1, b0 + p.after)
+        if k1 - k0 < 10 or k0 >= a1:
+            continue
+        f0 = float(tau[k0]) / p.nominal.rb1
+        out.append(_Window(k0, k1, sa, sb, sa * max(sa * f0, 0.0), float(0.5 * (p.log.t[a1 - 1] + p.log.t[b0]))))
+    return out
+
+
+def _torque_windows(p: _Problem) -> tuple[list[_Window], NDArray[np.bool_]]:
+    """Gap crossings seen from the motor alone: sign changes of the torque the mesh takes from the motor.
+
+    The torque is computed with the model's motor-shaft values; a crossing is where it passes from below
+    ``-h`` to above ``+h`` (or back), ``h`` 15 % of its 75th percentile. A window starts
+    :data:`WINDOW_BEFORE` before the last sample beyond ``-h`` but not more than three times that before the
+    first beyond ``+h`` (a dwell in between is not re-simulated), and ends :data:`WINDOW_AFTER` after it.
+    Returns the windows and the samples with a steady transmitted torque (beyond ``h``), where the two
+    shafts move as one.
+    """
+    pl = p.nominal
+    theta0 = np.array([pl.J1, pl.J2, pl.d1, pl.d2, pl.tc1, pl.tc2])
+    tau = p.transmitted(theta0)
+    h = 0.15 * float(np.percentile(np.abs(tau), 75))
+    h = max(h, 1e-12)
+    state, last = 0, -1
+    raw: list[tuple[int, int, int, int]] = []
+    for k in np.flatnonzero(np.abs(tau) > h).tolist():
+        sg = 1 if tau[k] > 0 else -1
+        if state and sg != state:
+            raw.append((last, k, state, sg))
+        state, last = sg, k
+    out = []
+    for j, (a, b, s0, s1) in enumerate(raw):
+        lo = 0 if j == 0 else (raw[j - 1][1] + a) // 2
+        hi = p.n - 1 if j == len(raw) - 1 else (b + raw[j + 1][0]) // 2
+        # start in contact on the old flank: at most a few window lengths before the new torque (a dwell between)
+        k0, k1 = max(lo, a - p.before, b - 3 * p.before), min(hi, b + p.after)
+        if k1 - k0 < 10:
+            continue
+        f0 = float(tau[k0]) / pl.rb1
+        out.append(_Window(k0, k1, s0, s1, s0 * max(s0 * f0, 0.0), float(0.5 * (p.log.t[a] + p.log.t[b]))))
+    return out, np.abs(tau) > h
+
+
+@dataclasses.dataclass
+class _Fit:
+    """One window's fit: parameters, the simulated angles, residual RMS per encoder [rad], the solution."""
+
+    b: float
+    phi: float
+    sim: NDArray[np.float64]
+    res_motor: float
+    res_load: float
+    cost: float
+    z: NDArray[np.float64]
+
+
+def _lumped(theta: NDArray[np.float64], N: float) -> tuple[float, float, float]:
+    """``J_eq, d_eq, T_eq`` on the motor shaft of ``theta = (J1, J2, d1, d2, tc1, tc2)``."""
+    return theta[0] + theta[1] / N**2, theta[2] + theta[3] / N**2, theta[4] + theta[5] / N
+
+
+def _split(theta: NDArray[np.float64], N: float, *, phi: float | None = None, kappa: float | None = None,
+           psi: float | None = None) -> NDArray[np.float64]:
+    """``theta`` with the lumped values kept and their split between the shafts changed.
+
+    ``phi``: share of the Coulomb friction on the motor (``tc1 = phi T_eq``, ``tc2 = N (1 - phi) T_eq``);
+    ``kappa``: the motor inertia scaled (``J1 = kappa J1``, ``J2 = N^2 (J_eq - J1)``); ``psi``: share of the
+    viscous friction on the motor.
+    """
+    th = theta.copy()
+    J_eq, d_eq, T_eq = _lumped(theta, N)
+    if phi is not None:
+        th[4], th[5] = phi * T_eq, N * (1.0 - phi) * T_eq
+    if kappa is not None:
+        th[0] = kappa * theta[0]
+        th[1] = N**2 * (J_eq - th[0])
+    if psi is not None:
+        th[2], th[3] = psi * d_eq, N**2 * (1.0 - psi) * d_eq
+    return th
+
+
+class _WindowModel:
+    """The re-simulation of one window as a function of its free parameters (in noise units).
+
+    Always free: the motor's angle and speed at the window's start. ``free`` may add ``"b"`` (the
+    backlash, relative to ``b``) and ``"phi"`` (the share of the lumped Coulomb friction on the motor
+    shaft). The load angle follows from the flank in contact at the start.
+    """
+
+    def __init__(self, p: _Problem, w: _Window, theta: NDArray[np.float64], b: float, *, free: tuple[str, ...] = (),
+                 phi: float | None = None, offset: float = 0.0) -> None:
+        m = p.m
+        self.p, self.w, self.theta, self.b, self.free, self.phi = p, w, theta, b, free, phi
+        self.names = ["dtheta", "domega", *free]
+        self.seg = p.log.torque[w.k0:w.k1]
+        self.y1 = p.log.theta1[w.k0:w.k1 + 1]
+        self.y2 = None if p.l is None else p.log.theta2[w.k0:w.k1 + 1] + offset / p.nominal.rb2  # type: ignore[index]
+        self.sw = max(m.v_thr, 1e-3 * abs(float(m.w[w.k0])), 1e-9)
+        self.cache: dict[tuple[float, float], tuple[Any, Any]] = {}
+        wlim = max(50.0, 0.3 * abs(float(m.w[w.k0])) / self.sw)
+        bounds = {"dtheta": (-50.0, 50.0), "domega": (-wlim, wlim), "b": (1e-8 / b, min(0.5 * p.module, 0.0099) / b),
+                  "phi": (0.0, 1.0)}
+        self.lo = np.array([bounds[k][0] for k in self.names])
+        self.hi = np.array([bounds[k][1] for k in self.names])
+        start = {"dtheta": 0.0, "domega": 0.0, "b": 1.0, "phi": phi if phi is not None else 0.5}
+        self.start = np.array([start[k] for k in self.names])
+
+    def values(self, z: NDArray[np.float64]) -> dict[str, float]:
+        """Physical values of a parameter vector."""
+        v = dict(zip(self.names, np.asarray(z).tolist(), strict=True))
+        return {"dth": v["dtheta"] * self.p.m.sigma, "dw": v["domega"] * self.sw, "b": v.get("b", 1.0) * self.b,
+                "phi": v.get("phi", self.phi if self.phi is not None else math.nan)}
+
+    def _plant(self, v: dict[str, float]) -> tuple[Any, Any]:
+        from .kernel import Kernel
+
+        key = (v["b"], v["phi"])
+        if key not in self.cache:
+            if len(self.cache) > 2 + len(self.names):  # the current point and the Jacobian's steps
+                self.cache.pop(next(iter(self.cache)))
+            th = self.theta if "phi" not in self.free else _split(self.theta, self.p.N, phi=v["phi"])
+            q = _with_values(self.p.nominal, th, v["b"], self.p.tc_floor)
+            self.cache[key] = (q, Kernel(q, np.zeros(4), dt=self.p.Ts))
+        return self.cache[key]
+
+    def simulate(self, z: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Angles ``(2, m + 1)`` re-simulated with the parameters ``z``."""
+        v = self.values(z)
+        q, kn = self._plant(v)
+        m, k0 = self.p.m, self.w.k0
+        x0 = _start_state(q, float(m.p[k0]) + v["dth"], float(m.w[k0]) + v["dw"], self.w.before, self.w.force0)
+        return _simulate(q, x0, self.seg, self.p.Ts, kn)
+
+    def resid(self, z: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Measured minus re-simulated angles, in noise units."""
+        sim = self.simulate(z)
+        r = (sim[0] - self.y1) / self.p.m.sigma
+        if self.y2 is not None:
+            r = np.concatenate((r, (sim[1] - self.y2) / self.p.l.sigma))  # type: ignore[union-attr]
+        return np.nan_to_num(r, nan=1e3, posinf=1e3, neginf=-1e3)
+
+    def fit(self, z0: NDArray[np.float64] | None = None, *, max_nfev: int = 80) -> _Fit:
+        """Bounded least squares (SciPy ``least_squares``, trust region reflective)."""
+        from scipy.optimize import least_squares
+
+        z = self.start if z0 is None else np.asarray(z0, dtype=float)
+        z = np.clip(z, self.lo + 1e-9 * (self.hi - self.lo), self.hi - 1e-9 * (self.hi - self.lo))
+        sol = least_squares(self.resid, z, bounds=(self.lo, self.hi), diff_step=1e-3, max_nfev=max_nfev,
+                            x_scale=1.0, ftol=1e-6, xtol=1e-6)
+        v = self.values(sol.x)
+        sim = self.simulate(sol.x)
+        rm = float(np.sqrt(np.nanmean((sim[0] - self.y1) ** 2)))
+        rl = float(np.sqrt(np.nanmean((sim[1] - self.y2) ** 2))) if self.y2 is not None else math.nan
+        return _Fit(b=v["b"], phi=v["phi"], sim=sim, res_motor=rm, res_load=rl,
+                    cost=float(np.sum(sol.fun**2)), z=sol.x)
+
+
+def _fit_window(p: _Problem, w: _Window, theta: NDArray[np.float64], b: float, *, free: tuple[str, ...] = (),
+                phi: float | None = None, offset: float = 0.0) -> _Fit:
+    """Fit one window's re-simulation to the encoders (:class:`_WindowModel`)."""
+    return _WindowModel(p, w, theta, b, free=free, phi=phi, offset=offset).fit()
+
+
+def _profile_start(p: _Problem, wins: list[_Window], theta: NDArray[np.float64], b_nom: float,
+                   split: bool) -> tuple[float, float]:
+    """Start of the motor-only fits: the backlash (and Coulomb share) of least profiled cost.
+
+    For each backlash on a log grid from ``b_nom / 5`` to ``5 b_nom`` (and each share 0, 0.5, 1), the
+    motor's initial angle and speed of each window are fitted by one Gauss-Newton step (the motion is
+    nearly linear in them) and the costs summed: a least-squares fit started from the best grid point
+    does not get caught in the local minima a gap crossing's timing makes.
+    """
+    from .kernel import Kernel
+
+    b_hi = min(0.5 * p.module, 0.0099)
+    grid = np.geomspace(b_nom / 5, min(5 * b_nom, b_hi), 9)
+    phis = (0.0, 0.5, 1.0) if split else (None,)
+    m = p.m
+    best = (math.inf, b_nom, 0.0)
+    for ph in phis:
+        th = theta if ph is None else _split(theta, p.N, phi=ph)
+        for bb in grid.tolist():
+            q = _with_values(p.nominal, th, bb, p.tc_floor)
+            kn = Kernel(q, np.zeros(4), dt=p.Ts)
+            cost = 0.0
+            for w in wins:
+                seg = p.log.torque[w.k0:w.k1]
+                y = p.log.theta1[w.k0:w.k1 + 1]
+                sw = max(m.v_thr, 1e-3 * abs(float(m.w[w.k0])), 1e-9)
+
+                def r(dth: float, dw: float, w: _Window = w, seg: NDArray = seg, y: NDArray = y, q: Any = q,
+                      kn: Any = kn) -> NDArray:
+                    x0 = _start_state(q, float(m.p[w.k0]) + dth, float(m.w[w.k0]) + dw, w.before, w.force0)
+                    return np.nan_to_num((_simulate(q, x0, seg, p.Ts, kn)[0] - y) / m.sigma, nan=1e3)
+
+                r0 = r(0.0, 0.0)
+                J = np.column_stack([(r(10 * m.sigma, 0.0) - r0) / 10, (r(0.0, 10 * sw) - r0) / 10])
+                step = np.linalg.lstsq(J, -r0, rcond=None)[0]
+                cost += min(float(np.sum(r(step[0] * m.sigma, step[1] * sw) ** 2)), float(np.sum(r0**2)))
+            if cost < best[0]:
+                best = (cost, bb, 0.0 if ph is None else ph)
+    return best[1], best[2]
+
+
+def _systematic(p: _Problem, wins: list[_Window], fits: list[_Fit], theta: NDArray[np.float64],
+                spreads: dict[str, float]) -> tuple[float, dict[str, float]]:
+    """How far the motor-only backlash moves when the friction and inertia move within their uncertainty.
+
+    The windows are refitted (warm-started) with, in turn, the lumped inertia, viscous and Coulomb
+    friction raised by their 95 % half-widths (``spreads``: ``J_eq``, ``d_eq``, ``T_eq`` [SI]), the motor's
+    share of the inertia raised by ``kappa`` and the motor's share of the Coulomb friction by ``phi``
+    [relative], and with the viscous friction all on the motor and all on the load (the split contact
+    cannot see). The shift of a group is the median over the windows (a crossing with many bounces can
+    refit into another minimum); the 95 % half-width adds the groups in quadrature. Returns it and the
+    shift per group [m].
+    """
+    N = p.N
+    J_eq, d_eq, T_eq = _lumped(theta, N)
+    variants: dict[str, list[NDArray[np.float64]]] = {}
+    for key, idx, lump in (("J_eq", (0, 1), J_eq), ("d_eq", (2, 3), d_eq), ("T_eq", (4, 5), T_eq)):
+        if lump > 0 and spreads.get(key, 0.0) > 0:
+            th = theta.copy()
+            th[list(idx)] *= 1.0 + spreads[key] / lump
+            variants[key] = [th]
+    variants["viscous split"] = [_split(theta, N, psi=0.0), _split(theta, N, psi=1.0)]
+    if spreads.get("kappa", 0.0) > 0:
+        variants["kappa"] = [_split(theta, N, kappa=1.0 + spreads["kappa"])]
+    if spreads.get("phi", 0.0) > 0 and T_eq > 0:
+        phi0 = theta[4] / T_eq
+        variants["phi"] = [_split(theta, N, phi=min(phi0 + spreads["phi"], 1.0) if phi0 < 0.5 else
+                                  max(phi0 - spreads["phi"], 0.0))]
+    shifts = {}
+    for key, ths in variants.items():
+        worst = 0.0
+        for th in ths:
+            d = [_WindowModel(p, w, th, f.b, free=("b",)).fit(np.array([f.z[0], f.z[1], 1.0]), max_nfev=12).b - f.b
+                 for w, f in zip(wins, fits, strict=True)]
+            worst = max(worst, abs(float(np.median(d))))
+        shifts[key] = worst
+    return math.sqrt(sum(v * v for v in shifts.values())), shifts
+
+
+def _windows_out(p: _Problem, wins: list[_Window], fits: list[_Fit], offset: float) -> tuple[ReversalWindow, ...]:
+    out = []
+    for w, f in _spread_evenly(list(zip(wins, fits, strict=True)), MAX_PLOT_WINDOWS):
+        sl = slice(w.k0, w.k1 + 1)
+        th2 = None if p.l is None else p.log.theta2[sl] + offset / p.nominal.rb2  # type: ignore[index]
+        r = [(f.sim[0] - p.log.theta1[sl]) / p.N]
+        if th2 is not None:
+            r.append(f.sim[1] - th2)
+        out.append(ReversalWindow(t_switch=w.t_switch, flanks=(w.before, w.after), t=p.log.t[sl].copy(),
+                                  theta1=p.log.theta1[sl].copy(), theta1_sim=f.sim[0], theta2=th2,
+                                  theta2_sim=f.sim[1], backlash=f.b,
+                                  rms=float(np.sqrt(np.nanmean(np.concatenate(r) ** 2)))))
+    return tuple(out)
+
+
+def _residuals(p: _Problem, fits: list[_Fit]) -> tuple[float, float, float]:
+    """RMS residual in load-angle units over all fitted windows, and per encoder in its own angle."""
+    if not fits:
+        return math.nan, math.nan, math.nan
+    rm = math.sqrt(float(np.mean([f.res_motor**2 for f in fits])))
+    if p.l is None:
+        return rm / p.N, rm, math.nan
+    rl = math.sqrt(float(np.mean([f.res_load**2 for f in fits])))
+    return math.sqrt(0.5 * ((rm / p.N) ** 2 + rl**2)), rm, rl
+
+
+def _check_log(lg: EncoderLog) -> None:
+    """What :func:`read_log` guarantees, for a log made in Python: equal lengths, finite, enough samples."""
+    cols = {"t": lg.t, "torque": lg.torque, "theta1": lg.theta1}
+    if lg.theta2 is not None:
+        cols["theta2"] = lg.theta2
+    for name, v in cols.items():
+        v = np.asarray(v)
+        if v.shape != (lg.n,):
+            raise InputError(f"{lg.name}: column {name} has {v.size} samples, column t {lg.n}", field=name)
+        if not np.all(np.isfinite(v)):
+            raise InputError(f"{lg.name}: column {name} has a value that is not a finite number (sample "
+                             f"{int(np.flatnonzero(~np.isfinite(v))[0])})", field=name)
+    if lg.n < MIN_LOG_SAMPLES:
+        raise InputError(f"{lg.name}: {lg.n} samples is too short: expected at least {MIN_LOG_SAMPLES}", field="log")
+    SAMPLE_TIME.check("sample_time", lg.sample_time)
+
+
+def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None = None) -> Identification:
+    """Estimate backlash, friction and inertias of a gear pair from a servo log.
+
+    Parameters
+    ----------
+    log : EncoderLog, str or Path
+        The log (:func:`read_log` reads a file).
+    model : GearModel, str or Path
+        What is known from drawings and data sheets: the gear pair (base radii, ratio, mesh stiffness),
+        nominal inertias and friction. Its backlash and friction are the starting values, nothing more.
+    encoders : str, optional
+        ``"motor+load"`` (the default when the log has ``theta2``) or ``"motor"`` (the motor encoder alone).
+
+    Returns
+    -------
+    Identification
+
+    Raises
+    ------
+    InputError
+        A train instead of a pair, ``encoders`` not allowed or asking for a column the log lacks, a log
+        whose motor does not move or turn back, or fewer than :data:`MIN_SWITCHES` gap crossings.
+
+    Notes
+    -----
+    *Both encoders* (gap-crossing geometry). The relative displacement ``s = r_b1 theta1 - r_b2 theta2``
+    rests at ``+b + F/k`` while the front flanks carry the load and at ``-b + F/k`` on the back flanks, with
+    any encoder zero adding a constant. Half the distance between the mean plateaus, each corrected for the
+    mesh deflection ``F / k`` (``F`` from the motor's torque balance, ``k`` the model's mesh stiffness), is
+    ``b``, whatever the zero; its interval combines the scatter of the plateaus (Student t), the
+    quantisation of one reading per plateau and 30 % of the deflection correction. It needs no friction
+    model and no simulation.
+
+    *Motor encoder alone* (output error). Where the torque the mesh takes from the motor changes sign the
+    motor crosses the gap alone, with only its own inertia; each such crossing is re-simulated from the
+    logged torque with the exact piecewise-linear plant (stick-slip friction) and fitted to the motor
+    encoder by SciPy's bounded least squares, free: ``b`` and the motor's initial angle and speed, started
+    from a profiled grid over ``b`` (a crossing's timing makes local minima). ``b`` is the mean over the
+    crossings; its interval is the Student t interval of their scatter, a floor for the motor encoder's
+    quantisation, and how far ``b`` moves when the crossings are refitted with the friction and inertias at
+    the ends of their own intervals (the motor's share of the inertia within
+    :data:`MOTOR_INERTIA_TOLERANCE`, the viscous split at either extreme).
+
+    *Friction and inertias*: a regression of the torque balances on smoothed difference quotients (the total
+    balance ``u = J1 theta1'' + d1 theta1' + T_c1 sgn + (J2 theta2'' + ...) / N`` while the shafts move as
+    one in contact, and with both encoders the motor's and the load's own balances in free flight inside
+    the gap), Karnopp's stick-slip law (samples near a standstill are left out), with the model's values as
+    a weak prior so that what the log cannot separate stays at the model's. Contact alone gives the lumped
+    values on the motor shaft; how the Coulomb friction splits between the shafts (whether the load sticks
+    or coasts while the motor crosses) comes from fits of :data:`SPLIT_WINDOWS` re-simulated crossings that
+    leave the split free. With the motor encoder alone the motor's own inertia stays the model's.
+
+    This follows the two routes the literature gives: the gap read off motor and load encoders around
+    reversals (Nordin & Gutman's survey, Automatica 38, 2002; the ISO 230-2 reversal value), and an
+    output-error fit of the piecewise model where only the motor is measured (Lagerberg & Egardt,
+    "Backlash estimation with application to automotive powertrains", IEEE TCST 15, 2007, estimate the
+    same from the motor side with a Kalman filter on a rigid-contact model; re-simulating the exact plant
+    with its impacts and stick-slip friction is affordable here, needs no linearisation, and keeps the
+    bounces that a loop slamming across the gap makes).
+    """
+    from .catalog import GearModel, load_model
+    from .geometry import pair_geometry
+    from .plant import build_plant
+
+    lg = log if isinstance(log, EncoderLog) else read_log(log)
+    _check_log(lg)
+    mdl = model if isinstance(model, GearModel) else load_model(model)
+    if mdl.n_stages != 1:
+        raise InputError(f"{mdl.name}: a train of {mdl.n_stages} stages; identify handles a gear pair (one stage)",
+                         field="model")
+    if encoders is None:
+        encoders = "motor+load" if lg.theta2 is not None else "motor"
+    if encoders not in ENCODERS:
+        raise InputError(f"encoders = {encoders!r} is not allowed: expected one of {', '.join(ENCODERS)}",
+                         field="encoders")
+    if encoders == "motor+load" and lg.theta2 is None:
+        raise InputError(f"{lg.name}: missing column 'theta2' (load encoder) for --encoders motor+load: give the "
+                         f"load encoder's column or use --encoders motor", field="theta2")
+    nominal = build_plant(mdl)
+    p = _Problem(lg, nominal, encoders, mdl.pair.module)
+    _check_motion(p)
+    N = p.N
+    m = p.m
+    mean, sd = _prior(nominal, p.ubar, m.w, N)
+    lower = np.array([1e-3 * nominal.J1, 1e-3 * nominal.J2, 0.0, 0.0, 0.0, 0.0])
+    from scipy.ndimage import minimum_filter1d
+
+    mv1 = _Encoder.moving(m.w, m.v_thr, p.W)
+    sg1 = np.sign(m.w)
+    if encoders == "motor+load":
+        ld = p.l
+        assert ld is not None
+        c0, b0, eps = _episodes(p)
+        if len(eps) - 1 < MIN_SWITCHES:
+            raise _no_switch(p, max(len(eps) - 1, 0), "changes of the flank in contact")
+        mv2 = _Encoder.moving(ld.w, ld.v_thr, p.W)
+        # the total balance in steady contact: inside a plateau, clear of its ends by the bounces and the filter
+        steady = np.zeros(p.n, bool)
+        for i0, i1, _ in eps:
+            steady[i0 + p.settle + p.W // 2:max(i0 + p.settle + p.W // 2, i1 - p.W // 2)] = True
+        both = mv1 & mv2 & steady
+        # in contact the shafts move as one: the motor's (finer) signals for both, so that contact data say
+        # nothing about the split between the shafts (the gap's free flights and the prior do)
+        A_c = np.column_stack([m.a, m.a / N**2, m.w, m.w / N**2, sg1, sg1 / N])[both]
+        s = nominal.rb1 * lg.theta1 - nominal.rb2 * lg.theta2  # type: ignore[operator]
+        inside = minimum_filter1d((np.abs(s - c0) < 0.6 * b0).astype(np.int8), p.Wg + 2, mode="nearest") > 0
+        g1 = inside & _Encoder.moving(m.wg, m.vg_thr, p.Wg)
+        g2 = inside & _Encoder.moving(ld.wg, ld.vg_thr, p.Wg)
+        z = np.zeros(int(g1.sum()))
+        A_g = np.column_stack([m.ag[g1], z, m.wg[g1], z, np.sign(m.wg[g1]), z])
+        z2 = np.zeros(int(g2.sum()))
+        A_l = np.column_stack([z2, ld.ag[g2], z2, ld.wg[g2], z2, np.sign(ld.wg[g2])])
+        blocks = [(A_c, p.uf[both], float(p.W))]
+        if g1.sum() >= 10:
+            blocks.append((A_g, p.ug[g1], float(p.Wg + 2)))
+        if g2.sum() >= 10:
+            blocks.append((A_l, np.zeros(int(g2.sum())), float(p.Wg + 2)))
+        theta, cov = _regress(blocks, mean, sd, lower)
+        b, ci, centre, est, times, _ = _plateau_backlash(p, theta, eps)
+        wins = _gap_windows(p, eps, theta)
+        # the share of the Coulomb friction on each shaft: the free flights may be too short to tell (a loop
+        # that crosses fast and bounces); whether the load sticks or coasts in the re-simulated crossings does
+        J_eq, d_eq, teq = _lumped(theta, N)
+        n_split = 0
+        if teq > 1e-3 * float(np.sqrt(np.mean(p.ubar**2))) and wins:
+            sub = _spread_evenly(wins, SPLIT_WINDOWS)
+            phis = np.array([_fit_window(p, w, theta, b, free=("phi",), phi=float(theta[4] / teq), offset=centre).phi
+                             for w in sub])
+            phi = float(np.median(phis))
+            sd_phi = float(phis.std(ddof=1)) / math.sqrt(phis.size) if phis.size > 1 else 0.5
+            g = np.array([0, 0, 0, 0, 1.0, 1.0 / N])
+            var_t = float(g @ cov @ g)
+            theta = _split(theta, N, phi=phi)
+            cov = cov.copy()
+            cov[4, 4] = phi**2 * var_t + teq**2 * sd_phi**2
+            cov[5, 5] = N**2 * ((1 - phi) ** 2 * var_t + teq**2 * sd_phi**2)
+            n_split = len(sub)
+        fit_wins = _spread_evenly(wins, MAX_PLOT_WINDOWS)
+        fits = [_fit_window(p, w, theta, b, offset=centre) for w in fit_wins]
+        switches = len(eps) - 1
+        ci_fr = {k: 1.96 * math.sqrt(cov[i, i]) for i, k in enumerate(PARAMS)}
+        method = (f"gap-crossing geometry: b is half the distance between the plateaus of r_b1 theta1 - r_b2 theta2 "
+                  f"on the front and the back flank ({sum(1 for e in eps if e[2] > 0)} and "
+                  f"{sum(1 for e in eps if e[2] < 0)} plateaus), each corrected for the mesh deflection F/k; "
+                  f"friction and inertias from the torque balances (total balance while both shafts move in steady "
+                  f"contact, Hann-smoothed differences over {p.W} samples; each shaft's own in free flight inside "
+                  f"the gap, raw differences) with the model's values as a weak prior" +
+                  (f", the share of the Coulomb friction on each shaft from fits of {n_split} re-simulated crossings"
+                   if n_split else "") +
+                  f"; motion around {len(fits)} crossings re-simulated with the exact piecewise-linear plant")
+        offset = centre
+    else:
+        wins, steady = _torque_windows(p)
+        if len(wins) < MIN_SWITCHES:
+            raise _no_switch(p, len(wins), "sign changes of the torque the mesh takes from the motor")
+        excl = np.zeros(p.n, bool)
+        for w in wins:
+            excl[max(0, w.k0 - p.W):min(p.n, w.k1 + p.W)] = True
+        rows = mv1 & ~excl & (minimum_filter1d(steady.astype(np.int8), p.W, mode="nearest") > 0)
+        if rows.sum() < 10 * len(PARAMS):
+            raise InputError(f"{lg.name}: column theta1: only {int(rows.sum())} samples of steady motion in "
+                             f"contact; the friction cannot be estimated (record longer moves)", field="theta1")
+        A_c = np.column_stack([m.a, m.a / N**2, m.w, m.w / N**2, sg1, sg1 / N])[rows]
+        theta, cov = _regress([(A_c, p.uf[rows], float(p.W))], mean, sd, lower)
+        # contact sees only the lumped values: the share of the Coulomb friction on each shaft comes from fits of
+        # a few crossings that leave it free
+        J_eq, d_eq, teq = _lumped(theta, N)
+        gJ = np.array([1.0, 1.0 / N**2, 0, 0, 0, 0])
+        gd = np.array([0, 0, 1.0, 1.0 / N**2, 0, 0])
+        gT = np.array([0, 0, 0, 0, 1.0, 1.0 / N])
+        var = {k: float(g @ cov @ g) for k, g in (("J_eq", gJ), ("d_eq", gd), ("T_eq", gT))}
+        u_rms = float(np.sqrt(np.mean(p.ubar**2)))
+        split = teq > 1e-3 * u_rms
+        b_nom = nominal.backlash if nominal.backlash > 0 else 1e-3 * p.module
+        sub = _spread_evenly(wins, SPLIT_WINDOWS)
+        b_start, phi = _profile_start(p, sub[:2], theta, b_nom, split)
+        sfits = [_fit_window(p, w, theta, b_start, free=("b", "phi") if split else ("b",), phi=phi) for w in sub]
+        if split:
+            theta = _split(theta, N, phi=float(np.median([f.phi for f in sfits])))
+        b_start = float(np.median([f.b for f in sfits]))
+        phi = theta[4] / teq if split else 0.0
+        sd_phi = float(np.std([f.phi for f in sfits], ddof=1)) / math.sqrt(len(sfits)) if split and len(sfits) > 1 \
+            else 0.0
+        # the motor's own inertia is the model's (data sheet and drawing): its free flights seen through the motor
+        # encoder alone are too short and too often cut by impacts to weigh it; its tolerance enters the interval
+        sd_kappa = MOTOR_INERTIA_TOLERANCE / 1.96
+        fit_wins = _spread_evenly(wins, MAX_WINDOWS)
+        fits = [_fit_window(p, w, theta, b_start, free=("b",)) for w in fit_wins]
+        costs = np.array([f.res_motor for f in fits])
+        good = [i for i, f in enumerate(fits) if f.res_motor <= 5 * float(np.median(costs)) and
+                1.01e-8 < f.b < 0.98 * min(0.5 * p.module, 0.0099)]
+        if len(good) < MIN_SWITCHES:
+            raise _no_switch(p, len(good), "crossings the re-simulation fits")
+        fit_wins = [fit_wins[i] for i in good]
+        fits = [fits[i] for i in good]
+        est = np.array([f.b for f in fits])
+        times = np.array([w.t_switch for w in fit_wins])
+        b = float(est.mean())
+        stat = _t95(est.size - 1) * float(est.std(ddof=1)) / math.sqrt(est.size)
+        # crossings at the same positions share one quantisation error of the motor reading: a floor
+        q_b = nominal.rb1 * m.q / math.sqrt(12.0)
+        spreads = {k: 1.96 * math.sqrt(v) for k, v in var.items()}
+        spreads.update(kappa=1.96 * sd_kappa, phi=1.96 * sd_phi)
+        probe = _spread_evenly(list(range(len(fits))), 3)
+        sys_half, shifts = _systematic(p, [fit_wins[i] for i in probe], [fits[i] for i in probe], theta, spreads)
+        half = math.sqrt(stat**2 + (1.96 * q_b) ** 2 + sys_half**2)
+        ci = (b - half, b + half)
+        switches = len(wins)
+        cov = cov.copy()
+        cov[0, 0] = (theta[0] * sd_kappa) ** 2
+        cov[1, 1] = N**4 * (var["J_eq"] + cov[0, 0])
+        cov[4, 4] = phi**2 * var["T_eq"] + teq**2 * sd_phi**2
+        cov[5, 5] = N**2 * ((1 - phi) ** 2 * var["T_eq"] + teq**2 * sd_phi**2)
+        ci_fr = {k: 1.96 * math.sqrt(max(cov[i, i], 0.0)) for i, k in enumerate(PARAMS)}
+        # the viscous split is not seen from the motor alone: anywhere between all on one shaft and all on the other
+        d_hi = d_eq + spreads["d_eq"]
+        ci_fr["d1"] = max(theta[2], d_hi - theta[2])
+        ci_fr["d2"] = max(theta[3], N**2 * d_hi - theta[3])
+        biggest = max(shifts, key=lambda k: shifts[k]) if shifts else ""
+        method = (f"output-error fit of the re-simulated piecewise-linear plant (stick-slip friction) to the motor "
+                  f"encoder around {len(fits)} of {len(wins)} gap crossings (SciPy bounded least squares; free: b "
+                  f"and the motor's initial angle and speed per crossing" +
+                  (f"; the share of the Coulomb friction on each shaft from {len(sub)} crossings" if split else "") +
+                  f"); lumped inertia and friction from the torque balance in steady contact (Hann-smoothed "
+                  f"differences, {p.W} samples, the model's values as a weak prior), the motor's own inertia the "
+                  f"model's within {MOTOR_INERTIA_TOLERANCE:.0%}; the interval adds how far b moves with them "
+                  f"(largest: {biggest}, {shifts.get(biggest, 0.0) * 1e6:.3g} um)")
+        offset = 0.0
+    rms, rm, rl = _residuals(p, fits)
+    warnings = []
+    noise = math.hypot(m.sigma / N, p.l.sigma if p.l is not None else 0.0)
+    if math.isfinite(rms) and rms > RESIDUAL_WARNING * noise:
+        what = ("b, read off the plateaus, does not depend on it; the friction and inertias may be off"
+                if encoders == "motor+load" else "the motor-only b and its interval rest on it: the plant may not "
+                "be the model's (another contact law, a compliant shaft), record with the load encoder")
+        warnings.append(f"the re-simulation does not fit the log: RMS residual {rms:.3g} rad, {rms / noise:.0f} times "
+                        f"the encoders' noise; {what}")
+    rb2 = nominal.rb2
+    lo, hi = max(ci[0], 0.0), ci[1]
+    names = {"J1": "J1", "J2": "J2", "d1": "viscous1", "d2": "viscous2", "tc1": "coulomb1", "tc2": "coulomb2"}
+    val = {names[k]: float(theta[i]) for i, k in enumerate(PARAMS)}
+    cis = {names[k]: (max(float(theta[i]) - ci_fr[k], 0.0), float(theta[i]) + ci_fr[k]) for i, k in enumerate(PARAMS)}
+    nom = {"backlash": nominal.backlash, "J1": nominal.J1, "J2": nominal.J2, "viscous1": nominal.d1,
+           "viscous2": nominal.d2, "coulomb1": nominal.tc1, "coulomb2": nominal.tc2}
+    geo = pair_geometry(mdl.pair)
+    return Identification(
+        backlash=b, backlash_ci=(lo, hi), lost_motion=2 * b / rb2, lost_motion_ci=(2 * lo / rb2, 2 * hi / rb2),
+        friction={k: val[k] for k in ("viscous1", "viscous2", "coulomb1", "coulomb2")},
+        friction_ci={k: cis[k] for k in ("viscous1", "viscous2", "coulomb1", "coulomb2")},
+        inertia={"J1": val["J1"], "J2": val["J2"]}, inertia_ci={"J1": cis["J1"], "J2": cis["J2"]}, nominal=nom,
+        encoders=encoders, rms_residual=rms, residual_motor=rm, residual_load=rl, estimates=est,
+        estimate_times=times, switches=switches, offset=offset, sample_time=lg.sample_time, samples=lg.n,
+        method=method, model=mdl.name, log=lg.name, windows=_windows_out(p, fit_wins, fits, offset),
+        gear_ratio=N, base_radius=tuple(geo.base_radius), warnings=tuple(warnings),  # type: ignore[arg-type]
+    )
+
+
+# --- the identified model as a model file ------------------------------------------------------------------------
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", " ") + '"'
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {v!r} as TOML")
+
+
+def _toml_dumps(doc: Mapping[str, Mapping[str, Any]], header: Sequence[str] = ()) -> str:
+    """A model document (tables of scalars and lists) as TOML text."""
+    out = [f"# {h}" for h in header]
+    for table, keys in doc.items():
+        out.append(f"\n[{table}]")
+        out.extend(f"{k} = {_toml_value(v)}" for k, v in keys.items())
+    return "\n".join(out) + "\n"
+
+
+def identified_model(result: Identification, model: Any) -> dict[str, dict[str, Any]]:
+    """A complete model document (the tables of a model file): ``model`` with the identified values.
+
+    The backlash, the friction of both shafts and the inertias are the identified ones; the inertia a
+    motor or load adds is the identified shaft inertia less its gear's (where that would be negative, the
+    gear's inertia is set to the shaft's and nothing is added). A Coulomb friction whose 95 % interval
+    reaches zero is written as zero: it cannot be told from none, and a vanishing stick-slip friction
+    only makes the simulator locate stick and slip events. Everything else is the model's, and the
+    ``[source]`` names the log and the method.
+
+    Parameters
+    ----------
+    result : Identification
+    model : GearModel, str or Path
+        The model the identification started from (a pair).
+    """
+    from .catalog import PAIR_TABLES, GearModel, load_model
+    from .geometry import pair_geometry
+    from .params import Sensors, Servo
+
+    mdl = model if isinstance(model, GearModel) else load_model(model)
+    pair = mdl.pair
+    doc: dict[str, dict[str, Any]] = {}
+    src = dict(mdl.source)
+    notes = (f"Identified by gearctl identify from the log {result.log} ({result.encoders} encoders, {result.samples} "
+             f"samples at {result.sample_time:g} s, {result.switches} gap crossings): backlash {result.backlash:.6g} m "
+             f"(95 % CI {result.backlash_ci[0]:.6g} - {result.backlash_ci[1]:.6g} m), RMS residual "
+             f"{result.rms_residual:.3g} rad. Method: {result.method}. Model before identification: {mdl.name}"
+             + (f"; its notes: {src['notes']}" if src.get("notes") else ""))
+    doc["source"] = {"citation": f"gearctl identify ({result.log}) on {mdl.name}: {src.get('citation', '')}",
+                     **({"table": src["table"]} if "table" in src else {}), "notes": notes}
+    for table, (cls, keymap, _) in PAIR_TABLES.items():
+        obj = pair if cls.__name__ == "GearPair" else mdl.dynamics
+        keys: dict[str, Any] = {}
+        for key, field in keymap.items():
+            v = getattr(obj, field)
+            if v is None:
+                continue
+            if key.endswith("_deg"):
+                v = math.degrees(v)
+            if hasattr(v, "value"):  # an enum (contact law)
+                v = v.value
+            keys[key] = v
+        doc[table] = keys
+    doc["pair"]["backlash"] = float(result.backlash)
+    geo = pair_geometry(pair)
+    servo = {f.name: getattr(mdl.servo, f.name) for f in dataclasses.fields(Servo)}
+    for j, (gear, add) in enumerate((("gear1", "motor_inertia"), ("gear2", "load_inertia")), start=1):
+        J = float(result.inertia[f"J{j}"])
+        g = geo.inertia[j - 1]
+        if J >= g:
+            servo[add] = J - g
+        else:
+            doc[gear]["inertia"] = J
+            servo[add] = 0.0
+    servo["viscous_friction1"] = float(result.friction["viscous1"])
+    servo["viscous_friction2"] = float(result.friction["viscous2"])
+    for j in (1, 2):  # a Coulomb friction whose interval reaches zero is none (and costs a simulator stick events)
+        key = f"coulomb{j}"
+        servo[f"coulomb_friction{j}"] = float(result.friction[key]) if result.friction_ci[key][0] > 0.0 else 0.0
+    doc["servo"] = {k: (v.value if hasattr(v, "value") else (list(v) if isinstance(v, tuple) else v))
+                    for k, v in servo.items() if not (isinstance(v, tuple) and not v)}
+    sensors = {f.name: getattr(mdl.sensors, f.name) for f in dataclasses.fields(Sensors)}
+    doc["sensors"] = {k: v for k, v in sensors.items() if v is not None}
+    return doc
+
+
+def write_identified_model(path: str | Path, result: Identification, model: Any) -> Path:
+    """Write :func:`identified_model` as a model file and check that it loads.
+
+    Raises
+    ------
+    InputError
+        If the file cannot be written, or an identified value lies outside what a model file allows
+        (the message names the key).
+    """
+    from .catalog import load_model
+
+    path = Path(path)
+    doc = identified_model(result, model)
+    text = _toml_dumps(doc, header=(f"{path.stem}: written by gearctl identify from {result.log}.",
+                                    "SI units, radians inside; degrees only in keys ending _deg."))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror}") from None
+    load_model(path)  # the identified model must be one gearctl reads (range errors name the key)
+    return path

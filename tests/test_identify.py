@@ -1,0 +1,353 @@
+"""Backlash and friction identification from encoder logs (gearctl/identify.py, gearctl/excite.py, issue 13).
+
+Oracles:
+
+1. known truth: logs recorded by ``excite`` from the simulated servo (``shing1993_servo_friction``: 0.2 N m
+   of Coulomb friction on the load, 2^20-count encoders, plus 2 urad of encoder noise here) with the
+   backlash at 0.5x, 1x and 2x the catalog's 50 um, under the designed excitation and under plain
+   back-and-forth moves. ``identify`` starts from ``shing1993_servo`` (the right gears, the catalog b, no
+   Coulomb friction): b within 5 % with both encoders, 10 % from the motor encoder alone, the truth inside
+   the reported 95 % interval (issue 13, "Done when"), the Coulomb friction found;
+2. invariants: the estimate does not depend on the encoders' zeros; a log written and read back is the
+   same log; the excitation starts and ends at rest with a continuous velocity;
+3. the identified model file drives ``track`` and ``precision`` to the figures of the true model (10 %);
+4. a corpus of broken logs (tests/data/logs, written by make_corpus.py): one line naming the line or the
+   column, exit code 2, no traceback.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from gearctl import InputError, load_model
+from gearctl import identify as ident
+from gearctl.cli import main
+from gearctl.excite import ExcitationProgram, excitation, record_excitation
+from gearctl.identify import EncoderLog, Identification, identify, read_log, write_log
+
+DATA = Path(__file__).resolve().parent / "data" / "logs"
+TRUE_MODEL = "shing1993_servo_friction"  # the plant the logs come from
+START_MODEL = "shing1993_servo"  # what identify is told: the gears, the catalog b, no Coulomb friction
+B_CATALOG = 5e-5
+NOISE = 2e-6  # rad, encoder noise on top of the 2^20-count quantisation
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, float], tuple[Path, float]]:
+    """``logs(motion, factor) -> (path, true b)``: a 10 s log written by excite and kept for the module."""
+    folder = tmp_path_factory.mktemp("logs")
+    made: dict[tuple[str, float], tuple[Path, float]] = {}
+
+    def get(motion: str, factor: float) -> tuple[Path, float]:
+        if (motion, factor) not in made:
+            model = load_model(TRUE_MODEL, motor_noise=NOISE, load_noise=NOISE)
+            ex = record_excitation(model, motion=motion, duration=10.0, backlash=factor * B_CATALOG, seed=7)
+            path = folder / f"{motion}_{factor:g}.csv"
+            write_log(path, ex.log)
+            made[(motion, factor)] = (path, ex.plant.backlash)
+        return made[(motion, factor)]
+
+    return get
+
+
+@pytest.fixture(scope="module")
+def results(logs: Callable[[str, float], tuple[Path, float]]) -> Callable[..., tuple[Identification, float]]:
+    """``results(motion, factor, encoders) -> (identification, true b)``, each computed once."""
+    done: dict[tuple[str, float, str], tuple[Identification, float]] = {}
+
+    def get(motion: str, factor: float, encoders: str) -> tuple[Identification, float]:
+        key = (motion, factor, encoders)
+        if key not in done:
+            path, b = logs(motion, factor)
+            done[key] = (identify(path, START_MODEL, encoders=encoders), b)
+        return done[key]
+
+    return get
+
+
+def _check_backlash(res: Identification, b: float, tol: float) -> None:
+    lo, hi = res.backlash_ci
+    assert abs(res.backlash / b - 1) < tol, (res.backlash, b)
+    assert lo <= b <= hi, (lo, b, hi)
+    assert hi - lo < 2 * tol * b  # an interval that says something
+    assert_allclose(res.lost_motion, 2 * res.backlash / res.base_radius[1], rtol=1e-12)
+
+
+# --- 1. known truth -----------------------------------------------------------------------------------------
+# Measured (this commit): both encoders |error| <= 0.08 %, half-width 0.2-0.8 %; motor alone |error| <= 0.3 %,
+# half-width 0.4-2.5 %. The bounds below are the issue's: 5 % and 10 %.
+
+BOTH = [pytest.param(m, f, id=f"{m}-{f:g}b") for m in ("identify", "moves") for f in (0.5, 1.0, 2.0)]
+MOTOR = [pytest.param("identify", 1.0, id="identify-1b"), pytest.param("moves", 0.5, id="moves-0.5b")] + [
+    pytest.param(m, f, id=f"{m}-{f:g}b", marks=pytest.mark.slow)
+    for m, f in (("identify", 0.5), ("identify", 2.0), ("moves", 1.0), ("moves", 2.0))]
+
+
+@pytest.mark.parametrize(("motion", "factor"), BOTH)
+def test_both_encoders_recover_backlash_within_5_percent(results: Callable, motion: str, factor: float) -> None:
+    res, b = results(motion, factor, "motor+load")
+    assert res.encoders == "motor+load" and res.switches >= 10
+    _check_backlash(res, b, 0.05)
+
+
+@pytest.mark.parametrize(("motion", "factor"), MOTOR)
+def test_motor_encoder_alone_recovers_backlash_within_10_percent(results: Callable, motion: str, factor: float) -> None:
+    res, b = results(motion, factor, "motor")
+    assert res.encoders == "motor" and math.isnan(res.residual_load)
+    _check_backlash(res, b, 0.10)
+
+
+def test_motor_alone_gives_a_wider_interval(results: Callable) -> None:
+    both, _ = results("identify", 1.0, "motor+load")
+    motor, _ = results("identify", 1.0, "motor")
+    w_both = both.backlash_ci[1] - both.backlash_ci[0]
+    w_motor = motor.backlash_ci[1] - motor.backlash_ci[0]
+    assert w_motor > w_both  # measured 1.6 % against 0.75 % of b
+
+
+def test_friction_and_inertia_found(results: Callable) -> None:
+    """The model says no Coulomb friction; the log has 0.2 N m on the load and none on the motor."""
+    truth = load_model(TRUE_MODEL)
+    from gearctl import build_plant
+
+    p = build_plant(truth)
+    for enc in ("motor+load", "motor"):
+        res, _ = results("identify", 1.0, enc)
+        # measured 0.2000 N m (both and motor alone); 2 % allows the encoders' noise
+        assert_allclose(res.friction["coulomb2"], p.tc2, rtol=0.02)
+        assert res.friction["coulomb1"] < 0.02 * p.tc2
+        assert res.friction_ci["coulomb2"][0] <= p.tc2 <= res.friction_ci["coulomb2"][1] + 1e-3
+        # the lumped viscous friction and inertia on the motor shaft: measured within 1 %
+        N = res.gear_ratio
+        assert_allclose(res.inertia["J1"] + res.inertia["J2"] / N**2, p.J1 + p.J2 / N**2, rtol=0.02)
+        assert_allclose(res.friction["viscous1"] + res.friction["viscous2"] / N**2, p.d1 + p.d2 / N**2, rtol=0.3)
+    both, _ = results("identify", 1.0, "motor+load")
+    # with both encoders the split between the shafts is seen (free flights in the gap): measured 0.1 %
+    assert_allclose(both.inertia["J1"], p.J1, rtol=0.05)
+    assert_allclose(both.inertia["J2"], p.J2, rtol=0.05)
+
+
+def test_residual_is_at_the_encoders_level(results: Callable) -> None:
+    res, _ = results("identify", 1.0, "motor+load")
+    q = 2 * math.pi / 2**20  # one count
+    # measured 4e-6 rad (load angle) over 12 crossings: a few counts, against a lost motion of 1.3e-3 rad
+    assert res.rms_residual < 5 * q
+    assert res.warnings == ()
+    assert len(res.windows) == ident.MAX_PLOT_WINDOWS
+    assert all(w.theta2 is not None and w.t.size == w.theta1_sim.size for w in res.windows)
+
+
+# --- 2. invariants ------------------------------------------------------------------------------------------
+
+
+def test_estimate_does_not_depend_on_the_encoders_zeros(logs: Callable, results: Callable) -> None:
+    path, _ = logs("identify", 1.0)
+    log = read_log(path)
+    shifted = dataclasses.replace(log, theta1=log.theta1 + 1.2345, theta2=log.theta2 - 0.5)
+    ref, _ = results("identify", 1.0, "motor+load")
+    res = identify(shifted, START_MODEL)
+    # the zero moves by r_b1 1.2345 + r_b2 0.5 = 0.061 m along the line of action; rounding at that scale
+    # (1e-17 relative) is 1e-11 m in b: rtol 1e-5 of b = 5e-10 m
+    assert_allclose(res.backlash, ref.backlash, rtol=1e-5)
+    rb1, rb2 = res.base_radius
+    assert_allclose(res.offset - ref.offset, rb1 * 1.2345 + rb2 * 0.5, rtol=1e-9)
+
+
+def test_log_round_trip(tmp_path: Path) -> None:
+    t = np.arange(600) * 1e-3
+    log = EncoderLog(t=t, torque=np.sin(t), theta1=0.1 * np.cos(t), theta2=None, extra={"r": t**2},
+                     sample_time=1e-3, comments=("made here",))
+    write_log(tmp_path / "a.csv", log)
+    back = read_log(tmp_path / "a.csv")
+    assert back.theta2 is None and back.comments == ("made here",) and set(back.extra) == {"r"}
+    assert_allclose(back.sample_time, 1e-3, rtol=1e-9)
+    for name in ("t", "torque", "theta1"):
+        assert_allclose(getattr(back, name), getattr(log, name), rtol=1e-9, atol=1e-15)
+
+
+@pytest.mark.parametrize("motion", ["identify", "moves"])
+def test_excitation_starts_and_ends_at_rest_and_is_smooth(motion: str) -> None:
+    prog = excitation(motion, duration=12.0, amplitude=0.1)
+    assert isinstance(prog, ExcitationProgram) and prog.duration >= 12.0
+    t = np.arange(0.0, prog.duration, 1e-4)
+    r, v, a = prog.at(t)
+    assert r[0] == 0.0 and v[0] == 0.0
+    assert np.max(np.abs(r)) <= 0.1 * (1 + 1e-12)  # within the amplitude
+    # velocity is the derivative of the position (finite differences, 1e-4 s): r is C1
+    assert_allclose(np.gradient(r, t), v, atol=2e-3 * np.max(np.abs(v)) + 1e-6)
+    # reversals of the velocity: the identification needs many of them
+    sv = np.sign(v[np.abs(v) > 1e-9])
+    assert np.sum(sv[1:] != sv[:-1]) >= 6
+
+
+def test_excitation_rejects_bad_settings() -> None:
+    with pytest.raises(InputError, match="motion"):
+        excitation("zigzag")
+    with pytest.raises(InputError, match="amplitude"):
+        excitation("identify", amplitude=-1.0)
+    with pytest.raises(InputError, match="duration"):
+        excitation("identify", duration=0.0)
+
+
+# --- 3. the identified model drives track and precision -------------------------------------------------------
+
+
+def _figures(capsys: pytest.CaptureFixture[str], argv: list[str]) -> dict:
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_identify_cli_writes_a_model_that_tracks_like_the_true_one(logs: Callable, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    path, b = logs("identify", 1.0)
+    out, plot = tmp_path / "identified.toml", tmp_path / "id.png"
+    assert main(["identify", str(path), "--model", START_MODEL, "--json", "--write-model", str(out),
+                 "--plot", str(plot)]) == 0
+    js = json.loads(capsys.readouterr().out)
+    for key in ("backlash", "backlash_ci", "lost_motion", "friction", "encoders", "rms_residual"):
+        assert key in js, key
+    assert set(js["friction"]) >= {"viscous1", "viscous2", "coulomb1", "coulomb2"}
+    assert js["encoders"] == "motor+load" and js["backlash_ci"][0] <= b <= js["backlash_ci"][1]
+    assert plot.stat().st_size > 10_000
+    m = load_model(out)
+    assert "gearctl identify" in m.source["citation"] and "gap-crossing" in m.source["notes"]
+    assert_allclose(m.pair.backlash, js["backlash"], rtol=1e-12)
+    assert_allclose(m.servo.coulomb_friction2, js["friction"]["coulomb2"], rtol=1e-12)
+    # the figures with the identified model against the true model's, within 10 % (or one encoder count, 6 urad,
+    # for a figure below it); measured: within 0.2 %. Not the dead-zone inverse's ISO figures: they move by
+    # 20-30 % when the true model's load inertia or Coulomb friction moves by 1 % (measured), so no model of
+    # the plant could be held to 10 % on them.
+    count = 2 * math.pi / 2**20
+    prec = ["--json", "--targets", "3", "--cycles", "2"]
+    for argv, keys in ((["track", "{m}", "deadzone_inverse", "--json"], ("rms_error",)),
+                       (["track", "{m}", "pid", "--json"], ("rms_error",)),
+                       (["precision", "{m}", "pid", *prec], ("reversal_value", "repeatability", "accuracy"))):
+        true = _figures(capsys, [a.replace("{m}", TRUE_MODEL) for a in argv])
+        mine = _figures(capsys, [a.replace("{m}", str(out)) for a in argv])
+        for key in keys:
+            assert abs(mine[key] - true[key]) <= max(0.10 * abs(true[key]), count), (argv[0], argv[2], key,
+                                                                                     mine[key], true[key])
+
+
+def test_design_on_the_identified_model_performs_on_the_true_plant(results: Callable, tmp_path: Path) -> None:
+    """The engineering use: design the inverse on the identified model, run it on the true plant."""
+    from gearctl import build_plant
+    from gearctl.references import reference
+    from gearctl.runs import Design, Run, controller_spec, execute
+
+    res, _ = results("identify", 1.0, "motor")  # the harder case: the motor encoder alone
+    model_path = ident.write_identified_model(tmp_path / "m.toml", res, START_MODEL)
+    truth = load_model(TRUE_MODEL)
+    true_plant = build_plant(truth)
+    spec, label = controller_spec("deadzone_inverse")
+    rms = {}
+    for name, nominal in (("true", true_plant), ("identified", build_plant(load_model(model_path)))):
+        run = Run(plant=true_plant, design=Design(spec=spec, nominal=nominal, label=label), reference=reference("sine"),
+                  duration=3.0, sensors=truth.sensors)
+        out = execute(run)
+        assert out.ok, out.message
+        rms[name] = out.metrics.rms_error
+    # measured ratio 1.00
+    assert_allclose(rms["identified"], rms["true"], rtol=0.10)
+
+
+def test_excite_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    ref = tmp_path / "ref.csv"
+    assert main(["excite", TRUE_MODEL, "--reference-only", str(ref), "--duration", "2"]) == 0
+    lines = ref.read_text().splitlines()
+    assert lines[1] == "t,reference,velocity,acceleration" and len(lines) == 2 + 2001
+    log = tmp_path / "log.csv"
+    assert main(["excite", TRUE_MODEL, "--out", str(log), "--duration", "3", "--backlash", "2.5e-05",
+                 "--motion", "moves"]) == 0
+    got = read_log(log)
+    assert got.theta2 is not None and "reference" in got.extra and got.n == 3001
+    assert any("backlash 2.5e-05" in c for c in got.comments)
+    capsys.readouterr()
+    assert main(["excite", TRUE_MODEL]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--out" in err
+
+
+# --- 4. bad logs --------------------------------------------------------------------------------------------
+
+CORPUS = [
+    ("missing_column.csv", "line 2: missing column 'theta1'"),
+    ("duplicate_column.csv", "line 1: column 'theta1' appears twice"),
+    ("nonmonotonic.csv", "line 8: t = 0.004 does not increase"),
+    ("uneven.csv", "line 7: t = 0.006 is 0.002 s after the previous sample"),
+    ("nan.csv", "line 6: column torque = nan is not a finite number"),
+    ("inf.csv", "line 6: column theta1 = inf is not a finite number"),
+    ("text.csv", "line 4: column theta2 = 'abc' is not a number"),
+    ("ragged.csv", "line 7: 3 fields, expected 4"),
+    ("short.csv", "100 samples (0.1 s) is too short"),
+    ("slow_period.csv", "column t: sample period 2 s is out of range"),
+    ("no_header.csv", "has no header row"),
+    ("empty.csv", "has no header row"),
+    ("binary.csv", "line 3: is binary"),
+    ("latin1.csv", "line 1: is not UTF-8"),
+    ("flat.csv", "column theta1: the motor does not move"),
+    ("no_reversal.csv", "column theta1: the motor turns one way only"),
+    ("no_gap_crossing.csv", "column theta2: 0 gap crossing(s) found"),
+]
+
+
+@pytest.mark.parametrize(("name", "fragment"), CORPUS, ids=[c[0] for c in CORPUS])
+def test_bad_log_is_one_line_and_exit_2(name: str, fragment: str, capsys: pytest.CaptureFixture[str]) -> None:
+    path = DATA / name
+    assert path.is_file(), "run tests/data/logs/make_corpus.py"
+    assert main(["identify", str(path), "--model", START_MODEL]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"gearctl identify: error: {path}: ") and fragment in err, err
+
+
+def test_bad_logs_raise_input_error_with_the_column() -> None:
+    with pytest.raises(InputError) as exc:
+        read_log(DATA / "nan.csv")
+    assert exc.value.field == "torque"
+    with pytest.raises(InputError) as exc:
+        read_log(DATA / "missing_column.csv")
+    assert exc.value.field == "theta1"
+
+
+def test_oversized_log_is_refused_with_the_figure(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = DATA / "short.csv"
+    monkeypatch.setattr(ident, "MAX_LOG_BYTES", 1000)
+    with pytest.raises(InputError, match=r"4,3\d\d bytes is too large for a log \(at most 1,000 bytes"):
+        read_log(path)
+    monkeypatch.setattr(ident, "MAX_LOG_BYTES", 10**9)
+    monkeypatch.setattr(ident, "MAX_LOG_SAMPLES", 50)
+    with pytest.raises(InputError, match="100 samples is more than a log may hold"):
+        read_log(path)
+
+
+def test_load_encoder_asked_for_but_missing(logs: Callable, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path, _ = logs("identify", 1.0)
+    log = read_log(path)
+    write_log(tmp_path / "motor_only.csv", dataclasses.replace(log, theta2=None, extra={}))
+    assert main(["identify", str(tmp_path / "motor_only.csv"), "--model", START_MODEL, "--encoders",
+                 "motor+load"]) == 2
+    err = capsys.readouterr().err
+    assert "missing column 'theta2'" in err and err.count("\n") == 1
+    train = load_model(START_MODEL)
+    train = dataclasses.replace(train, stages=train.stages * 2)
+    with pytest.raises(InputError, match="a train of 2 stages; identify handles a gear pair"):
+        identify(log, train)
+
+
+@pytest.mark.slow
+def test_a_plant_unlike_the_model_is_flagged() -> None:
+    """A log of the Yang-Sun plant (Hertzian, lively contact) read with the improved model: b from the plateaus
+    holds (measured -0.04 %), the re-simulation does not fit and says so (measured 1100 x the noise)."""
+    ex = record_excitation(TRUE_MODEL, plant="yang-sun", duration=10.0, seed=2)
+    res = identify(ex.log, TRUE_MODEL, encoders="motor+load")
+    _check_backlash(res, ex.plant.backlash, 0.05)
+    assert len(res.warnings) == 1 and "does not fit the log" in res.warnings[0]
