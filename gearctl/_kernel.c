@@ -15,6 +15,7 @@
  *    is exact (matrix exponential). Full sub-steps use Phi(h), Gamma(h) of the pattern (built in Python
  *    the first time the pattern is visited: the kernel returns ST_PATTERN and is called again);
  *    partial steps and event roots use the Taylor series of the same exact solution, summed to 1e-17.
+ *    A train (p->ns >= 2) first tries long steps, certified free of events (see long_try); a pair never does.
  *  - gc_advance_ode: Yang-Sun, time-varying stiffness and the smooth Coulomb law are nonlinear:
  *    Dormand-Prince 5(4) with error control and its 4th-order dense output; events on the dense output.
  *
@@ -230,6 +231,8 @@ typedef struct {
     long idx;   /* stage (types 0, 1) or shaft (types 2, 3) */
     double ssign; /* type 0: g = ssign * s + g0 */
     double own[GC_NX_MAX];
+    int nnz;                /* the nonzero coefficients (a train's sub-steps sum only these) */
+    int nzi[GC_NX_MAX];
 } gc_evfun;
 
 /* The event functions of the current modes (mesh ones from the tables gearctl/plant.py builds). */
@@ -280,6 +283,11 @@ static int collect_events(const gc_params *p, const gc_state *st, double u1, dou
                 }
             }
         }
+    for (int e = 0; e < n; e++) { /* the nonzero coefficients of each */
+        f[e].nnz = 0;
+        for (i = 0; i < p->nx; i++)
+            if (f[e].cg[i] != 0.0) f[e].nzi[f[e].nnz++] = (int)i;
+    }
     return n;
 }
 
@@ -436,6 +444,232 @@ static int grazing_leaves(const gc_params *p, const gc_state *st, const gc_evfun
     return acc < -acc_tol;
 }
 
+/* ---------------------------------------------------------------- long steps (trains) */
+
+/* A train's fast mesh modes force sub-steps of rho h <= 0.6, hundreds per sample, although most samples
+ * hold no event. A long step of H = n h (n = 2, 4, 8, ... or the whole interval, p->lv_mult) is taken
+ * exactly with its own Phi(H), Gamma(H) where a certificate proves that no event function of the current
+ * modes reaches zero in [0, H]. Each g = cg . x + g0 splits into a slow part S and the fast modes F (the
+ * modal split of the pattern, built by gearctl/kernel.py: _long_data, where the argument is written out):
+ *   |F(t)| <= B = sum_k wt_k |cg . v_k| |gamma_k| max(1, |e^{lambda_k H}|),
+ *   S = g - F is within E4 = |cg^T M3|_2 lv_e4 |P_s x'(0)|_2 of its cubic Hermite interpolant,
+ * so min g >= min(cubic) - E4 - B, with margins for rounding and for the split's error. Where any function
+ * fails, a shorter level is tried (the one its slow cubic leaves room for), then the sub-steps (which locate
+ * the event). A loaded stage's penetration record: a long step whose upper bound on the penetration exceeds
+ * it raises it to that bound where the bound is within PEN_REL of the peak (a slow loading), and is refused
+ * otherwise, so that the sub-steps estimate the peak as they do on a pair. */
+
+#define M_SCALE 1e-11 /* margin: of the event function's terms |g0| + |cg||x| + H |cg||x'| at both ends */
+#define M_FAST 1e-6   /* margin: of the fast bound B */
+#define M_CUBIC 1e-12 /* margin: of the cubic's terms */
+#define PEN_REL 1e-3  /* a long step may raise a penetration record to its bound where that is this tight */
+#define BACKOFF_FIRST 2 /* sub-steps before the next try after a refusal at every level; doubling up to: */
+#define BACKOFF_MAX 16
+
+typedef struct {
+    int lcur, wait, backoff;             /* next level to try; sub-steps before the next try; its growth */
+    double eta[2 * GC_NX_MAX];           /* per fast mode: -w_k a / lambda_k (complex) */
+    double gam_a[GC_LMAX][GC_NX_MAX];    /* Gamma(H_l) a */
+    int have_ga[GC_LMAX];
+    double cv[NEV_MAX][2 * GC_NX_MAX];   /* cg_e . v_k (complex) */
+    double r4[NEV_MAX];                  /* |cg_e^T M3|_2 */
+    double ls[NEV_MAX];                  /* |cg_e| in the balanced coordinates (angles times rho) */
+    double eta_n;                        /* sum_k wt_k |eta_k| */
+} gc_long;
+
+/* per pattern and affine term: the fast steady state, each event function's modal couplings */
+static void long_prepare(const gc_params *p, long slot, const double *a, const gc_evfun *fn, int ne, gc_long *L) {
+    long nx = p->nx, nf = p->fm_n[slot], i, j, k;
+    const double *lam = p->fm_lam + slot * nx * 2, *W = p->fm_W + slot * nx * nx * 2, *V = p->fm_V + slot * nx * nx * 2;
+    const double *M3 = p->M3 + slot * nx * nx;
+    for (k = 0; k < nf; k++) {
+        double wr = 0.0, wi = 0.0;
+        for (i = 0; i < nx; i++) {
+            wr += W[(k * nx + i) * 2] * a[i];
+            wi += W[(k * nx + i) * 2 + 1] * a[i];
+        }
+        double lr = lam[2 * k], li = lam[2 * k + 1], d = lr * lr + li * li;
+        /* eta = -(wr + i wi) / (lr + i li) = -(wr + i wi)(lr - i li) / d */
+        L->eta[2 * k] = -(wr * lr + wi * li) / d;
+        L->eta[2 * k + 1] = -(wi * lr - wr * li) / d;
+    }
+    double rho = p->rho[slot];
+    L->eta_n = 0.0;
+    for (k = 0; k < nf; k++) L->eta_n += p->fm_wt[slot * nx + k] * sqrt(L->eta[2 * k] * L->eta[2 * k] + L->eta[2 * k + 1] * L->eta[2 * k + 1]);
+    for (int e = 0; e < ne; e++) {
+        const double *cg = fn[e].cg;
+        int nnz = fn[e].nnz;
+        const int *nzi = fn[e].nzi;
+        for (k = 0; k < nf; k++) {
+            double cr = 0.0, ci = 0.0;
+            for (int z = 0; z < nnz; z++) {
+                i = nzi[z];
+                cr += cg[i] * V[(k * nx + i) * 2];
+                ci += cg[i] * V[(k * nx + i) * 2 + 1];
+            }
+            L->cv[e][2 * k] = cr;
+            L->cv[e][2 * k + 1] = ci;
+        }
+        double r = 0.0;
+        for (j = 0; j < nx; j++) {
+            double acc = 0.0;
+            for (int z = 0; z < nnz; z++) acc += cg[nzi[z]] * M3[nzi[z] * nx + j];
+            r += acc * acc;
+        }
+        L->r4[e] = sqrt(r);
+        r = 0.0;
+        for (int z = 0; z < nnz; z++) {
+            i = nzi[z];
+            double c = i < p->nsh ? cg[i] / rho : cg[i];
+            r += c * c;
+        }
+        L->ls[e] = sqrt(r);
+    }
+    for (int l = 0; l < GC_LMAX; l++) L->have_ga[l] = 0;
+}
+
+/* Range on [0, umax] (umax <= 1) of the cubic Hermite interpolant on [0, 1] of values s0, s1 and scaled slopes
+ * d0 = H S'(0), d1 = H S'(H): its end values and its stationary points inside. */
+static void cubic_range(double s0, double s1, double d0, double d1, double umax, double *lo, double *hi) {
+    double c1 = d0, c2 = -3.0 * s0 - 2.0 * d0 + 3.0 * s1 - d1, c3 = 2.0 * s0 + d0 - 2.0 * s1 + d1;
+    double send = umax == 1.0 ? s1 : ((c3 * umax + c2) * umax + c1) * umax + s0;
+    double mn = fmin(s0, send), mx = fmax(s0, send);
+    double qa = 3.0 * c3, qb = 2.0 * c2, qc = c1, r[2];
+    int nr = 0;
+    if (qa == 0.0) {
+        if (qb != 0.0) r[nr++] = -qc / qb;
+    } else {
+        double disc = qb * qb - 4.0 * qa * qc;
+        if (disc >= 0.0) {
+            double q = -0.5 * (qb + copysign(sqrt(disc), qb));
+            r[nr++] = q / qa;
+            if (q != 0.0) r[nr++] = qc / q;
+        }
+    }
+    for (int j = 0; j < nr; j++) {
+        double u = r[j];
+        if (u > 0.0 && u < umax) {
+            double v = ((c3 * u + c2) * u + c1) * u + s0;
+            mn = fmin(mn, v);
+            mx = fmax(mx, v);
+        }
+    }
+    *lo = mn;
+    *hi = mx;
+}
+
+/* After a refusal: the largest fraction 2^-j (j >= 1: never the refused step itself) of the step over which this
+ * function's slow cubic keeps clear of the bound (lo side: above c; hi side: below c), a guess at the level to
+ * try next; 0 where none does. */
+static double long_fraction(double S0, double S1, double D0, double D1, double c, int upper) {
+    double f = 0.5, lo, hi;
+    if (upper ? !(S0 < c) : !(S0 > c)) return 0.0;
+    while (f >= 1.0 / 4096.0) {
+        cubic_range(S0, S1, D0, D1, f, &lo, &hi);
+        if (upper ? hi < c : lo > c) return f;
+        f *= 0.5;
+    }
+    return 0.0;
+}
+
+/* The long step of level l from x0 (x'(0) = dx0): 1 and x1, dx1 at its end where it is certified (pen[i]: a
+ * stage's new penetration record, or -inf); else the fraction of the step that may pass (long_fraction). */
+static double long_try(const gc_params *p, const gc_state *st, long slot, int l, gc_long *L, const gc_evfun *fn,
+                    int ne, const double *x0, const double *dx0, const double *a, double h_pat, double *x1,
+                    double *dx1, double *pen) {
+    long nx = p->nx, nx2 = nx * nx, i, k, ll = slot * GC_LMAX + l;
+    double H = (double)p->lv_mult[ll] * h_pat;
+    const double *Phi = p->lv_Phi + ll * nx2, *Gam = p->lv_Gam + ll * nx2, *E = p->lv_E + ll * nx * 2;
+    if (!L->have_ga[l]) {
+        matvec(nx, Gam, a, L->gam_a[l]);
+        L->have_ga[l] = 1;
+    }
+    matvec(nx, Phi, x0, x1);
+    for (i = 0; i < nx; i++) x1[i] += L->gam_a[l][i];
+    matvec(nx, Phi, dx0, dx1);
+    long nf = p->fm_n[slot];
+    const double *lam = p->fm_lam + slot * nx * 2, *wt = p->fm_wt + slot * nx;
+    const double *W = p->fm_W + slot * nx2 * 2, *V = p->fm_V + slot * nx2 * 2;
+    double gr[GC_NX_MAX], gi[GC_NX_MAX], lr[GC_NX_MAX], li[GC_NX_MAX], emax[GC_NX_MAX], y[GC_NX_MAX];
+    double xd[GC_NX_MAX], xn = 0.0, rho = p->rho[slot];
+    /* x0 less its rigid displacement (a null vector of A: no fast content, but angles of many radians whose
+       rounding would leak into the modal amplitudes) */
+    long w = p->nsh;
+    const double *rig = p->rig + slot * nx2;
+    for (i = 0; i < w; i++) {
+        double acc = x0[i];
+        for (long j = 0; j < w; j++) acc -= rig[i * nx + j] * x0[j];
+        xd[i] = acc;
+        xn += rho * acc * rho * acc;
+    }
+    for (i = w; i < nx; i++) {
+        xd[i] = x0[i];
+        xn += x0[i] * x0[i];
+    }
+    xn = sqrt(xn) + L->eta_n; /* the balanced size of the fast modes' argument */
+    memcpy(y, dx0, sizeof(double) * nx);
+    for (k = 0; k < nf; k++) { /* gamma_k = w_k x0 - eta_k, and lambda_k gamma_k = w_k x'(0) */
+        double re = -L->eta[2 * k], im = -L->eta[2 * k + 1];
+        for (i = 0; i < nx; i++) {
+            re += W[(k * nx + i) * 2] * xd[i];
+            im += W[(k * nx + i) * 2 + 1] * xd[i];
+        }
+        gr[k] = re;
+        gi[k] = im;
+        lr[k] = lam[2 * k] * re - lam[2 * k + 1] * im;
+        li[k] = lam[2 * k] * im + lam[2 * k + 1] * re;
+        for (i = 0; i < nx; i++) /* y = P_s x'(0): x'(0) less its fast part */
+            y[i] -= wt[k] * (V[(k * nx + i) * 2] * lr[k] - V[(k * nx + i) * 2 + 1] * li[k]);
+        emax[k] = fmax(1.0, sqrt(E[2 * k] * E[2 * k] + E[2 * k + 1] * E[2 * k + 1]));
+    }
+    double yn = 0.0;
+    for (i = 0; i < nx; i++) yn += y[i] * y[i];
+    double e4f = p->lv_e4[ll] * sqrt(yn);
+    for (int e = 0; e < ne; e++) {
+        const double *cg = fn[e].cg;
+        double ga = fn[e].g0, gb = fn[e].g0, da = 0.0, db = 0.0, scale = fabs(fn[e].g0), dsc = 0.0;
+        for (int z = 0; z < fn[e].nnz; z++) {
+            i = fn[e].nzi[z];
+            ga += cg[i] * x0[i];
+            gb += cg[i] * x1[i];
+            da += cg[i] * dx0[i];
+            db += cg[i] * dx1[i];
+            scale += fabs(cg[i] * x0[i]) + fabs(cg[i] * x1[i]);
+            dsc += fabs(cg[i] * dx0[i]) + fabs(cg[i] * dx1[i]);
+        }
+        double F0 = 0.0, F1 = 0.0, dF0 = 0.0, dF1 = 0.0, B = 0.0;
+        const double *cv = L->cv[e];
+        for (k = 0; k < nf; k++) {
+            double cr = cv[2 * k], ci = cv[2 * k + 1];
+            double ar = cr * gr[k] - ci * gi[k], ai = cr * gi[k] + ci * gr[k];  /* c gamma */
+            double br = cr * lr[k] - ci * li[k], bi = cr * li[k] + ci * lr[k];  /* c lambda gamma */
+            double er = E[2 * k], ei = E[2 * k + 1];
+            F0 += wt[k] * ar;
+            F1 += wt[k] * (ar * er - ai * ei);
+            dF0 += wt[k] * br;
+            dF1 += wt[k] * (br * er - bi * ei);
+            B += wt[k] * sqrt(ar * ar + ai * ai) * emax[k];
+        }
+        double S0 = ga - F0, S1 = gb - F1, D0 = H * (da - dF0), D1 = H * (db - dF1), lo, hi;
+        cubic_range(S0, S1, D0, D1, 1.0, &lo, &hi);
+        double e4 = L->r4[e] * e4f;
+        double delta = M_SCALE * (scale + H * dsc) + p->lv_dec[ll] * L->ls[e] * xn + M_FAST * B
+                       + M_CUBIC * (fabs(S0) + fabs(S1) + fabs(D0) + fabs(D1));
+        if (!(lo - e4 - B - delta > 0.0)) return long_fraction(S0, S1, D0, D1, e4 + B + delta, 0);
+        if (fn[e].type == 0 && loaded(st->mode[fn[e].idx])) { /* g is the stage's penetration |s| - b */
+            long i = fn[e].idx;
+            double up = hi + e4 + B + delta, slack = 2.0 * (e4 + B + delta);
+            if (!(up <= st->max_pen[i])) {
+                /* a new record: taken from the bound where the bound is within PEN_REL of the peak (a slow
+                   loading); else refused, and the sub-steps estimate the peak as they always have */
+                if (!(slack <= PEN_REL * up)) return long_fraction(S0, S1, D0, D1, st->max_pen[i] - (e4 + B + delta), 1);
+                if (up > pen[i]) pen[i] = up;
+            }
+        }
+    }
+    return 1.0;
+}
+
 int gc_advance_pwl(const gc_params *p, gc_state *st) {
     double u1 = st->u1, u2 = st->u2, t_end = st->t_end;
     long nx = p->nx, nx2 = nx * nx, i;
@@ -445,6 +679,11 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
     int cached = 0, have_dx = 0, ne = 0;
     double a[GC_NX_MAX], gam_a[GC_NX_MAX], dx0[GC_NX_MAX], dx1[GC_NX_MAX];
     gc_evfun fn[NEV_MAX]; /* the event functions of the current modes: they change only at events */
+    gc_long L; /* long steps (a train's patterns with p->lv_n > 0; a pair has none) */
+    int sparse = p->ns >= 2; /* a train sums its event functions over their nonzero terms (a pair: all, as always) */
+    int lready = 0;
+    L.lcur = GC_LMAX;
+    L.wait = L.backoff = 0;
     while (st->t < t_end) {
         long pat = pattern_of(p, st), slot = p->slot[pat];
         if (slot < 0) {
@@ -468,6 +707,53 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
             matvec(nx, A, x0, dx0);
             for (i = 0; i < nx; i++) dx0[i] += a[i];
         }
+        if (p->lv_n[slot] > 0) { /* a train: the longest certified step first (see long_try) */
+            if (!lready) {
+                long_prepare(p, slot, a, fn, ne, &L);
+                lready = 1;
+            }
+            if (L.wait > 0) {
+                L.wait--;
+            } else {
+                long base = slot * GC_LMAX, nl = p->lv_n[slot];
+                double rem = t_end - st->t;
+                int l = -1;
+                for (int j = 0; j < nl; j++) /* the longest level that fits the interval */
+                    if ((double)p->lv_mult[base + j] * h_pat <= rem + 1e-9 * h_pat) l = j;
+                if (l > L.lcur) l = L.lcur;
+                double pen[GC_MAX_STAGES];
+                while (l >= 0) {
+                    for (i = 0; i < p->ns; i++) pen[i] = -INFINITY;
+                    double f = long_try(p, st, slot, l, &L, fn, ne, x0, dx0, a, h_pat, x1, dx1, pen);
+                    if (f == 1.0) break; /* certified (a refusal returns a fraction below 1) */
+                    /* the next level down that the refused one's slow cubic leaves room for */
+                    double cap = f * (double)p->lv_mult[base + l];
+                    do l--; while (l >= 0 && (double)p->lv_mult[base + l] > cap);
+                }
+                if (l >= 0) {
+                    double H = (double)p->lv_mult[base + l] * h_pat;
+                    memcpy(st->x, x1, sizeof(double) * nx);
+                    memcpy(dx0, dx1, sizeof(double) * nx);
+                    have_dx = 1;
+                    st->t = fabs(rem - H) <= 1e-9 * h_pat ? t_end : st->t + H;
+                    st->n_steps++;
+                    L.lcur = l + 1;
+                    L.backoff = 0;
+                    for (i = 0; i < p->ns; i++)
+                        if (pen[i] > st->max_pen[i]) st->max_pen[i] = pen[i];
+                    for (i = 0; i < p->ns; i++)
+                        if (p->b[i] == 0.0 && p->law == 0) st->mode[i] = s_of(p, i, x1) >= 0.0 ? 1 : -1;
+                    for (i = 0; i < nx; i++)
+                        if (!isfinite(st->x[i])) return ST_NAN;
+                    continue;
+                }
+                /* refused at every level: sub-steps, and wait a growing number of them before trying again */
+                L.backoff = L.backoff ? 2 * L.backoff : BACKOFF_FIRST;
+                if (L.backoff > BACKOFF_MAX) L.backoff = BACKOFF_MAX;
+                L.wait = L.backoff;
+                L.lcur = 0;
+            }
+        }
         double remaining = t_end - st->t, h = h_pat;
         int lands = fabs(remaining - h) <= 1e-9 * h; /* this step ends the interval */
         int full = lands || remaining > h;
@@ -489,12 +775,23 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
         for (int e = 0; e < ne; e++) {
             const double *cg = fn[e].cg;
             double ga = fn[e].g0, gb = fn[e].g0, da = 0.0, db = 0.0, dscale = 0.0, gscale = 0.0;
-            for (i = 0; i < nx; i++) {
-                ga += cg[i] * x0[i];
-                gb += cg[i] * x1[i];
-                da += cg[i] * dx0[i];
-                db += cg[i] * dx1[i];
-                dscale += fabs(cg[i] * dx0[i]);
+            if (sparse) { /* a train: the same sums over the nonzero terms only */
+                for (int q = 0; q < fn[e].nnz; q++) {
+                    i = fn[e].nzi[q];
+                    ga += cg[i] * x0[i];
+                    gb += cg[i] * x1[i];
+                    da += cg[i] * dx0[i];
+                    db += cg[i] * dx1[i];
+                    dscale += fabs(cg[i] * dx0[i]);
+                }
+            } else {
+                for (i = 0; i < nx; i++) {
+                    ga += cg[i] * x0[i];
+                    gb += cg[i] * x1[i];
+                    da += cg[i] * dx0[i];
+                    db += cg[i] * dx1[i];
+                    dscale += fabs(cg[i] * dx0[i]);
+                }
             }
             double tau;
             if (fn[e].type == 3 && ga < 0.0) { /* a stuck shaft already needs more than friction holds */
@@ -523,7 +820,10 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
                     double q[NTAY];
                     for (int n = 0; n < nt; n++) {
                         q[n] = 0.0;
-                        for (i = 0; i < nx; i++) q[n] += cg[i] * D[n][i];
+                        if (sparse)
+                            for (int z = 0; z < fn[e].nnz; z++) q[n] += cg[fn[e].nzi[z]] * D[n][fn[e].nzi[z]];
+                        else
+                            for (i = 0; i < nx; i++) q[n] += cg[i] * D[n][i];
                     }
                     q[0] = ga;
                     tau = first_root(q, nt, h, gb, da, db);
@@ -549,6 +849,9 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
         } else {
             have_dx = 0; /* the state jumped to the event (and a plastic impact may change it) */
             cached = 0;
+            lready = 0;
+            L.lcur = GC_LMAX;
+            L.wait = L.backoff = 0;
             if (nt == 0) nt = taylor(nx, A, rho, x0, a, h, D);
             taylor_eval(nx, D, nt, best, st->x);
             st->t += best;

@@ -14,16 +14,22 @@ exact: full sub-steps apply the propagators ``Phi(h) = e^{A h}`` and ``Gamma(h) 
 built the first time a pattern is visited and cached; partial steps and event roots use the Taylor series
 of the same solution, summed to 1e-17. Sub-steps are short enough (``rho h <= 0.6`` for a pattern with
 contact) that a crossing between grid points shows as a sign change or as an interior minimum of the cubic
-Hermite model, and is then found to machine precision on the series. The nonlinear plants (Yang–Sun,
-time-varying stiffness, the smooth Coulomb law) use Dormand–Prince 5(4) with error control and locate
-events on its dense output.
+Hermite model, and is then found to machine precision on the series. On a train (two stages or more) the
+fastest mesh mode makes those sub-steps many (about 200 per 1 ms sample on the three-stage catalog train),
+so the solver first tries a *long step* of 2, 4, 8, ... sub-steps or the whole interval, exact with its own
+propagators, which it takes only where a certificate proves that no event function of the current modes
+reaches zero inside it (:func:`_long_data` gives the bound and why it is rigorous); where the certificate
+refuses, the sub-steps above locate the event. A pair never takes long steps: its results are those of the
+sub-steps, bit for bit. The nonlinear plants (Yang–Sun, time-varying stiffness, the smooth Coulomb law)
+use Dormand–Prince 5(4) with error control and locate events on its dense output.
 
 The C structs are generated from :data:`PARAMS_FIELDS` and :data:`STATE_FIELDS` (one description, read by
 both the C source and its :mod:`ctypes` mirror).
 
 Bounded by construction: the events one :meth:`Kernel.advance` may locate are capped (``max_events``),
 so are the events of a whole run per simulated second (``max_event_rate``), and the events kept in detail
-(``max_records``; the counts per stage and flank stay exact beyond). Grazing contacts (a flank reached
+(``max_records``; the counts per stage and flank stay exact beyond); every long step moves time on by at
+least two sub-steps, and the long tries after a refusal are spaced out. Grazing contacts (a flank reached
 with no relative speed and no acceleration to speak of) stay on their side instead of chattering.
 """
 
@@ -109,6 +115,10 @@ PARAMS_FIELDS: tuple[tuple[str, str], ...] = (
     ("ev_type", "int*"), ("ev_ssign", "double*"),
     ("fbit", "gc_int*"), ("slot", "gc_int*"),
     ("A", "double*"), ("Phi", "double*"), ("Gam", "double*"), ("h", "double*"), ("rho", "double*"),
+    # long steps (trains): per pattern slot, see _long_data
+    ("lv_n", "gc_int*"), ("lv_mult", "gc_int*"), ("lv_Phi", "double*"), ("lv_Gam", "double*"), ("lv_E", "double*"),
+    ("lv_e4", "double*"), ("fm_n", "gc_int*"), ("fm_lam", "double*"), ("fm_wt", "double*"), ("fm_W", "double*"),
+    ("fm_V", "double*"), ("M3", "double*"), ("lv_dec", "double*"), ("rig", "double*"),
 )
 STATE_FIELDS: tuple[tuple[str, str], ...] = (
     ("x", "double*"), ("t", "double"), ("t_end", "double"), ("d_ys", "double*"), ("h_ode", "double"),
@@ -131,6 +141,7 @@ def c_structs() -> str:
 
     return ("#include <stdint.h>\ntypedef int64_t gc_int;\n"
             f"#define GC_MAX_STAGES {MAX_STAGES}\n#define GC_NX_MAX {_NX_MAX}\n#define GC_NCOUNT {_NCOUNT}\n"
+            f"#define GC_LMAX {_LMAX}\n"
             + struct("gc_event", _EVENT_FIELDS) + struct("gc_params", PARAMS_FIELDS) + struct("gc_state", STATE_FIELDS))
 
 
@@ -209,6 +220,166 @@ def _propagators_cached(A_bytes: bytes, n: int, h: float) -> tuple[np.ndarray, n
     return Phi, Gam
 
 
+# --- long steps: the certificate's data ------------------------------------------------------------------------
+
+#: Most long-step levels a pattern keeps (lengths 2, 4, 8, ... sub-steps and the whole interval).
+_LMAX = 24
+#: Long steps on trains by default (``Kernel(long_steps=...)`` overrides; a pair never takes them).
+LONG_STEPS = True
+#: Largest first-order error of the modal split a level may carry, times ``3 + rho H`` (see _long_data).
+_DEC_TOL = 1e-6
+
+
+@dataclasses.dataclass(frozen=True)
+class _LongData:
+    """One pattern's data for long steps (see :func:`_long_data`)."""
+
+    mults: tuple[int, ...]  # level lengths in sub-steps h
+    phis: tuple[np.ndarray, ...]
+    gams: tuple[np.ndarray, ...]
+    E: np.ndarray  # (levels, nf) complex: exp(lambda_k H_l)
+    e4: np.ndarray  # (levels,): exp(||T11|| H) H^4 / 384
+    lam: np.ndarray  # (nf,) complex fast eigenvalues, one of each conjugate pair
+    wt: np.ndarray  # (nf,) 2 for a pair, 1 for a real eigenvalue
+    W: np.ndarray  # (nf, nx) complex left eigenvectors (rows), W V = I on the fast subspace
+    V: np.ndarray  # (nf, nx) complex right eigenvectors (row k is v_k)
+    M3: np.ndarray  # (nx, nx) real: Q_s T11^3 (slow basis times the slow block cubed; zero columns beyond)
+    dec: np.ndarray  # (levels,): (3 + rho H) eps_dec, the split's error as it can move the certificate
+    rig: np.ndarray  # (w, w): projector on the rigid displacements (angles A maps to zero)
+    eps_dec: float  # first-order error of the split
+    kappa: float  # condition number of the scaled basis [Q_s V_f]
+
+
+def _long_data(A: np.ndarray, dt: float, h: float, m: int) -> _LongData | None:
+    """The long-step data of pattern matrix ``A`` (cached: a bench or a sweep builds the same ones often)."""
+    return _long_data_cached(A.tobytes(), A.shape[0], dt, h, m)
+
+
+@functools.lru_cache(maxsize=256)
+def _long_data_cached(A_bytes: bytes, nx: int, dt: float, h: float, m: int) -> _LongData | None:
+    """The modal split of a pattern's ``A`` that certifies long steps, or None where it cannot be trusted.
+
+    The solution of ``x' = A x + a`` splits along the invariant subspaces of A into a *slow* part (eigenvalues
+    with ``|lambda| dt <= 1``: rigid-body motion, the viscously damped rigid modes, any stuck shaft; it may be
+    defective, e.g. a free shaft's Jordan block at 0, and is never diagonalised) and a *fast* part (the mesh
+    modes, diagonalised: ``x_f = sum_k v_k eta_k`` with ``eta_k' = lambda_k eta_k + w_k a``). An event
+    function ``g = l.x + g0`` is then ``g(t) = S(t) + F(t)`` on a step ``[0, H]``, with
+
+    - ``F(t) = sum_k (l.v_k) gamma_k exp(lambda_k t)``, ``gamma_k = w_k x(0) + w_k a / lambda_k`` (the fast
+      modes about their steady state), so ``|F(t)| <= B = sum_k |l.v_k| |gamma_k| max(1, |exp(lambda_k H)|)``;
+    - ``S = g - F``: ``g0`` plus the slow part and the fast modes' steady state. With ``Q_s`` an orthonormal
+      basis of the slow subspace, ``T11 = Q_s^T A Q_s`` and ``y = P_s x'(0)`` (``P_s`` the projector on it
+      along the fast one), ``S''''(t) = l^T Q_s T11^3 exp(T11 t) Q_s^T y``, so
+      ``|S''''| <= ||l^T Q_s T11^3||_2 exp(||T11||_2 H) ||y||_2`` on the step, and S is within
+      ``E4 = max|S''''| H^4 / 384`` of its cubic Hermite interpolant (end values and slopes), which is known
+      exactly from ``g`` and ``F`` at both ends. A Jordan block at 0 (a free shaft) is a polynomial of degree
+      2 or 3 there: its ``T11^3`` vanishes and so does its share of E4.
+
+    Hence ``min g >= min(cubic) - E4 - B`` over the step, exactly in real arithmetic, with no assumption on
+    the number of extrema. Floating point: the split is computed on the balanced matrix (angles scaled by
+    rho); its first-order error is ``eps_dec = kappa (|A V - V L| + |A Q - Q T| + eps) |A| / gap`` (residuals
+    relative to ``|A|``; kappa the condition of the basis ``[Q_s V_f]``, gap the distance between the slow
+    and fast spectra), and a fast component leaked into S can move its cubic by ``3 + rho H`` times its size,
+    so the certificate subtracts ``(3 + rho H) eps_dec |l|_bal (|x_d|_bal + sum |eta_k|)`` (balanced norms;
+    ``x_d`` the state less its rigid displacement: the angles of many radians the fast modes do not see are
+    taken out before the modal amplitudes are formed: null vectors of A, which w_k annihilates, so only their
+    rounding goes), plus 1e-11 of the event function's terms (rounding of g and of the propagators, measured
+    at 3e-14), 1e-6 of B and 1e-12 of the cubic's terms (``long_try`` in ``_kernel.c``). A level whose
+    ``(3 + rho H) eps_dec`` exceeds :data:`_DEC_TOL`, a basis with kappa above 1e8, a spectrum without a gap
+    around ``1 / dt`` or a conjugate pair split across it: no long steps. Levels: ``2, 4, 8, ...`` sub-steps
+    below ``m``, and ``m`` (the whole interval), by squaring the sub-step's propagators.
+    """
+    A = np.frombuffer(A_bytes).reshape(nx, nx)
+    w = nx // 2
+    if m < 4 or not np.all(np.isfinite(A)):
+        return None
+    mags = np.abs(np.linalg.eigvals(A))
+    rho = float(np.max(mags))
+    if not rho > 0.0:
+        return None
+    tau = 1.0 / dt
+    while np.any((mags > 0.5 * tau) & (mags < 2.0 * tau)) and tau * dt > 1e-3:  # the split sits in a gap
+        tau *= 0.5
+    if np.any((mags > 0.5 * tau) & (mags < 2.0 * tau)):
+        return None
+    sc = np.array([rho] * w + [1.0] * w)  # balanced: angles times rho, speeds as they are
+    At = sc[:, None] * A / sc[None, :]
+    try:
+        _, Z, sdim = scipy.linalg.schur(At, output="real", sort=lambda re, im: re * re + im * im <= tau * tau)
+        lt, Vt = scipy.linalg.eig(At)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    fast = np.abs(lt) > tau
+    if sdim != nx - int(fast.sum()) or sdim != int(np.sum(mags <= tau)):
+        return None
+    lf = lt[fast]
+    Vf = Vt[:, fast]
+    Vf = Vf / np.linalg.norm(Vf, axis=0)
+    Qt = Z[:, :sdim]
+    basis = np.hstack([Qt.astype(complex), Vf])
+    kappa = float(np.linalg.cond(basis))
+    if not kappa < 1e8:
+        return None
+    Wf = np.linalg.inv(basis)[sdim:]
+    nA = float(np.linalg.norm(At, 2))
+    r1 = float(np.linalg.norm(At @ Vf - Vf * lf[None, :], 2)) / nA if lf.size else 0.0
+    r2 = float(np.linalg.norm(At @ Qt - Qt @ (Qt.T @ At @ Qt), 2)) / nA if sdim else 0.0
+    slow_max = float(np.max(mags[mags <= tau])) if sdim else 0.0
+    gap = float(np.min(np.abs(lf))) - slow_max if lf.size else math.inf
+    eps_dec = kappa * (r1 + r2 + 2.3e-16) * nA / gap
+    # back to the state's own coordinates
+    V = (Vf / sc[:, None]).T  # row k: v_k
+    W = Wf * sc[None, :]
+    M3, t11 = np.zeros((nx, nx)), 0.0
+    if sdim:
+        Qs, _ = np.linalg.qr(Z[:, :sdim] / sc[:, None])
+        T11 = Qs.T @ A @ Qs
+        M3[:, :sdim] = Qs @ np.linalg.matrix_power(T11, 3)
+        t11 = float(np.linalg.norm(T11, 2))
+    # one of each conjugate pair, weight 2; real fast eigenvalues weight 1
+    if sum(1 for v in lf if v.imag > 0.0) != sum(1 for v in lf if v.imag < 0.0):
+        return None
+    keep = [k for k in range(lf.size) if lf[k].imag >= 0.0]
+    lam = lf[keep]
+    wt = np.array([2.0 if v.imag > 0.0 else 1.0 for v in lam])
+    # propagators of 2^j sub-steps by squaring Phi(h), Gamma(h) (the sub-steps' own), and of m by their product:
+    # Phi(s + r) = Phi(s) Phi(r), Gamma(s + r) = Gamma(s) + Phi(s) Gamma(r)
+    mults = [2**j for j in range(1, _LMAX) if 2**j < m][: _LMAX - 1] + [m]
+    P, G = (M.copy() for M in _propagators(A, h))
+    pows = [(P, G)]
+    while 2 ** len(pows) <= m:
+        P, G = P @ P, G + P @ G
+        pows.append((P, G))
+    phis, gams, Es, e4s, decs = [], [], [], [], []
+    for n_sub in mults:
+        H = float(n_sub) * h
+        if not (eps_dec * (3.0 + rho * H) <= _DEC_TOL and t11 * H < 700.0 and np.all(lam.real * H < 700.0)):
+            break
+        if n_sub & (n_sub - 1) == 0:
+            Phi, Gam = pows[n_sub.bit_length() - 1]
+        else:
+            Phi, Gam = np.eye(nx), np.zeros((nx, nx))
+            for j in range(n_sub.bit_length()):
+                if n_sub >> j & 1:
+                    Phi, Gam = pows[j][0] @ Phi, pows[j][1] + pows[j][0] @ Gam
+        phis.append(Phi)
+        gams.append(Gam)
+        Es.append(np.exp(lam * H))
+        e4s.append(math.exp(t11 * H) * H**4 / 384.0)
+        decs.append(eps_dec * (3.0 + rho * H))
+    if not phis:
+        return None
+    # the rigid displacements (angles the pattern's A maps to zero): the state's large common angles, taken out
+    # before the fast modes' amplitudes are formed (w_k annihilates them; rounding would not, at 1e-16 of them)
+    U, sv, _ = np.linalg.svd(A[:, :w].T)
+    null = U[:, sv <= 1e-12 * sv[0]] if sv[0] > 0.0 else np.eye(w)
+    rig = null @ null.T
+    nl = len(phis)
+    return _LongData(mults=tuple(mults[:nl]), phis=tuple(phis), gams=tuple(gams),
+                     E=np.array(Es, dtype=complex).reshape(nl, lam.size), e4=np.array(e4s), lam=lam, wt=wt,
+                     W=W[keep], V=V[keep], M3=M3, dec=np.array(decs), rig=rig, eps_dec=eps_dec, kappa=kappa)
+
+
 def _ptr(a: np.ndarray, ctype: Any) -> Any:
     return a.ctypes.data_as(ctypes.POINTER(ctype))
 
@@ -244,6 +415,10 @@ class Kernel:
         that never settles ends the run instead of eating the machine.
     max_records : int
         Events kept in detail (:attr:`event_log`); later ones are only counted (:attr:`counts`).
+    long_steps : bool or None
+        Let the exact solver of a train cross a quiet stretch in one long step where a certificate proves
+        that no event function can reach zero in it (see :func:`_long_data`); None: :data:`LONG_STEPS`. A
+        pair never takes long steps (its results stay those of the short sub-steps, bit for bit).
     """
 
     plant: Plant
@@ -256,6 +431,7 @@ class Kernel:
     t0: float = 0.0
     max_event_rate: float = 2e5
     max_records: int = 1_000_000
+    long_steps: bool | None = None
 
     def __post_init__(self) -> None:
         p = self.plant
@@ -311,6 +487,8 @@ class Kernel:
         self._slot = np.full(1 << (n + len(fshafts)), -1, np.int64)
         self._pool_cap = 0
         self._n_slots = 0
+        self._long = bool(self.exact and n >= 2 and (LONG_STEPS if self.long_steps is None else self.long_steps))
+        self._long_info: dict[int, _LongData | None] = {}
         # -- tolerances of the nonlinear solver: 1e-9 of the backlash (or of 1 um) in s, carried to the
         #    angles and rates
         scale = min(max(s.backlash, 1e-6) * 1e-9 / max(s.rb1, s.rb2) for s in p.stages)
@@ -388,17 +566,47 @@ class Kernel:
         Phi, Gam = _propagators(A, h)
         if self._n_slots == self._pool_cap:  # grow the pool (the C struct's pointers follow)
             cap = max(4, 2 * self._pool_cap)
-            for name, shape in (("_A", (cap, nx, nx)), ("_Phi", (cap, nx, nx)), ("_Gam", (cap, nx, nx)),
-                                ("_h", (cap,)), ("_rho", (cap,))):
-                new = np.zeros(shape)
+            L = _LMAX if self._long else 1  # a pair keeps no long-step data
+            nxl = nx if self._long else 1
+            for name, shape, dtype in (
+                    ("_A", (cap, nx, nx), np.float64), ("_Phi", (cap, nx, nx), np.float64),
+                    ("_Gam", (cap, nx, nx), np.float64), ("_h", (cap,), np.float64), ("_rho", (cap,), np.float64),
+                    ("_lv_n", (cap,), np.int64), ("_lv_mult", (cap, L), np.int64),
+                    ("_lv_Phi", (cap, L, nxl, nxl), np.float64), ("_lv_Gam", (cap, L, nxl, nxl), np.float64),
+                    ("_lv_E", (cap, L, nxl, 2), np.float64), ("_lv_e4", (cap, L), np.float64),
+                    ("_fm_n", (cap,), np.int64), ("_fm_lam", (cap, nxl, 2), np.float64),
+                    ("_fm_wt", (cap, nxl), np.float64), ("_fm_W", (cap, nxl, nxl, 2), np.float64),
+                    ("_fm_V", (cap, nxl, nxl, 2), np.float64), ("_M3", (cap, nxl, nxl), np.float64),
+                    ("_lv_dec", (cap, L), np.float64), ("_rig", (cap, nxl, nxl), np.float64)):
+                new = np.zeros(shape, dtype)
                 if self._pool_cap:
                     new[: self._pool_cap] = getattr(self, name)
                 setattr(self, name, new)
             self._pool_cap = cap
-            for name in ("A", "Phi", "Gam", "h", "rho"):
+            for name in ("A", "Phi", "Gam", "h", "rho", "lv_Phi", "lv_Gam", "lv_E", "lv_e4", "fm_lam", "fm_wt",
+                         "fm_W", "fm_V", "M3", "lv_dec", "rig"):
                 setattr(self._prm, name, _ptr(getattr(self, "_" + name), ctypes.c_double))
+            for name in ("lv_n", "lv_mult", "fm_n"):
+                setattr(self._prm, name, _ptr(getattr(self, "_" + name), ctypes.c_int64))
         q = self._n_slots
         self._A[q], self._Phi[q], self._Gam[q], self._h[q], self._rho[q] = A, Phi, Gam, h, rho
+        ld = _long_data(A, self.dt, h, m) if self._long else None
+        self._long_info[pat] = ld
+        if ld is not None:
+            nl, nf = len(ld.mults), ld.lam.size
+            self._lv_n[q] = nl
+            self._lv_mult[q, :nl] = ld.mults
+            self._lv_Phi[q, :nl], self._lv_Gam[q, :nl] = ld.phis, ld.gams
+            self._lv_E[q, :nl, :nf, 0], self._lv_E[q, :nl, :nf, 1] = ld.E.real, ld.E.imag
+            self._lv_e4[q, :nl] = ld.e4
+            self._fm_n[q] = nf
+            self._fm_lam[q, :nf, 0], self._fm_lam[q, :nf, 1] = ld.lam.real, ld.lam.imag
+            self._fm_wt[q, :nf] = ld.wt
+            self._fm_W[q, :nf, :, 0], self._fm_W[q, :nf, :, 1] = ld.W.real, ld.W.imag
+            self._fm_V[q, :nf, :, 0], self._fm_V[q, :nf, :, 1] = ld.V.real, ld.V.imag
+            self._M3[q] = ld.M3
+            self._lv_dec[q, :nl] = ld.dec
+            self._rig[q, : self.nsh, : self.nsh] = ld.rig
         self._n_slots += 1
         self._slot[pat] = q
 
@@ -435,7 +643,11 @@ class Kernel:
 
     @property
     def max_penetration(self) -> float:
-        """Largest ``|s| - b`` of any stage so far [m] (0 if never in contact)."""
+        """Largest ``|s| - b`` of any stage so far [m] (0 if never in contact).
+
+        Estimated at the sub-steps and at the interior peaks of their cubic model; a train's long step may
+        raise it only to its certified upper bound, and only where that bound is within 0.1 % of the peak
+        (a slow loading), else the sub-steps estimate the peak as they do on a pair."""
         return max(0.0, float(np.max(self._max_pen)))
 
     @property
@@ -445,7 +657,7 @@ class Kernel:
 
     @property
     def steps(self) -> int:
-        """Sub-steps taken so far."""
+        """Steps taken so far (sub-steps, and a train's long steps, one each)."""
         return self._st.n_steps
 
     @property
@@ -469,8 +681,13 @@ class Kernel:
         """The recorded events, a structured array (:data:`EVENT_DTYPE`) in time order."""
         if not self._chunks:
             return np.zeros(0, dtype=EVENT_DTYPE)
-        if len(self._chunks) > 1:
-            self._chunks = [np.concatenate(self._chunks)]
+        if len(self._chunks) > 1:  # one array (filled in place: concatenate promotes the fields of each chunk)
+            out = np.empty(sum(c.size for c in self._chunks), dtype=EVENT_DTYPE)
+            pos = 0
+            for c in self._chunks:
+                out[pos:pos + c.size] = c
+                pos += c.size
+            self._chunks = [out]
         return self._chunks[0]
 
     @property
@@ -741,6 +958,48 @@ def _first_root(q: list[float], h: float, g1: float, dg0: float, dg1: float) -> 
     return _poly_root(q, 0.0, h) if g1 <= 0.0 else -1.0
 
 
+_M_SCALE, _M_FAST, _M_CUBIC = 1e-11, 1e-6, 1e-12  # the certificate's margins (see _kernel.c)
+_PEN_REL = 1e-3  # a long step may raise a penetration record to its bound where that is this tight
+_BACKOFF = (2, 16)  # sub-steps before the next long try after a refusal: first, most (doubling)
+
+
+def _cubic_range(s0: float, s1: float, d0: float, d1: float, umax: float = 1.0) -> tuple[float, float]:
+    """Range on [0, umax] of the cubic Hermite interpolant on [0, 1] of values s0, s1, scaled slopes d0, d1."""
+    c1, c2, c3 = d0, -3.0 * s0 - 2.0 * d0 + 3.0 * s1 - d1, 2.0 * s0 + d0 - 2.0 * s1 + d1
+    send = s1 if umax == 1.0 else ((c3 * umax + c2) * umax + c1) * umax + s0
+    mn, mx = min(s0, send), max(s0, send)
+    qa, qb, qc = 3.0 * c3, 2.0 * c2, c1
+    roots = []
+    if qa == 0.0:
+        if qb != 0.0:
+            roots.append(-qc / qb)
+    else:
+        disc = qb * qb - 4.0 * qa * qc
+        if disc >= 0.0:
+            q = -0.5 * (qb + math.copysign(math.sqrt(disc), qb))
+            roots.append(q / qa)
+            if q != 0.0:
+                roots.append(qc / q)
+    for u in roots:
+        if 0.0 < u < umax:
+            v = ((c3 * u + c2) * u + c1) * u + s0
+            mn, mx = min(mn, v), max(mx, v)
+    return mn, mx
+
+
+def _long_fraction(s0: float, s1: float, d0: float, d1: float, c: float, upper: bool) -> float:
+    """After a refused long step: the largest fraction 2^-j (j >= 1) of it the slow cubic keeps clear of c."""
+    if (not s0 < c) if upper else (not s0 > c):
+        return 0.0
+    f = 0.5
+    while f >= 1.0 / 4096.0:
+        lo, hi = _cubic_range(s0, s1, d0, d1, f)
+        if (hi < c) if upper else (lo > c):
+            return f
+        f *= 0.5
+    return 0.0
+
+
 def _mv(M: list[list[float]], x: list[float]) -> list[float]:
     return [sum(row[j] * x[j] for j in range(len(x))) for row in M]
 
@@ -999,6 +1258,132 @@ class _Mirror:
                     pat |= 1 << int(kn._fbit[j])
         return pat
 
+    # -- long steps (trains; see long_try in _kernel.c)
+    def long_prepare(self, ld: _LongData, a: list[float], fns: list[_EvFun]) -> dict[str, Any]:
+        nx, nf = self.nx, ld.lam.size
+        W, V, lam, M3 = ld.W.tolist(), ld.V.tolist(), ld.lam.tolist(), ld.M3.tolist()
+        eta = []
+        for k in range(nf):
+            wr = wi = 0.0
+            for i in range(nx):
+                wr += W[k][i].real * a[i]
+                wi += W[k][i].imag * a[i]
+            lr, li = lam[k].real, lam[k].imag
+            d = lr * lr + li * li
+            eta.append((-(wr * lr + wi * li) / d, -(wi * lr - wr * li) / d))
+        wt = ld.wt.tolist()
+        rho = float(self.kn._rho[self.kn._slot[self.pattern()]])
+        eta_n = 0.0
+        for k in range(nf):
+            eta_n += wt[k] * math.sqrt(eta[k][0] * eta[k][0] + eta[k][1] * eta[k][1])
+        cv, r4, ls = [], [], []
+        for f in fns:
+            row = []
+            for k in range(nf):
+                cr = ci = 0.0
+                for i in range(nx):
+                    cr += f.cg[i] * V[k][i].real
+                    ci += f.cg[i] * V[k][i].imag
+                row.append((cr, ci))
+            cv.append(row)
+            r = 0.0
+            for j in range(nx):
+                acc = 0.0
+                for i in range(nx):
+                    acc += f.cg[i] * M3[i][j]
+                r += acc * acc
+            r4.append(math.sqrt(r))
+            r = 0.0
+            for i in range(nx):
+                c = f.cg[i] / rho if i < self.w else f.cg[i]
+                r += c * c
+            ls.append(math.sqrt(r))
+        return {"eta": eta, "cv": cv, "r4": r4, "ls": ls, "eta_n": eta_n, "rho": rho, "gam_a": {}, "lam": lam,
+                "W": W, "V": V, "wt": wt, "E": ld.E.tolist(), "e4": ld.e4.tolist(), "dec": ld.dec.tolist(),
+                "rig": ld.rig.tolist(), "phis": [P.tolist() for P in ld.phis], "gams": [G.tolist() for G in ld.gams]}
+
+    def long_try(self, ld: _LongData, L: dict[str, Any], lvl: int, fns: list[_EvFun], x0: list[float],
+                 dx0: list[float], a: list[float], h_pat: float, pen: list[float]
+                 ) -> tuple[float, tuple[list[float], list[float]] | None]:
+        nx = self.nx
+        H = float(ld.mults[lvl]) * h_pat
+        if lvl not in L["gam_a"]:
+            L["gam_a"][lvl] = _mv(L["gams"][lvl], a)
+        Phi = L["phis"][lvl]
+        x1 = [u + v for u, v in zip(_mv(Phi, x0), L["gam_a"][lvl], strict=True)]
+        dx1 = _mv(Phi, dx0)
+        lam, W, V, wt, E = L["lam"], L["W"], L["V"], L["wt"], L["E"][lvl]
+        nf = len(lam)
+        w, rho, rig = self.w, L["rho"], L["rig"]
+        xd, xn = [], 0.0
+        for i in range(w):
+            acc = x0[i]
+            for j in range(w):
+                acc -= rig[i][j] * x0[j]
+            xd.append(acc)
+            xn += rho * acc * rho * acc
+        for i in range(w, nx):
+            xd.append(x0[i])
+            xn += x0[i] * x0[i]
+        xn = math.sqrt(xn) + L["eta_n"]
+        gam, lg, emax = [], [], []
+        y = list(dx0)
+        for k in range(nf):
+            re, im = -L["eta"][k][0], -L["eta"][k][1]
+            for i in range(nx):
+                re += W[k][i].real * xd[i]
+                im += W[k][i].imag * xd[i]
+            lr = lam[k].real * re - lam[k].imag * im
+            li = lam[k].real * im + lam[k].imag * re
+            gam.append((re, im))
+            lg.append((lr, li))
+            for i in range(nx):
+                y[i] -= wt[k] * (V[k][i].real * lr - V[k][i].imag * li)
+            emax.append(max(1.0, math.sqrt(E[k].real * E[k].real + E[k].imag * E[k].imag)))
+        e4f = float(ld.e4[lvl]) * math.sqrt(sum(v * v for v in y))
+        for e, f in enumerate(fns):
+            cg = f.cg
+            ga = gb = f.g0
+            da = db = 0.0
+            scale, dsc = abs(f.g0), 0.0
+            for i in range(nx):
+                if cg[i] == 0.0:
+                    continue
+                ga += cg[i] * x0[i]
+                gb += cg[i] * x1[i]
+                da += cg[i] * dx0[i]
+                db += cg[i] * dx1[i]
+                scale += abs(cg[i] * x0[i]) + abs(cg[i] * x1[i])
+                dsc += abs(cg[i] * dx0[i]) + abs(cg[i] * dx1[i])
+            F0 = F1 = dF0 = dF1 = B = 0.0
+            for k in range(nf):
+                cr, ci = L["cv"][e][k]
+                gr, gi = gam[k]
+                lr, li = lg[k]
+                ar, ai = cr * gr - ci * gi, cr * gi + ci * gr
+                br, bi = cr * lr - ci * li, cr * li + ci * lr
+                er, ei = E[k].real, E[k].imag
+                F0 += wt[k] * ar
+                F1 += wt[k] * (ar * er - ai * ei)
+                dF0 += wt[k] * br
+                dF1 += wt[k] * (br * er - bi * ei)
+                B += wt[k] * math.sqrt(ar * ar + ai * ai) * emax[k]
+            S0, S1, D0, D1 = ga - F0, gb - F1, H * (da - dF0), H * (db - dF1)
+            lo, hi = _cubic_range(S0, S1, D0, D1, 1.0)
+            e4 = L["r4"][e] * e4f
+            delta = (_M_SCALE * (scale + H * dsc) + L["dec"][lvl] * L["ls"][e] * xn + _M_FAST * B
+                     + _M_CUBIC * (abs(S0) + abs(S1) + abs(D0) + abs(D1)))
+            if not (lo - e4 - B - delta > 0.0):
+                return _long_fraction(S0, S1, D0, D1, e4 + B + delta, False), None
+            if f.type == EVENT_GEOMETRIC and self.mode[f.idx] in (1, -1):
+                i = f.idx
+                up, slack = hi + e4 + B + delta, 2.0 * (e4 + B + delta)
+                if not up <= self.max_pen[i]:
+                    if not slack <= _PEN_REL * up:
+                        return _long_fraction(S0, S1, D0, D1, self.max_pen[i] - (e4 + B + delta), True), None
+                    pen[i] = max(pen[i], up)
+        return 1.0, (x1, dx1)
+
     # -- the exact solver
     def advance_pwl(self) -> int:
         kn, nx = self.kn, self.nx
@@ -1006,6 +1391,8 @@ class _Mirror:
         cached, have_dx = False, False
         a = gam_a = dx0 = dx1 = None
         fns: list[_EvFun] = []
+        L: dict[str, Any] | None = None  # long steps: per pattern and affine term (see long_try in _kernel.c)
+        lcur, wait, backoff = _LMAX, 0, 0
         while self.t < self.t_end:
             pat = self.pattern()
             kn._ensure_pattern(pat)
@@ -1020,6 +1407,46 @@ class _Mirror:
             x0 = self.x
             if not have_dx:
                 dx0 = [u + v for u, v in zip(_mv(A, x0), a, strict=True)]
+            ld = kn._long_info.get(pat) if kn._lv_n[q] > 0 else None
+            if ld is not None:  # a train: the longest certified step first
+                if L is None:
+                    L = self.long_prepare(ld, a, fns)
+                if wait > 0:
+                    wait -= 1
+                else:
+                    rem = self.t_end - self.t
+                    lvl = -1
+                    for j in range(len(ld.mults)):
+                        if float(ld.mults[j]) * h_pat <= rem + 1e-9 * h_pat:
+                            lvl = j
+                    lvl = min(lvl, lcur)
+                    got = None
+                    pen: list[float] = []
+                    while lvl >= 0:
+                        pen = [-math.inf] * self.ns
+                        frac, got = self.long_try(ld, L, lvl, fns, x0, dx0, a, h_pat, pen)
+                        if got is not None:
+                            break
+                        cap = frac * float(ld.mults[lvl])
+                        lvl -= 1
+                        while lvl >= 0 and float(ld.mults[lvl]) > cap:
+                            lvl -= 1
+                    if got is not None:
+                        H = float(ld.mults[lvl]) * h_pat
+                        self.x, dx0 = got
+                        have_dx = True
+                        self.t = self.t_end if abs(rem - H) <= 1e-9 * h_pat else self.t + H
+                        self.steps += 1
+                        lcur, backoff = lvl + 1, 0
+                        self.max_pen = [max(m_, q_) for m_, q_ in zip(self.max_pen, pen, strict=True)]
+                        for i in range(self.ns):
+                            if self.b[i] == 0.0 and self.law == 0:
+                                self.mode[i] = 1 if self.s_of(i, self.x) >= 0.0 else -1
+                        if not all(math.isfinite(v) for v in self.x):
+                            return 2
+                        continue
+                    backoff = min(2 * backoff if backoff else _BACKOFF[0], _BACKOFF[1])
+                    wait, lcur = backoff, 0
             remaining = self.t_end - self.t
             h = h_pat
             lands = abs(remaining - h) <= 1e-9 * h
@@ -1083,6 +1510,7 @@ class _Mirror:
             else:
                 have_dx = False
                 cached = False
+                L, lcur, wait, backoff = None, _LMAX, 0, 0
                 if D is None:
                     D = _taylor(A, rho, x0, a, h)
                 self.x = _taylor_eval(D, best)
