@@ -56,6 +56,10 @@
  * clearly (if slightly) positive, above the rounding of the stiff mesh terms, and the shaft does not
  * chatter between sticking and slipping at one instant. */
 #define BREAKAWAY 1e-9
+/* ... and, above that, by more than 1e-10 of the torques it balances (their rounding in the stiff mesh terms is
+ * ~1e-16 of them): on a light shaft with a tiny Coulomb friction the relative band alone would be below the
+ * rounding, and the shaft would chatter between sticking and slipping at one instant. */
+#define HOLD_ROUNDING 1e-10
 #define NEV_MAX (2 * GC_MAX_STAGES + 2 * (GC_MAX_STAGES + 1))
 
 /* counters per stage (st->counts[GC_NCOUNT * i + ...]) */
@@ -301,8 +305,12 @@ static void transition(const gc_params *p, gc_state *st, const gc_evfun *f, doub
         x[p->nsh + i] = 0.0;
         hold_torque_coef(p, st, i, u1, u2, cg, &g0);
         T = g0;
-        for (long k = 0; k < p->nx; k++) T += cg[k] * x[k];
-        if (fabs(T) <= p->tc[i]) {
+        double scale = fabs(g0);
+        for (long k = 0; k < p->nx; k++) {
+            T += cg[k] * x[k];
+            scale += fabs(cg[k] * x[k]);
+        }
+        if (fabs(T) <= p->tc[i] + HOLD_ROUNDING * scale) { /* sticks unless the torque clearly exceeds tc */
             st->slip[i] = 0;
             record(st, t, EV_STICK, 0, T, i);
         } else {
@@ -794,6 +802,13 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
                 }
             }
             double tau;
+            if (fn[e].type == 3) { /* the breakaway threshold also clears the rounding of the torques held */
+                double margin = 0.0;
+                for (i = 0; i < nx; i++) margin += fabs(cg[i] * x0[i]);
+                margin = HOLD_ROUNDING * (margin + fabs(fn[e].g0));
+                ga += margin;
+                gb += margin;
+            }
             if (fn[e].type == 3 && ga < 0.0) { /* a stuck shaft already needs more than friction holds */
                 tau = 0.0;
             } else {
@@ -921,9 +936,18 @@ static double ode_g(const gc_params *p, const gc_state *st, const gc_evfun *f, c
     double T = -p->d[j] * x[p->nsh + j];
     if (j == 0) T += u1;
     if (j == p->ns) T += u2;
-    if (j >= 1) T += p->rb2[j - 1] * force(p, j - 1, st->mode[j - 1], st->d_ys[j - 1], x);
-    if (j < p->ns) T -= p->rb1[j] * force(p, j, st->mode[j], st->d_ys[j], x);
-    return p->tc[j] * (1.0 + BREAKAWAY) - f->target * T;
+    double scale = fabs(T);
+    if (j >= 1) {
+        double tq = p->rb2[j - 1] * force(p, j - 1, st->mode[j - 1], st->d_ys[j - 1], x);
+        T += tq;
+        scale += fabs(tq);
+    }
+    if (j < p->ns) {
+        double tq = p->rb1[j] * force(p, j, st->mode[j], st->d_ys[j], x);
+        T -= tq;
+        scale += fabs(tq);
+    }
+    return p->tc[j] * (1.0 + BREAKAWAY) + HOLD_ROUNDING * scale - f->target * T;
 }
 
 static void dense(long nx, const double r[5][GC_NX_MAX], double th, double *y) {

@@ -885,6 +885,7 @@ class Kernel:
 
 _NTAY = 48
 _BREAKAWAY = 1e-9  # see _kernel.c
+_HOLD_ROUNDING = 1e-10  # see _kernel.c
 
 
 def _taylor(A: list[list[float]], rho: float, x0: list[float], a: list[float], tmax: float) -> list[list[float]]:
@@ -1186,7 +1187,8 @@ class _Mirror:
             x[self.w + i] = 0.0
             cg, g0 = self.hold_coef(i)
             T = g0 + sum(cg[q] * x[q] for q in range(self.nx))
-            if abs(T) <= self.tc[i]:
+            scale = abs(g0) + sum(abs(cg[q] * x[q]) for q in range(self.nx))
+            if abs(T) <= self.tc[i] + _HOLD_ROUNDING * scale:  # sticks unless the torque clearly exceeds tc
                 self.slip[i] = 0
                 self.record(t, EventKind.STICK, 0, T, i)
             else:
@@ -1468,6 +1470,9 @@ class _Mirror:
                 da = sum(cg[i] * dx0[i] for i in range(nx))
                 db = sum(cg[i] * dx1[i] for i in range(nx))
                 dscale = sum(abs(cg[i] * dx0[i]) for i in range(nx))
+                if f.type == 3:  # the breakaway threshold clears the rounding of the torques held (_kernel.c)
+                    margin = _HOLD_ROUNDING * (sum(abs(cg[i] * x0[i]) for i in range(nx)) + abs(f.g0))
+                    ga, gb = ga + margin, gb + margin
                 if f.type == 3 and ga < 0.0:
                     tau = 0.0
                 else:
@@ -1565,11 +1570,16 @@ class _Mirror:
             return f.g0 + sum(f.cg[i] * x[i] for i in range(self.nx))
         j = f.idx
         T = -self.d[j] * x[self.w + j] + (self.u1 if j == 0 else 0.0) + (self.u2 if j == self.ns else 0.0)
+        scale = abs(T)
         if j >= 1:
-            T += self.rb2[j - 1] * self.force(j - 1, self.mode[j - 1], self.dys[j - 1], x)
+            tq = self.rb2[j - 1] * self.force(j - 1, self.mode[j - 1], self.dys[j - 1], x)
+            T += tq
+            scale += abs(tq)
         if j < self.ns:
-            T -= self.rb1[j] * self.force(j, self.mode[j], self.dys[j], x)
-        return self.tc[j] * (1.0 + _BREAKAWAY) - f.target * T
+            tq = self.rb1[j] * self.force(j, self.mode[j], self.dys[j], x)
+            T -= tq
+            scale += abs(tq)
+        return self.tc[j] * (1.0 + _BREAKAWAY) + _HOLD_ROUNDING * scale - f.target * T
 
     def advance_ode(self) -> int:
         kn, prm, nx, w = self.kn, self.kn._prm, self.nx, self.w

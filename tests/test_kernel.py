@@ -526,3 +526,20 @@ def test_stick_slip_standstill_is_exact_and_cheap(compiled: bool) -> None:
     assert kinds[0] == "slip" and kinds[-1] == "slip" and len(kinds) < 20
     # standstill: the same sub-steps per sample as free motion of this plant (no stiff friction law)
     assert steps_still <= 100 * math.ceil(1e-3 * servo.natural_frequency / 0.6 + 1)
+
+
+def test_tiny_coulomb_friction_does_not_chatter() -> None:
+    """A fuzzer's case (issue 11): a motor shaft with a Coulomb friction of 3e-7 N m next to a load held by
+    0.2 N m. The stick test and the break-away threshold once disagreed by the rounding of the stiff mesh
+    torques (1e-16 of them, above 1e-9 of the tiny friction): the shaft stuck and broke away at one instant
+    without end. Both now clear that rounding by the same margin; the precision test runs to its end."""
+    from gearctl.precision import precision_test
+
+    m = load_model("shing1993_servo_friction", coulomb_friction1=2.97055e-7, viscous_friction1=8.5508e-5,
+                   viscous_friction2=2.23336e-3, motor_inertia=1.99762e-4, load_inertia=5.00515e-3,
+                   coulomb_friction2=0.199999, backlash=4.99994e-5)
+    p = build_plant(m)
+    from gearctl import load_controller
+
+    res = precision_test(p, load_controller("pid", p), sensors=m.sensors, targets=3, cycles=2)
+    assert np.isfinite(res.stats["accuracy"]) and res.deviations_up.shape == (3, 2)
