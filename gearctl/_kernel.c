@@ -225,6 +225,27 @@ static void hold_torque_coef(const gc_params *p, const gc_state *st, long j, dou
     }
 }
 
+/* The same torque from the plant's own force law (Yang-Sun, time-varying stiffness: the ODE path), and the
+ * sum of the magnitudes of its terms in *scale (their rounding). */
+static double held_torque(const gc_params *p, const gc_state *st, long j, const double *x, double u1, double u2,
+                          double *scale) {
+    double T = -p->d[j] * x[p->nsh + j];
+    if (j == 0) T += u1;
+    if (j == p->ns) T += u2;
+    *scale = fabs(T);
+    if (j >= 1) {
+        double tq = p->rb2[j - 1] * force(p, j - 1, st->mode[j - 1], st->d_ys[j - 1], x);
+        T += tq;
+        *scale += fabs(tq);
+    }
+    if (j < p->ns) {
+        double tq = p->rb1[j] * force(p, j, st->mode[j], st->d_ys[j], x);
+        T -= tq;
+        *scale += fabs(tq);
+    }
+    return T;
+}
+
 /* One event function: g = cg . x + g0 > 0 inside the current modes; reaching 0 is the event. */
 typedef struct {
     const double *cg;
@@ -301,20 +322,25 @@ static void transition(const gc_params *p, gc_state *st, const gc_evfun *f, doub
                        double u2) {
     long i = f->idx;
     if (f->type == 2) { /* a slipping shaft reaches zero speed: stick, or slip the other way */
-        double cg[GC_NX_MAX], g0, T;
+        double cg[GC_NX_MAX], g0, T, scale;
         x[p->nsh + i] = 0.0;
-        hold_torque_coef(p, st, i, u1, u2, cg, &g0);
-        T = g0;
-        double scale = fabs(g0);
-        for (long k = 0; k < p->nx; k++) {
-            T += cg[k] * x[k];
-            scale += fabs(cg[k] * x[k]);
+        if (p->exact) { /* the linear form the break-away events of the exact path use */
+            hold_torque_coef(p, st, i, u1, u2, cg, &g0);
+            T = g0;
+            scale = fabs(g0);
+            for (long k = 0; k < p->nx; k++) {
+                T += cg[k] * x[k];
+                scale += fabs(cg[k] * x[k]);
+            }
+        } else { /* the ODE path's own force law, as its break-away events (ode_g) */
+            T = held_torque(p, st, i, x, u1, u2, &scale);
         }
         if (fabs(T) <= p->tc[i] + HOLD_ROUNDING * scale) { /* sticks unless the torque clearly exceeds tc */
             st->slip[i] = 0;
             record(st, t, EV_STICK, 0, T, i);
-        } else {
+        } else { /* slips on the other way without stopping: an event too (it counts against the budget) */
             st->slip[i] = T > 0.0 ? 1 : -1;
+            record(st, t, EV_SLIP, st->slip[i], T, i);
         }
         return;
     }
@@ -932,22 +958,8 @@ static double ode_g(const gc_params *p, const gc_state *st, const gc_evfun *f, c
         for (long i = 0; i < p->nx; i++) g += f->cg[i] * x[i];
         return g;
     }
-    long j = f->idx;
-    double T = -p->d[j] * x[p->nsh + j];
-    if (j == 0) T += u1;
-    if (j == p->ns) T += u2;
-    double scale = fabs(T);
-    if (j >= 1) {
-        double tq = p->rb2[j - 1] * force(p, j - 1, st->mode[j - 1], st->d_ys[j - 1], x);
-        T += tq;
-        scale += fabs(tq);
-    }
-    if (j < p->ns) {
-        double tq = p->rb1[j] * force(p, j, st->mode[j], st->d_ys[j], x);
-        T -= tq;
-        scale += fabs(tq);
-    }
-    return p->tc[j] * (1.0 + BREAKAWAY) + HOLD_ROUNDING * scale - f->target * T;
+    double scale, T = held_torque(p, st, f->idx, x, u1, u2, &scale);
+    return p->tc[f->idx] * (1.0 + BREAKAWAY) + HOLD_ROUNDING * scale - f->target * T;
 }
 
 static void dense(long nx, const double r[5][GC_NX_MAX], double th, double *y) {

@@ -1185,14 +1185,18 @@ class _Mirror:
         i = f.idx
         if f.type == 2:
             x[self.w + i] = 0.0
-            cg, g0 = self.hold_coef(i)
-            T = g0 + sum(cg[q] * x[q] for q in range(self.nx))
-            scale = abs(g0) + sum(abs(cg[q] * x[q]) for q in range(self.nx))
+            if self.kn.exact:  # the linear form the exact path's break-away events use
+                cg, g0 = self.hold_coef(i)
+                T = g0 + sum(cg[q] * x[q] for q in range(self.nx))
+                scale = abs(g0) + sum(abs(cg[q] * x[q]) for q in range(self.nx))
+            else:  # the ODE path's own force law, as its break-away events (ode_g)
+                T, scale = self.held_torque(i, x)
             if abs(T) <= self.tc[i] + _HOLD_ROUNDING * scale:  # sticks unless the torque clearly exceeds tc
                 self.slip[i] = 0
                 self.record(t, EventKind.STICK, 0, T, i)
-            else:
+            else:  # slips on the other way without stopping: an event too (it counts against the budget)
                 self.slip[i] = 1 if T > 0.0 else -1
+                self.record(t, EventKind.SLIP, self.slip[i], T, i)
             return
         if f.type == 3:
             self.slip[i] = f.target
@@ -1565,10 +1569,9 @@ class _Mirror:
             dx[w + j] = (T - fr) / self.J[j]
         return dx
 
-    def ode_g(self, f: _EvFun, x: list[float]) -> float:
-        if f.type != 3:
-            return f.g0 + sum(f.cg[i] * x[i] for i in range(self.nx))
-        j = f.idx
+    def held_torque(self, j: int, x: list[float]) -> tuple[float, float]:
+        """Torque shaft j needs from friction to stay at rest, from the plant's own force law, and the sum of
+        the magnitudes of its terms (their rounding)."""
         T = -self.d[j] * x[self.w + j] + (self.u1 if j == 0 else 0.0) + (self.u2 if j == self.ns else 0.0)
         scale = abs(T)
         if j >= 1:
@@ -1579,6 +1582,13 @@ class _Mirror:
             tq = self.rb1[j] * self.force(j, self.mode[j], self.dys[j], x)
             T -= tq
             scale += abs(tq)
+        return T, scale
+
+    def ode_g(self, f: _EvFun, x: list[float]) -> float:
+        if f.type != 3:
+            return f.g0 + sum(f.cg[i] * x[i] for i in range(self.nx))
+        j = f.idx
+        T, scale = self.held_torque(j, x)
         return self.tc[j] * (1.0 + _BREAKAWAY) + _HOLD_ROUNDING * scale - f.target * T
 
     def advance_ode(self) -> int:

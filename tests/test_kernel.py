@@ -543,3 +543,26 @@ def test_tiny_coulomb_friction_does_not_chatter() -> None:
 
     res = precision_test(p, load_controller("pid", p), sensors=m.sensors, targets=3, cycles=2)
     assert np.isfinite(res.stats["accuracy"]) and res.deviations_up.shape == (3, 2)
+
+
+@pytest.mark.parametrize("kind", ["tvms", "yang-sun"])
+def test_stick_slip_on_the_nonlinear_plants_ends(kind: str) -> None:
+    """The fuzzer's hang (issue 11): stick-slip friction on the motor of a pair simulated on the time-varying
+    stiffness or Yang-Sun plant. Its zero-speed test took the held torque from the mean-stiffness linear law
+    while the motion followed the plant's own law; where they disagreed in sign the shaft reversed without
+    stopping, at one instant, forever, and recorded nothing. Now both come from the plant's law, and a reversal
+    without sticking is an event (it counts against the budget). The run ends; both kernels agree."""
+    require_compiled(True)
+    from pathlib import Path
+
+    m = load_model(Path(__file__).parent / "data" / "fuzz" / "stick_slip_tvms.toml")
+    p = build_plant(m, kind)
+    from gearctl.simulate import report_case
+
+    runs = [report_case(p, "free", 0.01, compiled=c) for c in (True, False)]  # the hanging command
+    a, b = runs
+    assert a.solver.split()[0] == b.solver.split()[0]
+    kinds = [EventKind.NAMES[k] for k in a.event_log["kind"].tolist()]
+    assert "slip" in kinds  # the friction acted: the motor broke away (and reversed while slipping)
+    assert kinds == [EventKind.NAMES[k] for k in b.event_log["kind"].tolist()]
+    assert_allclose(a.x[:, -1], b.x[:, -1], rtol=1e-6, atol=1e-9)
