@@ -16,9 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
 import numpy as np
@@ -26,6 +24,7 @@ import numpy as np
 from .catalog import controller_names, load_model, resolve
 from .errors import GearctlError, InputError
 from .kernel import compiled_available
+from .parallel import map_tasks
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, reference
 from .runs import Design, Run, controller_spec, design_controller, execute
@@ -170,8 +169,13 @@ def _precision_row(job: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _task(task: tuple[Callable[[Any], dict[str, Any]], Any]) -> dict[str, Any]:
+    fn, arg = task
+    return fn(arg)
+
+
 def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[int, int], Any] | None = None,
-              runs: Sequence[Run] | None = None) -> dict[str, Any]:
+              runs: Sequence[Run] | None = None, scheduler: str | None = None) -> dict[str, Any]:
     """Run the benchmark.
 
     Parameters
@@ -179,11 +183,14 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     spec : BenchSpec
         What to run.
     jobs : int, optional
-        Worker processes (default: all cores; 1 runs in this process).
+        Worker processes of the local Dask cluster (default: the cores this process may use; 1 runs in
+        this process).
     progress : callable, optional
         ``progress(done, total)`` after each run.
     runs : sequence of Run, optional
         The tracking runs (default ``spec.runs()``).
+    scheduler : str, optional
+        ``tcp://HOST:PORT`` of a running Dask scheduler (see :class:`gearctl.parallel.Engine`).
 
     Returns
     -------
@@ -195,23 +202,9 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     runs = list(runs if runs is not None else spec.runs())
     iso = spec.precision_runs()
     compiled_available()  # compile the kernel once before the workers start
-    jobs = jobs or os.cpu_count() or 1
     tasks: list[tuple[Callable[[Any], dict[str, Any]], Any]] = [(_row, r) for r in runs]
     tasks += [(_precision_row, j) for j in iso]
-    total = len(tasks)
-    results: list[dict[str, Any] | None] = [None] * total
-    if jobs == 1 or total == 1:
-        for i, (fn, arg) in enumerate(tasks):
-            results[i] = fn(arg)
-            if progress:
-                progress(i + 1, total)
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = {pool.submit(fn, arg): k for k, (fn, arg) in enumerate(tasks)}
-            for n, fut in enumerate(as_completed(futures)):
-                results[futures[fut]] = fut.result()
-                if progress:
-                    progress(n + 1, total)
+    results = map_tasks(_task, tasks, workers=jobs, scheduler=scheduler, progress=progress, name="gearctl-bench")
     rows = [r for r in results[:len(runs)] if r is not None]
     rows.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
     iso_rows = [r for r in results[len(runs):] if r is not None]

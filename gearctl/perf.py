@@ -12,7 +12,6 @@ Error is the largest ``|s - s_ref|`` over the outputs, as a fraction of the back
 from __future__ import annotations
 
 import math
-import os
 import time
 import warnings
 from collections.abc import Callable
@@ -303,4 +302,6 @@ def bench_wall_time(*, jobs: int | None = None) -> dict[str, Any]:
     result = run_bench(spec, jobs=jobs)
     wall = time.perf_counter() - t0
     sim = sum(r.get("duration", 0.0) for r in result["runs"])
-    return {"wall_time": wall, "runs": len(result["runs"]), "simulated_time": sim, "jobs": jobs or os.cpu_count()}
+    from .parallel import default_workers
+
+    return {"wall_time": wall, "runs": len(result["runs"]), "simulated_time": sim, "jobs": jobs or default_workers()}

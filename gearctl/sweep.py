@@ -68,6 +68,7 @@ from .catalog import load_model
 from .errors import GearctlError, InputError
 from .geometry import GearPair, pair_geometry
 from .model import GearModel, check_model
+from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, default_workers
 from .params import MeshDynamics, Sensors, Servo
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
@@ -93,7 +94,6 @@ METRICS = ("rms_error", "max_error", "final_error", "impacts", "max_impact_veloc
 #: Health flags of each run (:class:`~gearctl.metrics.LoopHealth`).
 FLAGS = ("limit_cycle", "saturated", "impact_rate_high", "growing")
 #: Seconds to wait for a scheduler to answer, then for its first worker.
-CONNECT_TIMEOUT, WORKER_TIMEOUT = 10.0, 60.0
 #: ISO 230-2 figures of each run with ``precision=True``.
 ISO_FIGURES = ("reversal_value", "repeatability", "accuracy")
 
@@ -762,21 +762,7 @@ def sweep_task(ctx: SweepContext, jobs: Sequence[Job]) -> list[dict[str, Any]]:
     return rows  # type: ignore[return-value]
 
 
-def _worker_version() -> str:
-    from . import __version__
-
-    return __version__
-
-
 # --- the engine -----------------------------------------------------------------------------------------
-
-def default_workers() -> int:
-    """Worker processes of the local cluster: the cores this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover (not Linux)
-        return os.cpu_count() or 1
-
 
 def batch_size(n: int, workers: int, duration: float) -> int:
     """Runs per task: about half a second of work, and at least four tasks per worker; 1 to 256.
@@ -788,65 +774,6 @@ def batch_size(n: int, workers: int, duration: float) -> int:
     """
     work = math.ceil(0.5 / (0.015 * max(duration, 1e-3)))
     return max(1, min(256, work, math.ceil(n / (4 * max(workers, 1)))))
-
-
-class _Engine:
-    """A Dask client on a local cluster or a running scheduler; closes what it opened."""
-
-    def __init__(self, *, workers: int | None, scheduler: str | None, client: Any = None) -> None:
-        import distributed
-
-        self.cluster = None
-        self.own = client is None
-        address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
-        if client is not None:
-            self.client = client
-            self.where = str(getattr(client.scheduler, "address", "client"))
-        elif address:
-            try:
-                self.client = distributed.Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-            except (OSError, TimeoutError) as exc:
-                raise InputError(f"cannot reach the Dask scheduler at {address}: {exc}", field="scheduler") from None
-            try:
-                self.client.wait_for_workers(1, timeout=WORKER_TIMEOUT)
-            except TimeoutError:
-                self.client.close()
-                raise InputError(f"no worker joined the Dask scheduler at {address} within {WORKER_TIMEOUT:g} s: "
-                                 f"start one with "
-                                 f"`dask worker {address} --nthreads 1`", field="scheduler") from None
-            self.where = address
-        else:
-            from .kernel import compiled_available
-
-            compiled_available()  # compile the kernel once, before the workers start
-            n = workers or default_workers()
-            self.cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                                    dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
-            self.client = distributed.Client(self.cluster, set_as_default=False)
-            self.where = f"local cluster ({n} process{'es' if n > 1 else ''})"
-        if self.cluster is None:
-            from . import __version__
-
-            try:
-                versions = set(self.client.run(_worker_version).values())
-            except Exception as exc:  # the workers' environment, not gearctl: say it in one line
-                self.close()
-                raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",
-                                 field="scheduler") from None
-            if versions - {__version__}:
-                self.close()
-                raise InputError(f"the workers of {self.where} run gearctl {', '.join(sorted(versions))}, this is "
-                                 f"{__version__}: install the same version on every worker", field="scheduler")
-
-    @property
-    def workers(self) -> int:
-        return max(1, len(self.client.scheduler_info(n_workers=-1)["workers"]))
-
-    def close(self) -> None:
-        if self.own:
-            self.client.close()
-            if self.cluster is not None:
-                self.cluster.close()
 
 
 def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: str | None, client: Any,
@@ -870,7 +797,7 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         raise InputError(f"engine = {engine!r}: expected 'dask' or 'serial'", field="engine")
     from distributed import KilledWorker, as_completed
 
-    eng = _Engine(workers=workers, scheduler=scheduler, client=client)
+    eng = Engine(workers=workers, scheduler=scheduler, client=client)
     try:
         w = eng.workers
         size = batch or batch_size(n, w, plan.context.duration)

@@ -315,6 +315,20 @@ def test_two_workers_and_the_plain_loop_agree(cluster: str) -> None:
     assert [r["index"] for r in two.runs] == list(range(10)) and two.runs == loop.runs
 
 
+def test_bench_runs_on_the_same_engine(cluster: str) -> None:
+    """gearctl has one way to run in parallel (gearctl.parallel on Dask): the benchmark through a scheduler
+    gives the figures of the same runs in this process, in the same order."""
+    from gearctl.bench import BenchSpec, run_bench
+
+    spec = BenchSpec(controllers=("pid", "deadzone_inverse"), plants=("improved",), references=("sine",),
+                     duration=0.3, precision=False)
+    here = run_bench(spec, jobs=1)
+    there = run_bench(spec, scheduler=cluster)
+    keys = ("controller", "plant", "reference", "rms_error", "max_error", "impacts")
+    assert len(here["runs"]) == 4  # two controllers on the improved and the backlash-free plant
+    assert [{k: r[k] for k in keys} for r in there["runs"]] == [{k: r[k] for k in keys} for r in here["runs"]]
+
+
 def test_the_command_line_on_a_local_cluster_of_one_worker(tmp_path: Path) -> None:
     args = ["--vary", "backlash=0.5x:2x", "--vary", "estimate=0.8x:1.2x", "--runs", "6", "--duration", "0.3", "--seed",
             "11"]

@@ -179,15 +179,19 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             bar.update(1)
 
     t0 = time.perf_counter()
-    result = run_bench(spec, jobs=args.jobs, progress=progress, runs=runs)
+    result = run_bench(spec, jobs=args.jobs, progress=progress, runs=runs, scheduler=args.scheduler)
     wall = time.perf_counter() - t0
     if bar is not None:
         bar.close()
     result["wall_time"] = wall
-    result["jobs"] = args.jobs or (os.cpu_count() or 1)
+    from ..parallel import default_workers
+
+    where = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+    result["jobs"] = None if where else (args.jobs or default_workers())
     text = bench_table(result)
     print(text, end="")
-    print(f"{n} runs in {wall:.1f} s on {result['jobs']} process(es)")
+    print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
+                                          f"on {result['jobs']} process(es)"))
     for r in result["runs"]:
         for wmsg in r.get("warnings", ()):
             warn("bench", [f"{r['controller']} on {r['plant']} ({r['reference']}): {wmsg}"])
@@ -206,7 +210,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         for ref in spec.references:
             save_figure(plot_bench_errors(traces, reference=ref), str(out / f"errors_{ref}.png"))
         save_figure(plot_bench_bars(result), str(out / "rms_by_controller.png"))
-        md = ["# gearctl bench", "", f"{n} runs, {wall:.1f} s on {result['jobs']} process(es); models "
+        on = where or f"{result['jobs']} process(es)"
+        md = ["# gearctl bench", "", f"{n} runs, {wall:.1f} s on {on}; models "
               f"{', '.join(spec.models)}; plants {', '.join(spec.plants)} and the backlash-free limit.", "",
               bench_table(result, markdown=True), "![RMS error by controller and plant](rms_by_controller.png)", ""]
         md += [f"![errors, {ref}](errors_{ref}.png)" for ref in spec.references]
@@ -326,7 +331,10 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                         "(default improved,yang-sun,tvms)")
     p.add_argument("--references", default="sine,move,step", help="comma-separated references (default sine,move,step)")
     p.add_argument("--duration", type=dur, help="simulated time of every run [s] (default per reference)")
-    p.add_argument("--jobs", type=spec_arg(JOBS), help="worker processes (default: all cores)")
+    p.add_argument("--jobs", type=spec_arg(JOBS),
+                   help="worker processes of the local Dask cluster (default: all cores; 1: in this process)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="a running Dask scheduler, tcp://HOST:PORT (default DASK_SCHEDULER_ADDRESS, else local)")
     p.add_argument("--seed", type=seed, default=0, help="sensor-noise seed (default 0)")
     p.add_argument("--realtime", action="store_true",
                    help="optimisations that overrun their time budget fall back, as on the target "
