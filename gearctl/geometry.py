@@ -16,7 +16,7 @@ import math
 from typing import Any
 
 from .errors import InputError
-from .units import quantity, validate_fields
+from .units import BACKLASH_FLOOR, FACE_WIDTH, MODULE, quantity, validate_fields
 
 __all__ = [
     "GearPair",
@@ -172,12 +172,13 @@ class GearPair:
 
     teeth1: int = quantity(unit="1", doc="number of teeth of gear 1 (pinion)", low=3, high=1000, integer=True)
     teeth2: int = quantity(unit="1", doc="number of teeth of gear 2", low=3, high=1000, integer=True)
-    module: float = quantity(unit="m", doc="module (pitch diameter / teeth)", low=0.0, high=0.1, low_open=True)
+    module: float = MODULE.field()
     pressure_angle: float = quantity(
         unit="rad", doc="pressure angle", low=math.radians(10.0), high=math.radians(35.0)
     )
-    face_width: float = quantity(unit="m", doc="face width", low=0.0, high=1.0, low_open=True)
-    backlash: float = quantity(unit="m", doc="backlash b along the line of action", low=0.0, high=0.01)
+    face_width: float = FACE_WIDTH.field()
+    backlash: float = quantity(unit="m", doc="backlash b along the line of action", low=0.0, high=0.01,
+                               floor=BACKLASH_FLOOR)
     addendum_coefficient: float = quantity(
         unit="1", doc="addendum / module", low=0.5, high=1.6, default=1.0
     )

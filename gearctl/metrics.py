@@ -24,7 +24,7 @@ HEALTH_LIMITS = {
     "saturated_fraction": 0.2,  # of the samples after the start-up, at the torque limit
     "limit_cycle_impacts": 20,  # impacts in the last quarter of the run, on alternating flanks ...
     "limit_cycle_alternation": 0.6,  # ... this fraction of consecutive impact pairs on opposite flanks
-    "growth": 10.0,  # error of the last quarter over the error of the second quarter (with motion in both)
+    "growth": 10.0,  # error of the last quarter over that of the second quarter and the reference's later change
 }
 
 
@@ -71,7 +71,8 @@ class LoopHealth(_Mapping):
     impact_rate_high : bool
         More impacts per second than :data:`HEALTH_LIMITS` ``impact_rate``.
     growing : bool
-        The error grows: the last quarter's is ten times the second quarter's.
+        The error grows: the last quarter's is ten times the second quarter's and ten times any change of the
+        reference after the second quarter (see :func:`loop_health`).
     impact_rate : float
         Impacts per second after the start-up [1/s].
     warnings : tuple of str
@@ -126,6 +127,17 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
     -------
     LoopHealth
         Flags and one warning sentence per problem (thresholds: :data:`HEALTH_LIMITS`).
+
+    Notes
+    -----
+    Growing error: the largest error of the last quarter of the run, ``e_4``, against that of the second,
+    ``e_2``. A reference that changes after the second quarter (a step, the start of a ramp or a move) puts
+    up to its own change into the error of a stable loop (right after a step of ``h`` the error is ``h``),
+    which no earlier error foretells. So the yardstick is the larger of ``e_2`` and that change: the error grows
+    when ``e_4 > growth x max(e_2, dr)`` with ``dr = max(0, ptp(r, second half) - ptp(r, second quarter))``
+    (``ptp``: the reference's range; a sine or a ramp that moves as much in the second quarter as after it
+    gives ``dr = 0``) and ``e_4 > 1 mrad``. A loop that cannot move at all (error = the step) is not growing;
+    one that diverges passes ten times the step within a few of its time constants.
     """
     lim = HEALTH_LIMITS
     t0 = res.settle if settle is None else settle
@@ -146,7 +158,9 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
     e = np.abs(res.error)
     q = max(len(e) // 4, 1)
     early, last = float(np.max(e[q:2 * q])) if len(e) >= 4 else 0.0, float(np.max(e[-q:]))
-    growing = bool(len(e) >= 8 and last > lim["growth"] * max(early, 1e-12) and last > 1e-3)
+    r = res.reference
+    explained = max(float(np.ptp(r[2 * q:])) - float(np.ptp(r[q:2 * q])), 0.0) if len(r) >= 8 else 0.0
+    growing = bool(len(e) >= 8 and last > lim["growth"] * max(early, explained, 1e-12) and last > 1e-3)
     warnings = []
     if cycle:
         warnings.append(f"sustained limit cycle: {late.size} impacts in the last {0.25 * T:.3g} s on alternating "
@@ -157,7 +171,9 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
     if rate > lim["impact_rate"]:
         warnings.append(f"impact rate {rate:.4g} per s, above {lim['impact_rate']:g} per s")
     if growing:
-        warnings.append(f"growing error: {last:.3g} rad in the last quarter against {early:.3g} rad in the second")
+        beyond = f" and the reference's own change of {explained:.3g} rad" if explained > 0 else ""
+        warnings.append(f"growing error: {last:.3g} rad in the last quarter against {early:.3g} rad in the "
+                        f"second{beyond}")
     return LoopHealth(limit_cycle=cycle, saturated=sat > lim["saturated_fraction"], impact_rate_high=rate >
                       lim["impact_rate"], growing=growing, impact_rate=rate, warnings=tuple(warnings))
 

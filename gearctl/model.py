@@ -14,13 +14,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from .errors import InputError
-from .geometry import GearPair, pair_geometry
-from .params import MeshDynamics, Sensors, Servo
-from .stiffness import mesh_stiffness
-from .units import BACKLASH
+from .geometry import GearPair, Geometry, pair_geometry
+from .params import FrictionLaw, MeshDynamics, Sensors, Servo
+from .stiffness import equivalent_mass, mesh_stiffness
+from .units import BACKLASH, BASE_RADIUS, INERTIA, MESH_DAMPING
 
-__all__ = ["StageModel", "GearModel", "check_model", "MAX_INERTIA_RATIO", "MAX_FRICTION_RATE",
-           "STIFFNESS_FACTOR", "MAX_BACKLASH_PER_MODULE"]
+__all__ = ["StageModel", "GearModel", "check_model", "disk_inertia", "MAX_INERTIA_RATIO", "MAX_FRICTION_RATE",
+           "STIFFNESS_FACTOR", "MAX_BACKLASH_PER_MODULE", "MIN_FACE_WIDTH_PER_MODULE", "GEAR_INERTIA_FACTOR"]
 
 #: A motor, load or added inertia may be at most this many times the inertia of the gears on its shaft.
 MAX_INERTIA_RATIO = 1e6
@@ -30,6 +30,18 @@ MAX_FRICTION_RATE = 1e5
 STIFFNESS_FACTOR = 1e3
 #: Backlash along the line of action at most this fraction of the module.
 MAX_BACKLASH_PER_MODULE = 0.5
+#: Face width at least this fraction of the module (a gear thinner than a tenth of its module is a blade).
+MIN_FACE_WIDTH_PER_MODULE = 0.1
+#: A given gear inertia within this factor of the solid disk of its pitch radius and face width, either way
+#: (a thin-rimmed wheel is a few times lighter, a pinion with its hub and shaft a few times heavier).
+GEAR_INERTIA_FACTOR = 1e3
+
+# where the pair format puts each stage key (a train writes ``[stage i] key``)
+_PAIR_LABELS = {"teeth1": "[gear1] teeth", "teeth2": "[gear2] teeth", "inertia1": "[gear1] inertia",
+                "inertia2": "[gear2] inertia", "module": "[pair] module", "face_width": "[pair] face_width",
+                "backlash": "[pair] backlash", "density": "[material] density",
+                "damping_ratio": "[dynamics] damping_ratio", "mesh_stiffness": "[dynamics] mesh_stiffness",
+                "damping_coefficient": "[dynamics] damping_coefficient"}
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -107,8 +119,80 @@ class GearModel:
         return dataclasses.replace(self, stages=stages)
 
 
+def _label(multi: bool, i: int, key: str) -> str:
+    """How the file names a stage's key: ``[stage i] key`` in a train, the pair format's table otherwise."""
+    return f"[stage {i + 1}] {key}" if multi else _PAIR_LABELS.get(key, key)
+
+
+def _check_stage_geometry(sm: StageModel, geo: Geometry, multi: bool, i: int) -> None:
+    """The gear data against each other: size, face width, backlash and given inertias against the module."""
+    p = sm.pair
+    m = p.module
+    for j, (teeth, rb) in enumerate(((p.teeth1, geo.base_radius[0]), (p.teeth2, geo.base_radius[1])), start=1):
+        if rb > BASE_RADIUS.high:
+            raise InputError(
+                f"{_label(multi, i, f'teeth{j}')} = {teeth} with {_label(multi, i, 'module')} = {m!r} gives gear {j} a "
+                f"base radius of {rb:.4g} m (pitch radius {geo.pitch_radius[j - 1]:.4g} m): expected teeth x module "
+                f"x cos(pressure angle) / 2 <= {BASE_RADIUS.high:g} [m]; use fewer teeth or a smaller module",
+                field=f"teeth{j}" if multi else "teeth")
+    if p.face_width < MIN_FACE_WIDTH_PER_MODULE * m:
+        raise InputError(f"{_label(multi, i, 'face_width')} = {p.face_width!r} is out of range: expected at least "
+                         f"{MIN_FACE_WIDTH_PER_MODULE:g} x module = {MIN_FACE_WIDTH_PER_MODULE * m:.4g} [m] for this "
+                         f"stage", field="face_width")
+    if p.backlash > MAX_BACKLASH_PER_MODULE * m:
+        raise InputError(f"{_label(multi, i, 'backlash')} = {p.backlash!r} is out of range: expected at most "
+                         f"{MAX_BACKLASH_PER_MODULE:g} x module = {MAX_BACKLASH_PER_MODULE * m:g} [m] for this stage",
+                         field="backlash")
+    for j, given in enumerate((p.inertia1, p.inertia2), start=1):
+        if given is None:
+            continue
+        disk = disk_inertia(p, geo.pitch_radius[j - 1])
+        lo, hi = disk / GEAR_INERTIA_FACTOR, disk * GEAR_INERTIA_FACTOR
+        if not lo <= given <= hi:
+            raise InputError(f"{_label(multi, i, f'inertia{j}')} = {given!r} is out of range: expected {lo:.4g} <= "
+                             f"value <= {hi:.4g} [kg m^2] (within {GEAR_INERTIA_FACTOR:g}x the {disk:.4g} kg m^2 of a "
+                             f"solid disk of gear {j}'s pitch radius and face width)",
+                             field=f"inertia{j}" if multi else "inertia")
+
+
+def disk_inertia(pair: GearPair, radius: float) -> float:
+    """Inertia of a solid disk of ``radius`` [m], the pair's face width and density [kg m^2]: ``rho pi f r^4 / 2``."""
+    return pair.density * math.pi * pair.face_width * radius**4 / 2
+
+
+def _gear_culprit(model: GearModel, geos: list[Geometry], j: int) -> str:
+    """The keys that make the gears of shaft ``j`` heavy: a given inertia, or the data of the solid disk."""
+    n, multi = len(model.stages), len(model.stages) > 1
+    on = ([(j - 1, 2)] if j > 0 else []) + ([(j, 1)] if j < n else [])  # (stage, gear) pairs on the shaft
+    i, g = max(on, key=lambda sg: geos[sg[0]].inertia[sg[1] - 1])
+    p = model.stages[i].pair
+    given = p.inertia1 if g == 1 else p.inertia2
+    if given is not None:
+        return f"{_label(multi, i, f'inertia{g}')} = {given!r}"
+    teeth = p.teeth1 if g == 1 else p.teeth2
+    return (f"{_label(multi, i, f'teeth{g}')} = {teeth} with {_label(multi, i, 'module')} = {p.module!r}, "
+            f"{_label(multi, i, 'face_width')} = {p.face_width!r} and {_label(multi, i, 'density')} = "
+            f"{p.density!r} (gear {g} a solid disk of {geos[i].inertia[g - 1]:.4g} kg m^2)")
+
+
 def check_model(model: GearModel) -> None:
     """Check the ranges that relate keys to each other and to the gear data.
+
+    Each check names the key the user wrote (``[gear1] teeth``, ``[pair] face_width``, ``[servo]
+    motor_inertia``; ``[stage i] key`` in a train), never a quantity derived from it, so that nothing the
+    plant (:class:`~gearctl.plant.Plant`) refuses later passes here:
+
+    - gear size: base radius ``teeth x module x cos(alpha) / 2`` at most :data:`~gearctl.units.BASE_RADIUS`'s
+      10 m; face width at least :data:`MIN_FACE_WIDTH_PER_MODULE` x module; backlash at most
+      :data:`MAX_BACKLASH_PER_MODULE` x module; a given gear inertia within :data:`GEAR_INERTIA_FACTOR` of
+      the solid disk of its pitch radius and face width; a given mesh stiffness within
+      :data:`STIFFNESS_FACTOR` of the computed one;
+    - shafts: an added (motor, load, intermediate) inertia at most :data:`MAX_INERTIA_RATIO` x the gears on
+      its shaft, and the shaft's total at most :data:`~gearctl.units.INERTIA`'s 1e6 kg m^2; viscous friction
+      at most :data:`MAX_FRICTION_RATE` x the shaft's inertia, and with ``friction_law = "smooth"`` the
+      smooth law's slope at standstill ``T_c / coulomb_velocity`` too (it is a viscous friction there);
+    - mesh damping: ``c = 2 zeta sqrt(k m_eq)`` from ``damping_ratio`` within
+      :data:`~gearctl.units.MESH_DAMPING`'s range.
 
     Raises
     ------
@@ -125,20 +209,16 @@ def check_model(model: GearModel) -> None:
             raise InputError(f"[servo] {name} = {list(vals)!r} has {len(vals)} values: expected one per "
                              f"intermediate shaft ({n - 1})", field=name)
     geos = [pair_geometry(s.pair) for s in model.stages]
+    stiffness: dict[int, float] = {}  # computed mean mesh stiffness per stage, when needed
     for i, sm in enumerate(model.stages):
-        where = f"[stage {i + 1}] " if multi else "[pair] "
-        b, m = sm.pair.backlash, sm.pair.module
-        if b > MAX_BACKLASH_PER_MODULE * m:
-            raise InputError(f"{where}backlash = {b!r} is out of range: expected at most {MAX_BACKLASH_PER_MODULE:g} "
-                             f"x module = {MAX_BACKLASH_PER_MODULE * m:g} [m] for this stage", field="backlash")
+        _check_stage_geometry(sm, geos[i], multi, i)
         dyn = sm.dynamics
-        dwhere = f"[stage {i + 1}] " if multi else "[dynamics] "
         if dyn.mesh_stiffness is not None:
-            k0 = mesh_stiffness(sm.pair, points=16).mean
+            k0 = stiffness[i] = mesh_stiffness(sm.pair, points=16).mean
             lo, hi = k0 / STIFFNESS_FACTOR, k0 * STIFFNESS_FACTOR
             if not lo <= dyn.mesh_stiffness <= hi:
-                raise InputError(f"{dwhere}mesh_stiffness = {dyn.mesh_stiffness!r} is out of range: expected "
-                                 f"{lo:.4g} <= value <= {hi:.4g} [N/m] (within {STIFFNESS_FACTOR:g}x the "
+                raise InputError(f"{_label(multi, i, 'mesh_stiffness')} = {dyn.mesh_stiffness!r} is out of range: "
+                                 f"expected {lo:.4g} <= value <= {hi:.4g} [N/m] (within {STIFFNESS_FACTOR:g}x the "
                                  f"{k0:.4g} N/m computed from the gear data)", field="mesh_stiffness")
     # gears on each shaft, and what the servo adds
     gear = [geos[0].inertia[0]] + [geos[j - 1].inertia[1] + geos[j].inertia[0] for j in range(1, n)] + [
@@ -147,18 +227,72 @@ def check_model(model: GearModel) -> None:
         ("intermediate_inertia", j + 1, v) for j, v in enumerate(servo.intermediate_inertia)]
     total = list(gear)
     for key, j, v in added:
-        cap = MAX_INERTIA_RATIO * gear[j]
-        if v > cap:
+        cap = min(MAX_INERTIA_RATIO * gear[j], INERTIA.high - gear[j])
+        if v > cap and gear[j] < INERTIA.high:
+            why = (f"{MAX_INERTIA_RATIO:g}x the {gear[j]:.4g} kg m^2 of the gears on that shaft" if cap < INERTIA.high
+                   - gear[j] else f"the shaft's inertia, with the {gear[j]:.4g} kg m^2 of its gears, at most "
+                   f"{INERTIA.high:g} kg m^2")
             raise InputError(f"[servo] {key} = {v!r} is out of range: expected 0 <= value <= {cap:.4g} [kg m^2] "
-                             f"({MAX_INERTIA_RATIO:g}x the {gear[j]:.4g} kg m^2 of the gears on that shaft)", field=key)
+                             f"({why})", field=key)
         total[j] += v
+    for j, J in enumerate(total):
+        if not J <= INERTIA.high:
+            raise InputError(f"{_gear_culprit(model, geos, j)} gives shaft {j + 1} an inertia of {J:.4g} kg m^2: "
+                             f"expected at most {INERTIA.high:g} kg m^2 on a shaft; use a smaller gear",
+                             field="inertia")
     fr = [("viscous_friction1", 0, servo.viscous_friction1), ("viscous_friction2", n, servo.viscous_friction2)] + [
         ("intermediate_viscous_friction", j + 1, v) for j, v in enumerate(servo.intermediate_viscous_friction)]
+    viscous = [0.0] * (n + 1)
     for key, j, v in fr:
         cap = MAX_FRICTION_RATE * total[j]
         if v > cap:
             raise InputError(f"[servo] {key} = {v!r} is out of range: expected 0 <= value <= {cap:.4g} [N m s/rad] "
                              f"(a time constant J/d of at least {1e6 / MAX_FRICTION_RATE:g} us on a shaft of "
                              f"{total[j]:.4g} kg m^2)", field=key)
-    if not math.isfinite(sum(total)):
-        raise InputError("the shaft inertias are not finite", field="inertia")
+        viscous[j] = v
+    if servo.friction_law is FrictionLaw.SMOOTH:
+        _check_smooth_friction(servo, total, viscous)
+    for i, sm in enumerate(model.stages):
+        _check_mesh_damping(sm, geos[i], total[i], total[i + 1], stiffness.get(i), multi, i)
+
+
+def _check_smooth_friction(servo: Servo, total: list[float], viscous: list[float]) -> None:
+    """The smooth Coulomb law's slope at standstill, ``T_c / omega_s``, is a viscous friction: bound it alike."""
+    n = len(total) - 1
+    ws = servo.coulomb_velocity
+    cf = [("coulomb_friction1", 0, servo.coulomb_friction1), ("coulomb_friction2", n, servo.coulomb_friction2)] + [
+        ("intermediate_coulomb_friction", j + 1, v) for j, v in enumerate(servo.intermediate_coulomb_friction)]
+    for key, j, tc in cf:
+        slope = tc / ws  # may be inf for a tiny coulomb_velocity: refused below
+        if viscous[j] + slope > MAX_FRICTION_RATE * total[j]:
+            cap = max(MAX_FRICTION_RATE * total[j] - viscous[j], 0.0) * ws
+            raise InputError(
+                f"[servo] {key} = {tc!r} is out of range with friction_law = \"smooth\" and coulomb_velocity = "
+                f"{ws!r}: expected 0 <= value <= {cap:.4g} [N m] (near standstill the smooth law T_c tanh(omega / "
+                f"coulomb_velocity) is a viscous friction of {slope:.4g} N m s/rad; with the shaft's viscous "
+                f"friction it must leave a time constant J/d of at least {1e6 / MAX_FRICTION_RATE:g} us on a shaft "
+                f"of {total[j]:.4g} kg m^2); use friction_law = \"stick_slip\" or a larger coulomb_velocity",
+                field=key)
+
+
+def _check_mesh_damping(sm: StageModel, geo: Geometry, J1: float, J2: float, k: float | None, multi: bool,
+                        i: int) -> None:
+    """The mesh damping ``c = 2 zeta sqrt(k m_eq)`` the plant will compute, within MESH_DAMPING's range."""
+    dyn = sm.dynamics
+    if dyn.damping_coefficient is not None or dyn.damping_ratio == 0.0:
+        return
+    m_eq = equivalent_mass(J1, J2, *geo.base_radius)
+    # cheap bound first: a mean mesh stiffness is well below E f (0.07 E f for the report's pair)
+    k_bound = dyn.mesh_stiffness or sm.pair.young_modulus * sm.pair.face_width
+    if 2.0 * dyn.damping_ratio * math.sqrt(k_bound * m_eq) <= MESH_DAMPING.high:
+        return
+    if k is None:
+        k = dyn.mesh_stiffness or mesh_stiffness(sm.pair, points=16).mean
+    c = 2.0 * dyn.damping_ratio * math.sqrt(k * m_eq)
+    if c > MESH_DAMPING.high:
+        zmax = MESH_DAMPING.high / (2.0 * math.sqrt(k * m_eq))
+        raise InputError(f"{_label(multi, i, 'damping_ratio')} = {dyn.damping_ratio!r} is out of range: expected "
+                         f"0 <= value <= {zmax:.4g} for this stage (its mesh damping c = 2 zeta sqrt(k m_eq) = "
+                         f"{c:.4g} N s/m with k = {k:.4g} N/m and m_eq = {m_eq:.4g} kg of the shaft inertias; at most "
+                         f"{MESH_DAMPING.high:g} N s/m); or give {_label(multi, i, 'damping_coefficient')}",
+                         field="damping_ratio")

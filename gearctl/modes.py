@@ -147,14 +147,25 @@ class MeshMode:
     Attributes
     ----------
     natural_frequency : float
-        Undamped natural frequency of the resonance [rad/s] (``|lambda|`` of the complex pole pair).
+        Undamped natural frequency ``omega_n`` of the mode [rad/s]: ``sqrt(lambda_a lambda_b)`` of its pole
+        pair, i.e. ``|lambda|`` of a complex pair.
     damping_ratio : float
-        Its damping ratio.
+        Its damping ratio ``zeta = -(lambda_a + lambda_b) / (2 omega_n)`` [1]; above 1 for an overdamped mesh.
     antiresonance : float
         Anti-resonance of the motor-torque to motor-angle transfer [rad/s] (the load ringing on the mesh
-        spring with the motor held), from the zeros of that transfer function.
+        spring with the motor held), from the zeros of that transfer function, by the same rule.
     antiresonance_damping : float
-        Damping ratio of that zero pair.
+        Damping ratio of that zero pair [1].
+
+    Notes
+    -----
+    A mode is a root pair of ``s^2 + 2 zeta omega_n s + omega_n^2``: ``omega_n^2`` is the roots' product and
+    ``-2 zeta omega_n`` their sum. For a complex pair these are the familiar ``omega_n = |lambda|`` and
+    ``zeta = -Re(lambda) / |lambda|``; for an overdamped mesh (two real poles
+    ``-omega_n (zeta -+ sqrt(zeta^2 - 1))``, ``zeta > 1``) the same two formulas give the frequency the mesh
+    would ring at without damping and its damping ratio, the way a control engineer writes an overdamped
+    mode. So ``damping_ratio = 1.5`` in a model file is reported as 1.5 (up to the shafts' viscous
+    friction), ``natural_frequency`` stays ``sqrt(k / m_eq)``, and :attr:`overdamped` says that nothing rings.
     """
 
     natural_frequency: float
@@ -171,6 +182,11 @@ class MeshMode:
     def antiresonance_hz(self) -> float:
         """Anti-resonance in Hz."""
         return self.antiresonance / (2 * math.pi)
+
+    @property
+    def overdamped(self) -> bool:
+        """Whether the mode's poles are real (damping ratio of at least 1): the mesh does not ring."""
+        return self.damping_ratio >= 1.0
 
 
 def _siso_tf(sys: ct.StateSpace, out: int, inp: int, scale: float) -> ct.TransferFunction:
@@ -191,21 +207,73 @@ def _siso_tf(sys: ct.StateSpace, out: int, inp: int, scale: float) -> ct.Transfe
     return ct.tf(clean(tf.num[0][0]), clean(tf.den[0][0]))
 
 
+def _pair_figures(a: complex, b: complex) -> tuple[float, float]:
+    """``(omega_n, zeta)`` of the mode with roots ``a``, ``b`` (a conjugate pair, or two real roots)."""
+    wn = math.sqrt(abs((a * b).real))
+    return wn, float(-(a + b).real / (2 * wn))
+
+
+def _mode_pair(roots: np.ndarray, rigid: tuple[complex, ...], target: float) -> tuple[complex, complex] | None:
+    """The highest mode among ``roots``: its complex pair, or (none oscillating) a pair of real roots.
+
+    ``rigid``: roots of the rigid-body motion; with no oscillating root, the root nearest each is set aside
+    and the mode is the fastest real root left with the partner whose product with it is nearest ``target``
+    (the squared natural frequency expected; for a pair, the only root left). ``None``: no such pair.
+    """
+    roots = np.asarray(roots, dtype=complex)
+    if roots.size == 0:
+        return None
+    osc = roots[np.abs(roots.imag) > 1e-9 * np.max(np.abs(roots))]
+    if osc.size:
+        lam = complex(osc[np.argmax(np.abs(osc))])
+        return lam, lam.conjugate()
+    rest = [float(r.real) for r in roots]
+    for e in rigid:
+        if rest:
+            rest.pop(int(np.argmin([abs(r - e) for r in rest])))
+    rest = sorted((r for r in rest if r != 0.0), key=abs)
+    if len(rest) < 2:
+        return None
+    fast = rest.pop()
+    partner = min(rest, key=lambda r: abs(math.log(abs(fast * r) / target)))
+    return complex(fast), complex(partner)
+
+
 def mesh_mode(plant: Plant) -> MeshMode:
-    """Resonance and anti-resonance of the mesh mode in contact (poles and zeros of the contact model)."""
+    """Resonance and anti-resonance of the mesh mode in contact (poles and zeros of the contact model).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant (a train: its highest mode).
+
+    Returns
+    -------
+    MeshMode
+        Natural frequency [rad/s] and damping ratio of the pole pair, and the same of the zero pair of motor
+        torque to motor angle (``nan`` if that transfer function has no zero pair).
+
+    Notes
+    -----
+    The pole pair is the oscillating pair of largest ``|lambda|`` (an underdamped mesh: every catalog model).
+    An overdamped mesh (``damping_ratio > 1`` in the model file; the schema allows up to 2) has no
+    oscillating pole: then the rigid-body poles (``0`` and ``-d_eq / J_eq`` of :func:`rigid_model`) are set
+    aside and the two real poles left are the mesh's (a train: the fastest real pole and the partner whose
+    product with it is nearest the fastest stage's ``k / m_eq``). Either way ``natural_frequency`` and
+    ``damping_ratio`` come from the pair's product and sum (:class:`MeshMode`), so an overdamped mesh
+    reports ``sqrt(k / m_eq)`` and a damping ratio above 1 (``MeshMode.overdamped``), not the frequency of
+    one of its real poles. The zero pair follows the same rule (no rigid-body zeros: the motor is held).
+    """
     sys = contact_mode_model(plant)
-    poles = sys.poles()
-    osc = poles[np.abs(poles.imag) > 1e-9 * np.max(np.abs(poles))]
-    lam = osc[np.argmax(np.abs(osc))]
-    zeros = ct.zeros(_siso_tf(sys, 0, 0, abs(lam)))
-    zosc = zeros[np.abs(zeros.imag) > 1e-9 * abs(lam)] if zeros.size else zeros
-    z = zosc[np.argmax(np.abs(zosc))] if zosc.size else complex("nan")
-    return MeshMode(
-        natural_frequency=float(abs(lam)),
-        damping_ratio=float(-lam.real / abs(lam)),
-        antiresonance=float(abs(z)),
-        antiresonance_damping=float(-z.real / abs(z)) if zosc.size else float("nan"),
-    )
+    target = plant.natural_frequency**2
+    rigid = tuple(complex(r) for r in rigid_model(plant).poles())
+    pair = _mode_pair(sys.poles(), rigid, target)
+    if pair is None:  # a contact model has 2 rigid-body poles and 2 per mesh: not reached
+        raise ValueError("the contact model has no mesh mode (fewer than two poles besides the rigid body)")
+    wn, zeta = _pair_figures(*pair)
+    zpair = _mode_pair(ct.zeros(_siso_tf(sys, 0, 0, wn)), (), target)
+    wz, zz = _pair_figures(*zpair) if zpair is not None else (float("nan"), float("nan"))
+    return MeshMode(natural_frequency=wn, damping_ratio=zeta, antiresonance=wz, antiresonance_damping=zz)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)

@@ -10,12 +10,14 @@ values (eqs 36, 37, 39) are here too, for the comparison plant.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .geometry import GearPair, Geometry, involute, pair_geometry
+from .units import POINTS, Spec
 
 __all__ = [
     "COMPONENTS",
@@ -30,6 +32,10 @@ __all__ = [
     "restitution_coefficient",
     "yang_sun_damping_factor",
 ]
+
+#: Harmonics returned by :func:`mesh_stiffness`, and its Gauss–Legendre order per segment.
+HARMONICS = Spec(unit="1", doc="Fourier harmonics", low=1, high=1000, integer=True)
+QUADRATURE_ORDER = Spec(unit="1", doc="Gauss-Legendre order per segment", low=2, high=1000, integer=True)
 
 #: Names of the deflection components of eq 13, in the order of eqs 14–18.
 COMPONENTS = ("bending_cos", "bending_sin", "shear", "foundation", "hertz")
@@ -179,17 +185,23 @@ def tooth_deflections(pair: GearPair, theta1: ArrayLike | None = None, *, points
         Rotation angles of gear 1 measured from the start of contact C [rad]; default ``points``
         values over the path of contact C → D, ``[0, CD / r_b1]``.
     points : int
-        Number of default angles.
+        Number of default angles, 2 to 1e6 (:data:`gearctl.units.POINTS`, the CLI's ``--points``).
 
     Returns
     -------
     ToothDeflections
         Per-unit-load deflections [m/N] and the single-tooth and pair stiffnesses [N/m].
 
+    Raises
+    ------
+    InputError
+        If ``points`` is not a whole number in range (checked before any work, also when ``theta1`` is given).
+
     References
     ----------
     TR 93-28, eqs 13–20 and 29–33; Figures 8–10.
     """
+    points = int(POINTS.check("points", points))
     geo = pair_geometry(pair)
     if theta1 is None:
         theta1 = np.linspace(0.0, (geo.AD - geo.AC) / geo.base_radius[0], points)
@@ -254,21 +266,31 @@ def mesh_stiffness_at(pair: GearPair, theta1: ArrayLike, geo: Geometry | None = 
 def mesh_stiffness(pair: GearPair, *, points: int = 1001, harmonics: int = 4, order: int = 64) -> MeshStiffness:
     """Mesh stiffness over one mesh cycle, its mean and harmonics (Figure 11, Table 1).
 
+    The result depends on the tooth geometry and the material only, not on the backlash or the inertias:
+    the last 64 results are kept per process (keyed on those inputs, arrays read-only), so that a sweep
+    over backlash, friction or inertias does not integrate the same stiffness again for every run.
+
     Parameters
     ----------
     pair : GearPair
         The gear data.
     points : int
-        Number of sample angles returned over the mesh cycle (for plots and CSV).
+        Number of sample angles returned over the mesh cycle (for plots and CSV), 2 to 1e6
+        (:data:`gearctl.units.POINTS`, the CLI's ``--points``).
     harmonics : int
-        Number of Fourier harmonics whose magnitudes are returned.
+        Number of Fourier harmonics whose magnitudes are returned, 1 to 1000.
     order : int
-        Gauss–Legendre order per smooth segment of the cycle for the mean and the harmonics.
+        Gauss–Legendre order per smooth segment of the cycle for the mean and the harmonics, 2 to 1000.
 
     Returns
     -------
     MeshStiffness
         ``K(theta1)`` over ``[0, 2 pi / N1)``, the mean, harmonic magnitudes, min and max [N/m].
+
+    Raises
+    ------
+    InputError
+        If ``points``, ``harmonics`` or ``order`` is not a whole number in its range (checked before any work).
 
     Notes
     -----
@@ -313,6 +335,16 @@ def mesh_stiffness(pair: GearPair, *, points: int = 1001, harmonics: int = 4, or
     ----------
     TR 93-28, eqs 13–35, Figures 8–11, Table 1. ISO 21771:2007 (profile shift, operating pressure angle).
     """
+    points = int(POINTS.check("points", points))
+    harmonics = int(HARMONICS.check("harmonics", harmonics))
+    order = int(QUADRATURE_ORDER.check("order", order))
+    key = pair if (pair.backlash == 0.0 and pair.inertia1 is None and pair.inertia2 is None) else \
+        dataclasses.replace(pair, backlash=0.0, inertia1=None, inertia2=None)
+    return _mesh_stiffness(key, points, harmonics, order)
+
+
+@functools.lru_cache(maxsize=64)
+def _mesh_stiffness(pair: GearPair, points: int, harmonics: int, order: int) -> MeshStiffness:
     geo = pair_geometry(pair)
     period = geo.mesh_period_angle
     rb1 = geo.base_radius[0]
@@ -337,12 +369,15 @@ def mesh_stiffness(pair: GearPair, *, points: int = 1001, harmonics: int = 4, or
     K = mesh_stiffness_at(pair, th, geo)
     z0 = geo.AC + rb1 * th
     count = sum((z0 + i * geo.base_pitch <= geo.AD).astype(int) for i in range(int(math.ceil(geo.contact_ratio)) + 1))
+    cn = np.abs(cn)
+    for arr in (th, K, count, cn):  # shared by every caller of the cache
+        arr.flags.writeable = False
     return MeshStiffness(
         theta1=th,
         K=K,
         teeth_in_contact=count,
         mean=mean,
-        harmonics=np.abs(cn),
+        harmonics=cn,
         min=float(min(K.min(), Kq.min())),
         max=float(max(K.max(), Kq.max())),
     )

@@ -6,7 +6,8 @@ controller dataclasses declare their fields with :meth:`Spec.field`, :func:`vali
 instance against them, and the TOML loader, the CLI, error messages and plot labels read the same
 metadata. A value valid in one place is valid everywhere.
 
-Every number must be finite unless its spec allows infinity as "none" (a torque limit).
+Every number must be finite unless its spec allows infinity as "none" (a torque limit). A quantity whose
+zero means "none" (a backlash) may also have a physical floor: 0, or at least the floor.
 """
 
 from __future__ import annotations
@@ -19,10 +20,11 @@ from typing import Any
 from .errors import InputError
 
 __all__ = [
-    "Spec", "quantity", "check_choice", "validate_fields", "describe_range", "field_unit", "check_number",
+    "Spec", "quantity", "check_choice", "validate_fields", "describe_range", "describe_rule", "field_unit",
+    "check_number", "MODULE", "FACE_WIDTH", "BACKLASH_FLOOR",
     "BACKLASH", "GAP", "INERTIA", "ADDED_INERTIA", "VISCOUS_FRICTION", "COULOMB_FRICTION", "COULOMB_VELOCITY",
     "TORQUE_LIMIT", "LOAD_TORQUE", "MESH_STIFFNESS", "MESH_DAMPING", "DAMPING_RATIO", "BASE_RADIUS",
-    "SAMPLE_TIME", "ENCODER_CPR", "ENCODER_NOISE", "DURATION", "SEED",
+    "SAMPLE_TIME", "ENCODER_CPR", "ENCODER_NOISE", "DURATION", "SEED", "POINTS",
 ]
 
 
@@ -44,6 +46,9 @@ class Spec:
         Whether the value must be a whole number.
     allow_inf : bool
         Whether ``+inf`` is allowed (it means "none", e.g. no torque limit).
+    floor : float or None
+        Physical floor of a quantity whose 0 means "none": a value inside ``[low, high]`` must be 0 or at
+        least ``floor`` (a backlash of 1e-124 m is no backlash a machine has, and NaN in a controller).
     """
 
     unit: str
@@ -54,12 +59,13 @@ class Spec:
     high_open: bool = False
     integer: bool = False
     allow_inf: bool = False
+    floor: float | None = None
 
     def meta(self, *, doc: str | None = None, optional: bool = False, sequence: bool = False) -> dict[str, Any]:
         """Field metadata of this spec (what :func:`validate_fields` reads)."""
         return {"unit": self.unit, "doc": doc or self.doc, "low": self.low, "high": self.high,
                 "low_open": self.low_open, "high_open": self.high_open, "integer": self.integer,
-                "allow_inf": self.allow_inf, "optional": optional, "sequence": sequence}
+                "allow_inf": self.allow_inf, "floor": self.floor, "optional": optional, "sequence": sequence}
 
     def field(self, *, default: Any = dataclasses.MISSING, doc: str | None = None, optional: bool = False,
               sequence: bool = False) -> Any:
@@ -71,9 +77,8 @@ class Spec:
         return check_number(name, value, self.meta())
 
     def rule(self) -> str:
-        """The allowed range in words with the unit, e.g. ``"a number with 0 <= value <= 0.01 [m]"``."""
-        unit = "" if self.unit == "1" else f" [{self.unit}]"
-        return f"{describe_range(self.meta())}{unit}"
+        """The allowed range in words with the unit, e.g. ``"0 <= value <= 0.01 [m], either 0 or at least 1e-09"``."""
+        return describe_rule(self.meta())
 
 
 def quantity(
@@ -87,6 +92,7 @@ def quantity(
     integer: bool = False,
     optional: bool = False,
     allow_inf: bool = False,
+    floor: float | None = None,
     default: Any = dataclasses.MISSING,
 ) -> Any:
     """Declare a physical dataclass field with its unit and allowed range (a one-off :class:`Spec`).
@@ -107,11 +113,13 @@ def quantity(
         Whether ``None`` is allowed (meaning "compute it").
     allow_inf : bool
         Whether ``+inf`` is allowed ("none").
+    floor : float, optional
+        Physical floor: a value must be 0 or at least this (see :class:`Spec`).
     default : optional
         Default value; without it the field is required.
     """
     spec = Spec(unit=unit, doc=doc, low=low, high=high, low_open=low_open, high_open=high_open, integer=integer,
-                allow_inf=allow_inf)
+                allow_inf=allow_inf, floor=floor)
     return spec.field(default=default, optional=optional)
 
 
@@ -132,6 +140,14 @@ def describe_range(meta: dict[str, Any]) -> str:
     return f"{prefix}{''.join(parts)}{inf}"
 
 
+def describe_rule(meta: dict[str, Any]) -> str:
+    """The allowed range in words with the unit and any floor, e.g. ``"0 <= value < 0.01 [m], either 0 or at
+    least 1e-09 [m]"`` (the text after "expected" in an error message)."""
+    unit = "" if meta["unit"] == "1" else f" [{meta['unit']}]"
+    floor = f", either 0 or at least {meta['floor']:g}{unit}" if meta.get("floor") is not None else ""
+    return f"{describe_range(meta)}{unit}{floor}"
+
+
 def field_unit(cls: type, name: str) -> str:
     """Return the unit declared for field ``name`` of dataclass ``cls``."""
     for f in dataclasses.fields(cls):
@@ -149,14 +165,13 @@ def check_number(name: str, value: Any, meta: dict[str, Any]) -> float:
         Naming ``name``, the value, the allowed range and the unit; ``error.field`` is ``name`` and
         ``error.rule`` the text after the value.
     """
-    unit = "" if meta["unit"] == "1" else f" [{meta['unit']}]"
-    allowed = describe_range(meta)
+    allowed = describe_rule(meta)
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        rule = f"is out of range (not a number): expected {allowed}{unit}"
+        rule = f"is out of range (not a number): expected {allowed}"
         raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
     v = float(value)
     if meta["integer"] and (not math.isfinite(v) or v != int(v)):
-        rule = f"is not a whole number: expected {allowed}{unit}"
+        rule = f"is not a whole number: expected {allowed}"
         raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
     lo, hi = meta["low"], meta["high"]
     bad = not math.isfinite(v) and not (meta.get("allow_inf") and v == math.inf)
@@ -165,8 +180,11 @@ def check_number(name: str, value: Any, meta: dict[str, Any]) -> float:
             bad = bad or (v <= lo if meta["low_open"] else v < lo)
         if hi is not None:
             bad = bad or (v >= hi if meta["high_open"] else v > hi)
+        floor = meta.get("floor")
+        if floor is not None:
+            bad = bad or (v != 0.0 and abs(v) < floor)
     if bad:
-        rule = f"is out of range: expected {allowed}{unit}"
+        rule = f"is out of range: expected {allowed}"
         raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
     return v
 
@@ -216,8 +234,13 @@ def validate_fields(obj: Any) -> None:
 
 # --- the named quantities: each range is written here and nowhere else ---------------------------------
 
-#: Backlash b along the line of action (half the lost motion of a stage), per stage.
-BACKLASH = Spec(unit="m", doc="backlash b along the line of action", low=0.0, high=0.01, high_open=True)
+#: Smallest backlash other than none [m]: 1 nm, a thousandth of the finest gear grades' backlash; below it a
+#: gap is no physical clearance and the controllers' arithmetic on b (b / v, 1 / b) leaves float range.
+BACKLASH_FLOOR = 1e-9
+#: Backlash b along the line of action (half the lost motion of a stage), per stage: 0 (backlash-free) or
+#: at least :data:`BACKLASH_FLOOR`.
+BACKLASH = Spec(unit="m", doc="backlash b along the line of action", low=0.0, high=0.01, high_open=True,
+                floor=BACKLASH_FLOOR)
 #: Half-gap of a plant's stage (any finite physical value; gear data in files and controllers' estimates
 #: take :data:`BACKLASH`).
 GAP = Spec(unit="m", doc="half-gap along the line of action", low=0.0)
@@ -229,14 +252,22 @@ VISCOUS_FRICTION = Spec(unit="N m s/rad", doc="viscous friction", low=0.0, high=
 COULOMB_FRICTION = Spec(unit="N m", doc="Coulomb friction", low=0.0, high=1e4)
 COULOMB_VELOCITY = Spec(unit="rad/s", doc="velocity scale of the smooth Coulomb law", low=0.0, low_open=True,
                         high=10.0)
-TORQUE_LIMIT = Spec(unit="N m", doc="motor torque limit", low=0.0, low_open=True, high=1e6, allow_inf=True)
+#: Motor torque limit: from 1 uN m (below the stall torque of the smallest micro motors, ~30 uN m) to 1 MN m.
+TORQUE_LIMIT = Spec(unit="N m", doc="motor torque limit", low=1e-6, high=1e6, allow_inf=True)
 LOAD_TORQUE = Spec(unit="N m", doc="constant load torque", low=-1e4, high=1e4)
 MESH_STIFFNESS = Spec(unit="N/m", doc="mesh stiffness", low=0.0, low_open=True, high=1e13)
 MESH_DAMPING = Spec(unit="N s/m", doc="mesh damping", low=0.0, high=1e8)
 DAMPING_RATIO = Spec(unit="1", doc="damping ratio of the mesh mode", low=0.0, high=2.0)
+#: Module of a gear pair: from 10 um (micro gears) to 0.1 m.
+MODULE = Spec(unit="m", doc="module (pitch diameter / teeth)", low=1e-5, high=0.1)
+#: Face width of a gear pair: from 10 um to 1 m (and relative to the module: :func:`gearctl.model.check_model`).
+FACE_WIDTH = Spec(unit="m", doc="face width", low=1e-5, high=1.0)
 BASE_RADIUS = Spec(unit="m", doc="base radius", low=0.0, low_open=True, high=10.0)
 SAMPLE_TIME = Spec(unit="s", doc="sample period", low=1e-6, high=1.0)
 ENCODER_CPR = Spec(unit="counts/rev", doc="encoder resolution", low=4, high=2**40, integer=True)
 ENCODER_NOISE = Spec(unit="rad", doc="encoder noise (std)", low=0.0, high=1.0)
 DURATION = Spec(unit="s", doc="simulated time", low=0.0, low_open=True, high=1e5)
 SEED = Spec(unit="1", doc="random seed", low=0, high=2**63 - 1, integer=True)
+#: Sample points of a computed curve over a mesh cycle or a path of contact (``points`` of
+#: :func:`gearctl.stiffness.mesh_stiffness` and :func:`~gearctl.stiffness.tooth_deflections`, the CLI's ``--points``).
+POINTS = Spec(unit="1", doc="sample points", low=2, high=1_000_000, integer=True)

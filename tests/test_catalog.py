@@ -218,6 +218,8 @@ def test_every_field_has_a_bad_input_case() -> None:
 # --- bad model files: the loader and the command line -------------------------------------------------
 
 MODULE_LINE = "module = 0.002                # m (pitch radii 0.02 m and 0.08 m)\n"
+DYN = "[dynamics]\ndamping_ratio"
+SERVO = "[servo]\n"
 CITATION = 'citation = "T. K. Shing'
 MATERIAL = (
     "[material]\nyoung_modulus = 2.068e11      # Pa\npoisson_ratio = 0.3\n"
@@ -256,6 +258,34 @@ FILE_CASES = [
     ("missing_citation", [("citation = ", "doi = ")], ["missing key [source] citation"]),
     ("misspelt_source", [("[source]", "[sauce]")], ["unknown section [sauce]", "did you mean [source]"]),
     ("missing_section", [(MATERIAL, "")], ["missing section [material]"]),
+    # physical floors and relative checks (issue 11): each names the key the file has, never a plant quantity
+    ("module_floor", [("module = 0.002", "module = 1e-300")], ["[pair] module = 1e-300", "1e-05 <= value <= 0.1 [m]"]),
+    ("face_width_floor", [("face_width = 0.01", "face_width = 1e-300")],
+     ["[pair] face_width = 1e-300", "1e-05 <= value <= 1 [m]"]),
+    ("face_width_per_module", [("face_width = 0.01", "face_width = 1e-4")],
+     ["[pair] face_width = 0.0001", "at least 0.1 x module = 0.0002 [m]"]),
+    ("backlash_floor", [("backlash = 5e-5", "backlash = 1e-124")],
+     ["[pair] backlash = 1e-124", "either 0 or at least 1e-09 [m]"]),
+    ("gear_too_large", [("teeth = 80", "teeth = 1000"), (MODULE_LINE, "module = 0.05\n")],
+     ["[gear2] teeth = 1000 with [pair] module = 0.05", "base radius of 23.49 m", "<= 10 [m]"]),
+    ("gear_inertia_light", [("teeth = 20\n", "teeth = 20\ninertia = 1e-300\n")],
+     ["[gear1] inertia = 1e-300", "1.96e-08 <= value <= 0.0196 [kg m^2]", "1000x the 1.96e-05 kg m^2"]),
+    ("gear_inertia_heavy", [("teeth = 20\n", "teeth = 20\ninertia = 1.0\n")], ["[gear1] inertia = 1.0", "0.0196"]),
+    ("gears_over_shaft_cap", [(MODULE_LINE, "module = 0.1\n"), ("face_width = 0.01", "face_width = 1.0")],
+     ["[gear2] teeth = 80 with [pair] module = 0.1", "shaft 2 an inertia of 3.137e+06 kg m^2", "at most 1e+06"]),
+    ("motor_inertia_over_shaft_cap", [(MODULE_LINE, "module = 0.1\n"), ("face_width = 0.01", "face_width = 1.0"),
+                                      ("teeth = 80", "teeth = 20"), (DYN, SERVO + "motor_inertia = 1e6\n\n" + DYN)],
+     ["[servo] motor_inertia = 1000000.0", "0 <= value <= 9.877e+05 [kg m^2]", "at most 1e+06 kg m^2"]),
+    ("mesh_damping_over_cap", [(MODULE_LINE, "module = 0.1\n"), ("face_width = 0.01", "face_width = 1.0"),
+                               ("teeth = 80", "teeth = 20"), ("damping_ratio = 0.05", "damping_ratio = 2.0"),
+                               (DYN, SERVO + "motor_inertia = 9e5\nload_inertia = 9e5\n\n" + DYN)],
+     ["[dynamics] damping_ratio = 2.0", "c = 2 zeta sqrt(k m_eq)", "at most 1e+08 N s/m",
+      "[dynamics] damping_coefficient"]),
+    ("smooth_friction_stiff", [(DYN, SERVO + 'coulomb_friction1 = 1e4\nfriction_law = "smooth"\n\n' + DYN)],
+     ["[servo] coulomb_friction1 = 10000.0", 'friction_law = "smooth"', "0 <= value <= 0.00196 [N m]",
+      "at least 10 us"]),
+    ("torque_limit_floor", [(DYN, SERVO + "torque_limit = 1e-300\n\n" + DYN)],
+     ["[servo] torque_limit = 1e-300", "1e-06 <= value <= 1e+06 (or inf: none) [N m]"]),
 ]
 
 
@@ -310,3 +340,29 @@ def test_missing_file(tmp_path: Path, capsys) -> None:
     assert main(["info", str(path)]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and str(path) in err
+
+
+def test_relative_checks_name_a_train_stage() -> None:
+    # a train's stage keys are named [stage i] key, as the train format writes them
+    with pytest.raises(InputError) as info:
+        load_model("servo_2stage_phm09", face_width=5e-5)
+    assert "[stage 1] face_width = 5e-05 is out of range: expected at least 0.1 x module" in str(info.value)
+    assert info.value.field == "face_width"
+    with pytest.raises(InputError, match=r"\[stage 1\] damping_ratio = 2\.0 is out of range"):
+        load_model("servo_2stage_phm09", module=0.1, face_width=1.0, teeth1=20, teeth2=20, damping_ratio=2.0,
+                   motor_inertia=9e5, load_inertia=9e5, intermediate_inertia=[9e5])
+
+
+def test_relative_limits_keep_the_catalog_valid() -> None:
+    # every catalog model sits well inside the new relative limits (the closest: Quanser's third stage, a gear
+    # 1.57x its solid disk; the thinnest face width 2 modules)
+    from gearctl.geometry import pair_geometry
+    from gearctl.model import GEAR_INERTIA_FACTOR, MIN_FACE_WIDTH_PER_MODULE, disk_inertia
+
+    for name in model_names():
+        for st in load_model(name).stages:
+            p, g = st.pair, pair_geometry(st.pair)
+            assert p.face_width >= 20 * MIN_FACE_WIDTH_PER_MODULE * p.module, name
+            for j in range(2):
+                ratio = g.inertia[j] / disk_inertia(p, g.pitch_radius[j])
+                assert 1 / GEAR_INERTIA_FACTOR < ratio / 100 and ratio * 100 < GEAR_INERTIA_FACTOR, name

@@ -575,7 +575,8 @@ class Found:
     model: str
     commands: tuple[tuple[str, ...], ...]  # MODEL stands for the model
     budget: float  # [s]: a warm fork server runs each of these commands in well under a second when it works
-    reason: str
+    reason: str  # what failed, and why
+    fixed: str = ""  # how it ends since the fix (empty: still failing, a strict xfail)
 
 
 FOUND_CASES = {
@@ -586,71 +587,111 @@ FOUND_CASES = {
                              "(the mean-stiffness linear law), but the tvms right-hand side uses the time-varying "
                              "stiffness, so at t = 2.547 ms (fuzz model) hold_coef says T - T_c = +0.006 N m (slip on) "
                              "while the rhs gives -0.022 N m (decelerate); the type-2 transition records no event, so "
-                             "the run's event budget never trips, and h is not reduced"),
+                             "the run's event budget never trips, and h is not reduced",
+        fixed=(
+        "fixed in the kernel (commit 241b494: the zero-speed test takes the held torque from the plant's "
+        "own force law): the run ends in well under a second")),
     "friction_servo_tvms_move": Found("shing1993_servo_friction", (
         ("track", "MODEL", "pid", "--plant", "tvms", "--reference", "move", "--duration", "0.5"),), 4.0,
         "hang on a catalog model and controller: `gearctl track shing1993_servo_friction pid --plant tvms "
         "--reference move` (and `precision shing1993_servo_friction pid --plant tvms --cycles 1`) never end; "
-        "the stick-slip load shaft on the tvms plant (the cause of stick_slip_tvms)"),
+        "the stick-slip load shaft on the tvms plant (the cause of stick_slip_tvms)",
+        fixed=(
+        "fixed in the kernel (commit 241b494), as stick_slip_tvms")),
     "stick_slip_yang_sun": Found("stick_slip_yang_sun.toml", (("simulate", "MODEL", "--plant", "yang-sun",
                                                                  "--duration", "0.003"),), 4.0,
                                  "hang: the stick_slip_tvms loop with the Yang-Sun force law (its velocity-dependent "
-                                 "damping is not in hold_coef either)"),
+                                 "damping is not in hold_coef either)",
+        fixed=(
+        "fixed in the kernel (commit 241b494), as stick_slip_tvms")),
     "overdamped_mesh": Found("overdamped_mesh.toml", (("linearize", "MODEL"), ("track", "MODEL", "pid", "--duration",
                                                                              "0.1")), 30.0,
                              "traceback: damping_ratio = 1.5 (allowed 0..2) makes the contact mode overdamped; "
                              "gearctl/modes.py mesh_mode takes argmax of the oscillating poles, an empty array "
                              "(ValueError), in linearize and in every PID-based design (pid, deadzone_inverse, "
-                             "reversal_offset via design_pid -> sampled_margins -> linearize_modes)"),
+                             "reversal_offset via design_pid -> sampled_margins -> linearize_modes)",
+        fixed=(
+        "fixed: modes.mesh_mode takes the overdamped mesh's real pole pair (natural frequency sqrt(k / "
+        "m_eq), damping ratio 1.5 from the pair's product and sum); linearize reports it as overdamped, "
+        "the PID-based designs run")),
     "tiny_face_width": Found("tiny_face_width.toml", (("info", "MODEL"),), 30.0,
                              "traceback: face_width = 1e-300 m is allowed ((0, 1] m); the gear inertias underflow "
                              "to 0 and gearctl/plant.py natural_frequency divides by the equivalent mass "
                              "(ZeroDivisionError); with 5e-324 m stiffness.py prints overflow RuntimeWarnings "
-                             "(eq 17) and equivalent_mass divides by zero"),
+                             "(eq 17) and equivalent_mass divides by zero",
+        fixed=(
+        "fixed: [pair] face_width = 1e-300 is refused in one line (FACE_WIDTH: 1e-05 <= value <= 1 m; "
+        "and at least 0.1 x module)")),
     "tiny_module": Found("tiny_module.toml", (("info", "MODEL"),), 30.0,
                          "vague error: module = 1e-300 m is allowed ((0, 0.1] m); the geometry underflows and the "
                          "one-line error blames addendum_coefficient = 1 (not in the file) for a contact ratio of "
-                         "-5.8; a physical lower bound on the module (and face width) would name the key"),
+                         "-5.8; a physical lower bound on the module (and face width) would name the key",
+        fixed=(
+        "fixed: [pair] module = 1e-300 is refused in one line naming module (MODULE: 1e-05 <= value <= "
+        "0.1 m)")),
     "tiny_gear_inertia": Found("tiny_gear_inertia.toml", (("linearize", "MODEL"), ("simulate", "MODEL", "--plant",
                                                                                    "yang-sun", "--duration", "0.001")),
                                4.0, "[gear1] inertia = 1e-300 kg m^2 is allowed (any value > 0, no relative check "
                                "against the disk inertia): linearize prints numpy overflow RuntimeWarnings "
                                "(modes.py _siso_tf clean), simulate --plant yang-sun never ends (mesh mode 3.5e151 "
-                               "Hz, DOPRI5 without a step budget)"),
+                               "Hz, DOPRI5 without a step budget)",
+        fixed=(
+        "fixed: [gear1] inertia = 1e-300 is refused in one line (within GEAR_INERTIA_FACTOR = 1000x the "
+        "solid disk of its pitch radius)")),
     "tiny_torque_limit": Found("tiny_torque_limit.toml", (("track", "MODEL", "mpc", "--duration", "0.1"),), 4.0,
                                "hang: torque_limit = 1e-300 N m is allowed ((0, 1e6]); the MPC's crossing time "
                                "t_cross = 2 sqrt(2b / (a_max / 4)) is astronomical, n_cross = ceil(t_cross / Ts) "
                                "unbounded, and MPC._build_patterns (design/mpc.py) loops over it; with 5e-324 the "
-                               "same line divides by zero (ZeroDivisionError)"),
+                               "same line divides by zero (ZeroDivisionError)",
+        fixed=(
+        "fixed: [servo] torque_limit = 1e-300 is refused in one line (TORQUE_LIMIT: 1e-06 <= value <= "
+        "1e6 N m, or inf); at the floor, 1e-6 N m, the MPC runs")),
     "tiny_backlash_mpc": Found("tiny_backlash_mpc.toml", (("track", "MODEL", "mpc", "--reference", "ramp",
                                                            "--duration", "0.1"),), 30.0,
                                "noise on stderr: backlash = 1e-124 m (allowed) makes the MPC's linear algebra meet "
                                "NaN (scipy.linalg _basic.py: 'invalid value encountered in cast'), and the run "
-                               "reports success"),
+                               "reports success",
+        fixed=(
+        "fixed: [pair] backlash = 1e-124 is refused in one line (0, or at least 1e-09 m); at the floor, "
+        "1e-9 m, the MPC runs without NaN")),
     "tiny_load_torque_mpc": Found("tiny_load_torque_mpc.toml", (("track", "MODEL", "mpc", "--reference", "step",
                                                                  "--duration", "0.1"),), 30.0,
                                   "traceback: load_torque = 2.2e-308 N m (allowed) leaves the MPC's speed estimate "
                                   "at ~1e-300 m/s; MPC.step (design/mpc.py) computes math.ceil(distance / (v Ts)) "
-                                  "= ceil(inf): OverflowError"),
+                                  "= ceil(inf): OverflowError",
+        fixed=(
+        "fixed in gearctl/design/mpc.py (its sample counts are capped, _samples): the run ends normally")),
     "designed_gain_out_of_range": Found("designed_gain_out_of_range.toml", (("track", "MODEL", "pid", "--duration",
                                                                              "0.1"),), 30.0,
                                         "vague error: the PID designed on a 2e5 kg m^2 load needs kp = 1.15e9 N m/rad "
                                         "> 1e9; the one line blames 'controllers/pid.toml: kp = ...', a key that file "
                                         "does not have (the issue's 'blames kp, which the user never set'); also "
-                                        "deadzone_inverse, reversal_offset, adaptive_inverse"),
+                                        "deadzone_inverse, reversal_offset, adaptive_inverse",
+        fixed=(
+        "fixed: the design's line names bandwidth_hz (and the model's rigid-train inertia), not a kp the "
+        "file does not have")),
     "smooth_friction_stiff": Found("smooth_friction_stiff.toml", (("simulate", "MODEL", "--duration", "0.003"),), 4.0,
                                    "hang: coulomb_friction1 = 1e4 N m on the bare pinion under friction_law = "
                                    "'smooth' (a 1e7 N m s/rad damper at standstill: time constant 2 ps; the same "
                                    "viscous_friction1 would be refused by MAX_FRICTION_RATE) drives the ODE path to "
-                                   "picosecond steps, with no step budget"),
+                                   "picosecond steps, with no step budget",
+        fixed=(
+        "fixed: [servo] coulomb_friction1 = 1e4 with friction_law = 'smooth' is refused in one line (T_c "
+        "/ coulomb_velocity bounded like viscous friction, MAX_FRICTION_RATE)")),
     "huge_gear": Found("huge_gear.toml", (("info", "MODEL"),), 30.0,
                        "vague error: 1000 x 1000 teeth of module 50 mm pass the file's checks, then the plant "
                        "refuses 'rb1 = 23.49 is out of range: expected 0 < value <= 10 [m]', a name the file does "
-                       "not have (BASE_RADIUS is narrower than teeth x module allow)"),
+                       "not have (BASE_RADIUS is narrower than teeth x module allow)",
+        fixed=(
+        "fixed: the line names [gear1] teeth and [pair] module (base radius 23.49 m > 10 m), checked in "
+        "model.check_model")),
     "shaft_inertia_over_cap": Found("shaft_inertia_over_cap.toml", (("info", "MODEL"),), 30.0,
                                     "vague error: motor_inertia = 1e6 (its maximum) plus the 1.2e4 kg m^2 pinion "
                                     "passes the file's checks, then the plant refuses 'J = 1.012e+06 is out of "
-                                    "range' (INERTIA's 1e6 cap on the shaft total), a name the file does not have"),
+                                    "range' (INERTIA's 1e6 cap on the shaft total), a name the file does not have",
+        fixed=(
+        "fixed: the line names [servo] motor_inertia (at most 9.877e5 kg m^2 with the 1.2e4 kg m^2 "
+        "pinion: a shaft at most 1e6)")),
 }
 
 
@@ -661,8 +702,8 @@ def server():
         yield srv
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=f"issue 11: {c.reason}"))
-                                  for n, c in FOUND_CASES.items()])
+@pytest.mark.parametrize("name", [pytest.param(n, marks=() if c.fixed else pytest.mark.xfail(
+    strict=True, reason=f"issue 11: {c.reason}")) for n, c in FOUND_CASES.items()])
 def test_fuzz_found(name: str, server, tmp_path: Path) -> None:
     case = FOUND_CASES[name]
     model = str(FOUND / case.model) if case.model.endswith(".toml") else case.model

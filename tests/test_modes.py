@@ -96,6 +96,54 @@ def test_damping_ratio_is_the_models(plants: dict[str, Plant], name: str) -> Non
     assert_allclose(linearize_modes(p).mesh.natural_frequency, math.sqrt(p.k / m_eq(p)), rtol=1e-6)
 
 
+@pytest.mark.parametrize("zeta", [1.0 + 1e-6, 1.5, 2.0])
+def test_overdamped_mesh_mode_closed_form(plants: dict[str, Plant], zeta: float) -> None:
+    # damping_ratio above 1 (the schema allows up to 2): no oscillating pole. Without shaft friction the contact
+    # model's polynomial is s^2 (s^2 + 2 zeta wn s + wn^2), wn = sqrt(k / m_eq): the mesh poles are
+    # -wn (zeta -+ sqrt(zeta^2 - 1)), and the mesh mode must report wn and zeta (product and sum of the pair),
+    # not the frequency of one real pole; 1e-9 for the eigenvalue solver (we see 1e-15)
+    p = build_plant(load_model("shing1993_servo", damping_ratio=zeta))
+    still = dataclasses.replace(p, d1=0.0, d2=0.0)
+    mesh = linearize_modes(still).mesh
+    wn = math.sqrt(p.k / m_eq(p))
+    assert_allclose(mesh.natural_frequency, wn, rtol=1e-9)
+    assert_allclose(mesh.damping_ratio, zeta, rtol=1e-9)
+    assert mesh.overdamped
+    root = math.sqrt(zeta**2 - 1)
+    poles = np.sort(contact_mode_model(still).poles().real)
+    assert_allclose(poles[:2], [-wn * (zeta + root), -wn * (zeta - root)], rtol=1e-9)  # we see 3e-14
+    # zeros of motor torque -> motor angle: J2 s^2 + c rb2^2 s + k rb2^2 (the motor held), by the same rule
+    # (1e-9 for the polynomial root finder: we see 3e-11)
+    wz = math.sqrt(p.k * p.rb2**2 / p.J2)
+    assert_allclose(mesh.antiresonance, wz, rtol=1e-9)
+    assert_allclose(mesh.antiresonance_damping, p.c * p.rb2**2 / (2 * p.J2 * wz), rtol=1e-9)
+    # with the servo's viscous friction the pair moves (we see 1e-5 on zeta, 2e-11 on wn): 1e-3, as for 0.05
+    with_friction = linearize_modes(p).mesh
+    assert_allclose(with_friction.damping_ratio, zeta, rtol=1e-3)
+    assert_allclose(with_friction.natural_frequency, wn, rtol=1e-3)
+    assert linearize_modes(plants["shing1993_servo"]).mesh.overdamped is False
+
+
+def test_overdamped_mesh_designs_and_reports(capsys: pytest.CaptureFixture[str]) -> None:
+    # every caller of the mesh mode copes: the PID designs (via sampled_margins -> linearize_modes), linearize
+    # reports the mode as overdamped in text and JSON
+    from gearctl.catalog import load_controller
+
+    path = Path(__file__).parent / "data" / "fuzz" / "overdamped_mesh.toml"
+    plant = build_plant(load_model(path))
+    for name in ("pid", "deadzone_inverse", "reversal_offset"):
+        assert load_controller(name, plant).Ts == 1e-3
+    assert main(["linearize", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["overdamped"] is True and out["resonances_hz"] == []
+    assert_allclose(out["damping_ratio"], 1.5, rtol=1e-3)
+    assert_allclose(out["natural_frequency_hz"], 2761.2, rtol=1e-4)  # the servo's mesh mode, as with zeta 0.05
+    assert main(["linearize", str(path)]) == 0
+    assert "damping ratio 1.5 (overdamped" in capsys.readouterr().out
+    assert main(["linearize", "shing1993_servo", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["overdamped"] is False
+
+
 @pytest.mark.parametrize("name", MODELS)
 def test_antiresonance_closed_form(plants: dict[str, Plant], name: str) -> None:
     p = bare(plants[name])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import errno
 import json
 import math
 import sys
@@ -14,14 +15,13 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..units import Spec
+from ..units import POINTS, Spec
 
 __all__ = ["spec_arg", "positive_float", "finite_float", "nonnegative_float", "dump_json", "write_csv_stream",
            "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE", "TARGETS", "CYCLES",
            "STAGE", "JOBS", "WHOLE"]
 
-#: command-line quantities not in a model file
-POINTS = Spec(unit="1", doc="sample points", low=2, high=1_000_000, integer=True)
+#: command-line quantities not in a model file (POINTS is the schema's: the Python API checks the same range)
 OMEGA = Spec(unit="rad/s", doc="initial shaft speed", low=-1e5, high=1e5)
 TORQUE = Spec(unit="N m", doc="torque", low=-1e6, high=1e6)
 TARGETS = Spec(unit="1", doc="target positions", low=2, high=50, integer=True)
@@ -108,6 +108,14 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
     """Write a CSV in chunks of rows: ``columns(i0, i1)`` gives the columns of rows ``i0..i1``.
 
     Floats are written with 10 significant digits; memory stays bounded by one chunk.
+
+    Raises
+    ------
+    InputError
+        If the file cannot be opened or written (``cannot write PATH: reason``).
+    BrokenPipeError
+        If ``path`` is a pipe whose reader went away (``--csv /dev/stdout | head``): not an input error, so
+        it propagates to :func:`gearctl.cli.main`, which ends quietly as for any closed output pipe.
     """
     p = Path(path)
     try:
@@ -120,7 +128,11 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
                 text = [c if isinstance(c, list) else np.char.mod("%.10g", np.asarray(c, dtype=float)).tolist()
                         for c in cols]
                 w.writerows(zip(*text, strict=True))
+    except BrokenPipeError:
+        raise
     except OSError as exc:
+        if exc.errno == errno.EPIPE:  # a closed pipe reported as a plain OSError: the same quiet end
+            raise BrokenPipeError(exc.errno, exc.strerror) from None
         raise InputError(f"cannot write {path}: {exc.strerror}") from None
 
 

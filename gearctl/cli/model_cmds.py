@@ -269,6 +269,7 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
         "poles": [[float(p.real), float(p.imag)] for p in sys_.poles()],
         "natural_frequency_hz": mesh.natural_frequency_hz if contact else None,
         "damping_ratio": mesh.damping_ratio if contact else None,
+        "overdamped": mesh.overdamped if contact else None,
         "antiresonance_hz": mesh.antiresonance_hz if contact else None,
         "resonances_hz": list(modes.resonances_hz),
         "lost_motion": modes.lost_motion,
@@ -298,8 +299,10 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
           f"outputs {', '.join(out['outputs'])}")
     print("  poles                  " + ", ".join(f"{p.real:.5g}{p.imag:+.5g}j" for p in sys_.poles()))
     if contact:
-        print(f"  mesh mode              {mesh.natural_frequency_hz:.5g} Hz, damping ratio {mesh.damping_ratio:.4g}; "
-              f"anti-resonance {mesh.antiresonance_hz:.5g} Hz (motor torque -> motor angle)")
+        over = " (overdamped: real poles, no ringing)" if mesh.overdamped else ""
+        print(f"  mesh mode              {mesh.natural_frequency_hz:.5g} Hz, damping ratio "
+              f"{mesh.damping_ratio:.4g}{over}; anti-resonance {mesh.antiresonance_hz:.5g} Hz "
+              f"(motor torque -> motor angle)")
         if n > 1:
             print("  resonances             " + ", ".join(f"{f:.5g}" for f in modes.resonances_hz) + " Hz")
     p = modes.plant
