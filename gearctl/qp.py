@@ -34,6 +34,7 @@ import ctypes
 import enum
 import functools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -41,7 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 from .build import CompileError, compile_disabled, shared_library
 from .errors import InputError, SolverError
 
-__all__ = ["DenseQP", "QPFactor", "QPStatus", "SOURCE_DIR"]
+__all__ = ["DenseQP", "QPFactor", "QPStatus", "SOURCE_DIR", "matvec_function"]
 
 #: Folder of the solver's C sources (``gearctl_qp.h``, ``gearctl_qp.c``).
 SOURCE_DIR = Path(__file__).parent / "csrc" / "qp"
@@ -114,9 +115,23 @@ def _lib() -> ctypes.CDLL:
     lib.gearctl_qp_work_size.argtypes = [ctypes.c_int, ctypes.c_int]
     lib.gearctl_qp_factor_size.restype = ctypes.c_long
     lib.gearctl_qp_factor_size.argtypes = [ctypes.c_int]
+    lib.gearctl_qp_matvec.restype = None
+    lib.gearctl_qp_matvec.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p,
+                                      ctypes.c_void_p]
     lib.gearctl_qp_default_settings.restype = None
     lib.gearctl_qp_default_settings.argtypes = [ctypes.c_void_p]
     return lib
+
+
+def matvec_function() -> Any:
+    """The C function ``gearctl_qp_matvec(rows, cols, a, x, y)``: ``y = A x`` for a C-order ``A``, each row
+    summed in index order (arguments: two ints and three data addresses, e.g. ``arr.ctypes.data``).
+
+    It gives the same rounding on every machine, where ``numpy.dot`` rounds as the CPU's BLAS kernel
+    orders its sums; the MPC forms its QP gradient with it, so that the exported C MPC, which sums its
+    rows in the same order, gives the same torques to the last bit.
+    """
+    return _lib().gearctl_qp_matvec
 
 
 # --- the solver ----------------------------------------------------------------------------------------

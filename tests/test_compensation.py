@@ -16,12 +16,17 @@ the day they are met. Measured (urad, A / B / R):
 ==========================  ======================  ========================
 controller                  shing1993_servo         shing1993_servo_friction
 ==========================  ======================  ========================
-pid                         2341 / 888 / 2086       1461 / 1215 / 1215
-pid, backlash-free plant    17.7 / 16.9 / 17.2      386 / 369 / 369
-deadzone_inverse            3292 / 978 / 2061       224 / 109 / 113
-reversal_offset             2473 / 2218 / 2431      386 / 369 / 369
-mpc                         327 / 44 / 327          8.4 / 3.5 / 6.8
+pid                         1386 / 1318 / 1349      1690 / 1502 / 1519
+pid, backlash-free plant    1.5 / 1.0 / 1.5         7.6 / 4.8 / 5.4
+deadzone_inverse            2458 / 562 / 1569       24 / 2.4 / 24
+reversal_offset             2668 / 2642 / 2668      190 / 88 / 102
+mpc                         327 / 44 / 327          7.7 / 2.8 / 7.7
 ==========================  ======================  ========================
+
+The PID's feedforward (inertia at mid-sample, the reference speed filtered as its measurement is, Coulomb
+friction; :class:`gearctl.design.pid.PID`) took the backlash-free figures from 17.7 / 16.9 / 17.2 (servo)
+and 386 / 369 / 369 urad (friction) to the ones above: the reference the compensators are held to moved
+12x and 50x closer to zero.
 
 The ISO runs take 0.5-2.5 s each; the module takes about 25 s. Those that only confirm an unmet claim on
 the frictionless servo are marked ``slow``.
@@ -29,6 +34,7 @@ the frictionless servo are marked ``slow``.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +43,9 @@ import pytest
 from gearctl import InputError, build_plant, load_model
 from gearctl.catalog import load_controller, read_toml, resolve
 from gearctl.closedloop import simulate_closed_loop
+from gearctl.design import deadzone
 from gearctl.design.deadzone import DeadzoneInverse, OffsetRamp, ramp_shape
+from gearctl.design.pid import PID
 from gearctl.design.registry import build_controller
 from gearctl.design.reversal import ReversalOffset
 from gearctl.precision import precision_test
@@ -97,21 +105,22 @@ def _servo_slow_xfail(reason: str) -> list[pytest.MarkDecorator]:
     FRICTION,
     pytest.param(SERVO, marks=_servo_slow_xfail(
         "issue 12 claim not met on the frictionless servo: best ISO accuracy is the MPC's, A = 327 urad against "
-        "17.7 urad for the PID on the backlash-free plant (18x, not <= 3x). The MPC ends each move within a few "
-        "urad, but the free load (no friction, elastic mesh impacts) leaves its flank at a few 1e-4 rad/s after "
-        "some stops and drifts within the standstill deadband; holding a frictionless load needs a preloaded "
+        "1.5 urad for the PID on the backlash-free plant (218x, not <= 3x; before the PID's feedforward "
+        "corrections the backlash-free PID gave 17.7 urad). The MPC ends each move within a few urad, but the "
+        "free load (no friction, elastic mesh impacts, restitution ~0.85) leaves its flank at a few 1e-4 rad/s "
+        "after some stops and drifts within the standstill deadband: only impacts slower than the kernel's "
+        "plastic limit (1e-6 m/s on the line of action, 1.3e-5 rad/s at the load) leave it at rest, below what "
+        "a plan on 1.1e-7 m encoder counts can aim in a dwell; holding a frictionless load needs a preloaded "
         "(anti-backlash) train")),
 ])
 def test_best_compensator_reaches_backlash_free_accuracy(runs: _Runs, model: str) -> None:
-    # measured on shing1993_servo_friction: best = mpc, A = 8.4 urad against 386 urad for the PID on the
-    # backlash-free plant (ratio 0.022; the PID there is limited by the load's friction, which the MPC's
-    # disturbance estimate and the inverse's friction feedforward remove). The issue asks for <= 3; the
-    # ratio is kept below 0.5 (a 20x margin on the measurement, 6x on the claim)
+    # measured on shing1993_servo_friction: best = mpc, A = 7.7 urad against 7.6 urad for the PID on the
+    # backlash-free plant (ratio 1.01; the inverse gives 24 urad). The issue asks for <= 3, kept: a 3x margin on
+    # the measurement. The backlash-free PID is now limited by the encoder and friction, not its feedforward
     free = runs.iso(model, "free")["accuracy"]
     best = min(runs.iso(model, c)["accuracy"] for c in COMPENSATORS)
     print(f"\n{model}: best A {best * 1e6:.1f} urad, backlash-free PID {free * 1e6:.1f} urad, ratio {best / free:.3f}")
     assert best <= 3.0 * free
-    assert best <= 0.5 * free
 
 
 # --- 2. the dead-zone inverse (motor encoder only) against the lost motion ----------------------------------
@@ -120,22 +129,24 @@ def test_best_compensator_reaches_backlash_free_accuracy(runs: _Runs, model: str
 @pytest.mark.parametrize("model", [
     FRICTION,
     pytest.param(SERVO, marks=_servo_slow_xfail(
-        "issue 12 claim not met on the frictionless servo: the inverse (motor encoder only) gives B = 978, "
-        "R = 2061 urad (0.74 and 1.55 L). The inner targets are within +-60 urad; the end targets, reached "
-        "after the 0.02 rad ISO overshoot moves, end with the load floating off its flank (a motor encoder "
-        "cannot see it), as the PID does")),
+        "issue 12 claim not met on the frictionless servo: the inverse (motor encoder only) gives B = 562, "
+        "R = 1569 urad (0.42 and 1.18 L). The inner targets are within +-30 urad; the end targets, reached "
+        "after the 0.02 rad ISO overshoot moves, end with the load floating off its flank after the landing of "
+        "the move's deceleration (the bounces of a 0.85-restitution mesh outlast the 40 ms of deceleration "
+        "left; 2e-3 rad/s measured at the end of one, 600 urad over the dwell), which a motor encoder cannot "
+        "see")),
 ])
 def test_inverse_cuts_reversal_and_repeatability(runs: _Runs, model: str) -> None:
-    # measured on shing1993_servo_friction: B = 109 urad (0.082 L), R = 113 urad (0.085 L) against the PID's
-    # 1215 / 1215 urad (0.91 L); the issue asks for <= 0.15 L each (200 urad), kept with that bound
-    # (measured 0.55x of it) and an improvement over the PID of at least 5x (measured 11x)
+    # measured on shing1993_servo_friction: B = 2.4 urad (0.002 L), R = 24 urad (0.018 L) against the PID's
+    # 1502 / 1519 urad (1.13 L); the issue asks for <= 0.15 L each (200 urad), kept with that bound (measured
+    # 0.12x of it) and an improvement over the PID of at least 50x (measured 630x)
     L = runs.lost_motion(model)
     inv, pid = runs.iso(model, "deadzone_inverse"), runs.iso(model, "pid")
     B, R = inv["reversal_value"], inv["repeatability"]
     print(f"\n{model}: inverse B {B * 1e6:.1f} ({B / L:.3f} L), R {R * 1e6:.1f} ({R / L:.3f} L) urad")
     assert B <= 0.15 * L
     assert R <= 0.15 * L
-    assert B <= pid["reversal_value"] / 5.0
+    assert B <= pid["reversal_value"] / 50.0
 
 
 # --- 3. a backlash estimate off by +-20 % ---------------------------------------------------------------------
@@ -143,58 +154,73 @@ def test_inverse_cuts_reversal_and_repeatability(runs: _Runs, model: str) -> Non
 
 @pytest.mark.parametrize(("model", "factor"), [
     (FRICTION, 1.2),
-    pytest.param(FRICTION, 0.8, marks=pytest.mark.xfail(strict=True, reason=(
-        "at the bound, not below: with 0.8 b the inverse's B is 406 urad against the PID's 1215 / 3 = 405 urad "
-        "(ratio 2.99). The offset error alone is 2 x 0.2 b / r_b2 = 266 urad, and the end targets' residual "
-        "(the load stops 125 urad short after the overshoot moves) has the same sign"))),
+    (FRICTION, 0.8),
     pytest.param(SERVO, 0.8, marks=_servo_slow_xfail(
-        "not met on the frictionless servo: B = 723 urad with 0.8 b against the PID's 888 / 3 = 296 urad")),
+        "not met on the frictionless servo: B = 959 urad with 0.8 b against the PID's 1318 / 3 = 439 urad")),
     pytest.param(SERVO, 1.2, marks=_servo_slow_xfail(
-        "not met on the frictionless servo: B = 1290 urad with 1.2 b against the PID's 888 / 3 = 296 urad")),
+        "not met on the frictionless servo: B = 706 urad with 1.2 b against the PID's 1318 / 3 = 439 urad")),
 ])
 def test_wrong_backlash_estimate_keeps_reversal_down(runs: _Runs, model: str, factor: float) -> None:
-    # measured on shing1993_servo_friction with 1.2 b: B = 265 urad against the PID's 1215 urad (4.6x; the
-    # issue asks for >= 3x). An overestimate puts the load 0.2 b / r_b2 = 133 urad past the target from each
-    # side, so B is about 2 x 133 urad plus the end targets' residual of the other sign
+    # measured on shing1993_servo_friction against the PID's B = 1502 urad: with 1.2 b, B = 56 urad (27x: the
+    # crossing ends where the motor meets the load, short of the estimate's flank); with 0.8 b, B = 294 urad
+    # (5.1x: the offset error 2 x 0.2 b / r_b2 = 266 urad, the motor stops short of the flank). The issue asks
+    # for >= 3x; kept, and >= 4x (margins 6.8x and 1.3x on the measurements)
     B = runs.iso(model, "deadzone_inverse", factor)["reversal_value"]
     B_pid = runs.iso(model, "pid")["reversal_value"]
     print(f"\n{model}, estimate {factor} b: inverse B {B * 1e6:.1f} urad, PID {B_pid * 1e6:.1f} urad, "
           f"ratio {B_pid / B:.2f}")
     assert B_pid >= 3.0 * B
+    assert B_pid >= 4.0 * B
 
 
 def test_mpc_with_an_underestimated_backlash_keeps_its_accuracy(runs: _Runs) -> None:
-    # the MPC measures the gap with both encoders: with 0.8 b on shing1993_servo_friction it gives B = 4.0 urad
-    # (3.5 with the right estimate), 300x below the PID's 1215; kept within 30 urad and 30x. (With 1.2 b it
-    # never sees contact, |s| <= b < 1.2 b - tol, and fails: A = 15 mrad; reported, not tested here.)
+    # the MPC measures the gap with both encoders: with 0.8 b on shing1993_servo_friction it gives B = 3.1 urad
+    # (2.8 with the right estimate), 480x below the PID's 1502; kept within 30 urad and 30x
     B = runs.iso(FRICTION, "mpc", 0.8)["reversal_value"]
     assert B <= 30e-6
     assert runs.iso(FRICTION, "pid")["reversal_value"] >= 30.0 * B
+
+
+def test_mpc_finds_the_flanks_of_an_overestimated_backlash() -> None:
+    # with 1.2 b the gap never reaches b_est - tol: before the MPC took each flank where the measured gap turns
+    # back, it never saw contact and collapsed (A = 14.9 mrad on the ISO test). One ISO cycle on
+    # shing1993_servo_friction: both flanks are found within 3 % of the true b (measured 1.016 b and 1.020 b:
+    # the furthest gap includes the mesh deflection and half the contact tolerance), and the load ends every
+    # approach within 0.6 mrad (measured A = 0.93 mrad over 5 cycles, B = 0.15 mrad: 10x below the PID's B;
+    # not yet the right estimate's 7.7 urad: some approaches from below end 0.1-0.5 mrad short)
+    m = load_model(FRICTION)
+    plant = build_plant(m)
+    ctrl = load_controller("mpc", plant, backlash=1.2 * plant.backlash)
+    res = precision_test(plant, ctrl, cycles=1, sensors=m.sensors)
+    flanks = np.array(ctrl._flanks) / plant.backlash
+    print(f"\nflanks found at {flanks} b, A {res.stats['accuracy'] * 1e6:.0f} urad")
+    np.testing.assert_allclose(flanks, 1.0, rtol=0.03)
+    assert res.stats["accuracy"] <= 1.5e-3
 
 
 # --- 4. the industrial reversal offset beside them --------------------------------------------------------
 
 
 def test_reversal_offset_beats_the_pid_on_a_friction_load(runs: _Runs) -> None:
-    # measured on shing1993_servo_friction: reversal offset A / B / R = 386 / 369 / 369 urad against the PID's
-    # 1461 / 1215 / 1215 (B ratio 0.30) and the backlash-free PID's 386 / 369 / 369: the offset takes up the
-    # whole lost motion, what is left is the PID's own friction lag. Kept: B below half the PID's, and within
-    # 10 % of the backlash-free PID's. The torque-sign inverse is better still (B = 109 urad): it also feeds
-    # the load's friction forward
-    rev, pid, free = (runs.iso(FRICTION, c) for c in ("reversal_offset", "pid", "free"))
+    # measured on shing1993_servo_friction: reversal offset A / B / R = 190 / 88 / 102 urad against the PID's
+    # 1690 / 1502 / 1519 (B ratio 0.058): the offset takes up the lost motion, what is left is its reversal
+    # transient (the offset moves 10 ms after the command reverses, with the friction fed forward already).
+    # The torque-sign inverse is better still (B = 2.4 urad: it crosses on the torque's sign and releases the
+    # integrator on the observer's estimate). Kept: B below a tenth of the PID's, and above the inverse's
+    rev, pid, inv = (runs.iso(FRICTION, c) for c in ("reversal_offset", "pid", "deadzone_inverse"))
     print(f"\nreversal offset B {rev['reversal_value'] * 1e6:.1f}, PID {pid['reversal_value'] * 1e6:.1f}, "
-          f"backlash-free PID {free['reversal_value'] * 1e6:.1f} urad")
-    assert rev["reversal_value"] <= 0.5 * pid["reversal_value"]
-    assert rev["reversal_value"] == pytest.approx(free["reversal_value"], rel=0.1)
+          f"inverse {inv['reversal_value'] * 1e6:.1f} urad")
+    assert rev["reversal_value"] <= 0.1 * pid["reversal_value"]
+    assert rev["reversal_value"] > inv["reversal_value"]
 
 
 @pytest.mark.slow
 def test_reversal_offset_loses_on_an_inertial_load(runs: _Runs) -> None:
-    # measured on shing1993_servo: the reversal offset's B = 2218 urad, worse than the PID's 888: every move's
+    # measured on shing1993_servo: the reversal offset's B = 2642 urad, worse than the PID's 1318: every move's
     # deceleration is carried by the back flank while the command still moves forward, so the offset holds
     # the motor on the wrong side of the gap and the load ends a full lost motion from where the offset
-    # assumes it. The torque-sign inverse's B = 978 urad. Kept: the offset is worse than the PID by 1.5x
-    # (measured 2.5x) and worse than the inverse
+    # assumes it. The torque-sign inverse's B = 562 urad. Kept: the offset is worse than the PID by 1.5x
+    # (measured 2.0x) and worse than the inverse
     rev, pid, inv = (runs.iso(SERVO, c)["reversal_value"] for c in ("reversal_offset", "pid", "deadzone_inverse"))
     assert rev >= 1.5 * pid
     assert rev > inv
@@ -206,7 +232,7 @@ def test_reversal_offset_loses_on_an_inertial_load(runs: _Runs) -> None:
 @pytest.mark.parametrize("model", [SERVO, FRICTION])
 def test_inverse_rejects_a_load_disturbance(runs: _Runs, model: str) -> None:
     # `gearctl track MODEL deadzone_inverse --reference step`: 0.05 rad step at 0.1 s, a 0.5 N m load torque
-    # against the motion from 1 s; error at 2 s. Measured: inverse 0.28 urad (servo) and 1.8 urad (friction)
+    # against the motion from 1 s; error at 2 s. Measured: inverse 0.32 urad (servo) and 1.9 urad (friction)
     # against the PID's 665 and 667 urad (b / r_b2: the load rests on the far flank). The observer's estimate
     # (-0.5 N m) puts the motor on the front flank. The issue asks for <= 10 % of the PID's; kept at 1 %
     m = load_model(model)
@@ -272,24 +298,38 @@ def _rest_crossings(res, preview: int) -> list[int]:  # noqa: ANN001 - a ClosedL
     return counts
 
 
-def test_mpc_does_not_hunt_at_standstill() -> None:
-    # one ISO 230-2 cycle on the frictionless servo (12 dwells, 2 reversals of the reference): measured 1 flank
-    # change at rest with the catalog's standstill_deadband (2e-4 rad), 25 without it (the plan then crosses
-    # the gap after errors of a few urad, and every landing kicks the free load). The issue asks for at most
-    # one crossing per reversal at rest; kept, and the deadband must cut the count at least 4x
-    m = load_model(SERVO)
+def _mpc_rest_crossings(model: str, seeds: range, deadband: float | None = None) -> list[int]:
+    """Flank changes at rest over one ISO 230-2 cycle (12 dwells, 2 reversals of the reference), per seed."""
+    m = load_model(model)
     plant = build_plant(m)
     spec = read_toml(resolve("mpc", "controllers"))
-    counts = {}
-    for db in (spec["standstill_deadband"], 0.0):
-        ctrl = build_controller({**spec, "standstill_deadband": db, "max_solve_time": 1.0}, plant,
-                                path=Path("mpc.toml"))
-        res = precision_test(plant, ctrl, cycles=1, sensors=m.sensors).run
-        counts[db] = _rest_crossings(res, ctrl.preview)
-    held, free = counts[spec["standstill_deadband"]], counts[0.0]
-    print(f"\nflank changes at rest: {sum(held)} with the deadband ({held}), {sum(free)} without ({free})")
-    reversals = 2  # one cycle: the two overshoot points
-    assert sum(held) <= reversals
+    if deadband is not None:
+        spec = {**spec, "standstill_deadband": deadband}
+    out = []
+    for seed in seeds:
+        ctrl = build_controller({**spec, "max_solve_time": 1.0}, plant, path=Path("mpc.toml"))
+        res = precision_test(plant, ctrl, cycles=1, sensors=m.sensors, seed=seed).run
+        out.append(sum(_rest_crossings(res, ctrl.preview)))
+    return out
+
+
+def test_mpc_does_not_hunt_at_standstill() -> None:
+    # the issue's claim, at most one crossing per reversal of the reference at rest, on the servo whose load
+    # friction can hold it on a flank: measured 0 flank changes at rest for each of the seeds 0-3
+    counts = _mpc_rest_crossings(FRICTION, range(4))
+    print(f"\nflank changes at rest, friction servo, seeds 0-3: {counts}")
+    assert all(c <= 2 for c in counts), counts  # one cycle: the two overshoot points
+
+
+def test_mpc_standstill_deadband_cuts_the_hunting_on_the_free_load() -> None:
+    # the frictionless servo: the free load, kicked by each landing of a 0.85-restitution mesh, leaves its flank
+    # now and then whatever the plan does. Measured over seeds 0-1: 6 + 2 flank changes at rest with the
+    # catalog's standstill_deadband (2e-4 rad), many more without it (the plan then crosses the gap after errors
+    # of a few urad). Which dwell loses its flank follows the last bit of the arithmetic (seed 0 gave 1 with
+    # numpy's BLAS product, 6 with the index-order product the exported C shares), so the claim is on the sum
+    held = _mpc_rest_crossings(SERVO, range(2))
+    free = _mpc_rest_crossings(SERVO, range(2), deadband=0.0)
+    print(f"\nflank changes at rest, frictionless servo: {held} with the deadband, {free} without")
     assert sum(free) >= 4 * max(sum(held), 1)
 
 
@@ -424,3 +464,104 @@ def test_inverse_holds_its_flank_at_rest_unless_friction_is_exceeded() -> None:
         inv._sigma = 1.0
         inv._observer.x = [0.0, 0.0, d]
         assert inv.flank(0.5, rest) == expected, d
+
+
+# --- 9. the mechanisms behind the figures ---------------------------------------------------------------------
+
+
+def test_pid_feedforward_tracks_the_backlash_free_plant() -> None:
+    # the catalog PID on the backlash-free servo, 1 Hz sine: with its feedforward (inertia at mid-sample, the
+    # reference speed filtered as the measurement is) it tracks to 4.4e-7 rad RMS, against 2.0e-4 rad for the
+    # same gains without feedforward (450x; 8.6e-5 rad with the uncorrected feedforward of the previous PID,
+    # whose derivative term led in every acceleration). Kept: below 2e-6 rad and 100x below the textbook PID
+    m = load_model(SERVO)
+    free = build_plant(m, backlash=0.0)
+    pid = load_controller("pid", free)
+    rms = {}
+    for ff in (True, False):
+        ctrl = PID(pid.info, pid.gains, Ts=pid.Ts, feedforward=ff)
+        res = simulate_closed_loop(free, ctrl, reference("sine"), 3.0, sensors=m.sensors)
+        rms[ff] = float(np.sqrt(np.mean(res.error[res.t >= 0.5] ** 2)))
+    print(f"\nbacklash-free sine RMS: feedforward {rms[True]:.3g} rad, none {rms[False]:.3g} rad")
+    assert rms[True] <= 2e-6
+    assert rms[False] >= 100.0 * rms[True]
+
+
+def test_inverse_crossing_stops_where_the_motor_meets_the_load(monkeypatch: pytest.MonkeyPatch) -> None:
+    # ISO 230-2 on shing1993_servo_friction with a 1.2 b estimate: the motor meets the load 17 % before its ramp
+    # ends and lags the ramp; the crossing then ends there. Measured: B = 56 urad with 5 crossings ended early,
+    # against 425 urad when the ramp runs on (the motor pushes the stuck load 0.2 b / r_b2 further at every
+    # reversal). Kept: 4x (measured 7.6x); with the right estimate no crossing ends early (no false alarm)
+    m = load_model(FRICTION)
+    plant = build_plant(m)
+    B, contacts = {}, {}
+    on = deadzone.CONTACT_LAG
+    for lag in (on, math.inf):
+        monkeypatch.setattr(deadzone, "CONTACT_LAG", lag)
+        inv = load_controller("deadzone_inverse", plant, backlash=1.2 * plant.backlash)
+        B[lag] = precision_test(plant, inv, sensors=m.sensors).stats["reversal_value"]
+        contacts[lag] = inv.contacts
+    print(f"\nB {B[on] * 1e6:.0f} urad with the contact check ({contacts[on]} early ends), "
+          f"{B[math.inf] * 1e6:.0f} without")
+    assert contacts[on] >= 1 and contacts[math.inf] == 0
+    assert B[math.inf] >= 4.0 * B[on]
+    monkeypatch.undo()
+    inv = load_controller("deadzone_inverse", plant)
+    precision_test(plant, inv, cycles=1, sensors=m.sensors)
+    assert inv.contacts == 0
+
+
+def test_inverse_rattle_guard_stops_a_rattle(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the Yang-Sun mesh is nearly elastic at high impact speeds: with a 15 ms crossing the inverse's motor
+    # falls into a rattle between the flanks that its derivative action feeds (2450 impacts in 3 s, RMS 5.4e-4
+    # rad, against the PID's 5.8e-4). The guard scales the feedback down while speed jumps the torque cannot
+    # explain come in a run: 362 impacts, RMS 2.8e-4 rad. Kept: 3x fewer impacts (measured 6.8x) and 1.5x less
+    # error (measured 1.9x); on the improved plant with the catalog settings it never engages
+    m = load_model(SERVO)
+    nominal = build_plant(m)
+    spec = {**read_toml(resolve("deadzone_inverse", "controllers")), "crossing_time": 0.015}
+    out = {}
+    level_on = deadzone.RATTLE_LEVEL
+    for level in (level_on, math.inf):
+        monkeypatch.setattr(deadzone, "RATTLE_LEVEL", level)
+        ctrl = build_controller(spec, nominal, path=Path("deadzone_inverse.toml"))
+        res = simulate_closed_loop(build_plant(m, "yang-sun"), ctrl, reference("sine"), 3.0, sensors=m.sensors)
+        out[level] = (len(res.impacts), float(np.sqrt(np.mean(res.error[res.t >= 0.5] ** 2))))
+    on, off = out[level_on], out[math.inf]
+    print(f"\nYang-Sun, 15 ms crossing: guard {on[0]} impacts, RMS {on[1]:.3g}; "
+          f"none {off[0]} impacts, RMS {off[1]:.3g}")
+    assert off[0] >= 3 * on[0]
+    assert off[1] >= 1.5 * on[1]
+    monkeypatch.undo()
+    inv = load_controller("deadzone_inverse", nominal)
+    engaged = []
+    step = inv.step
+
+    def record(t: float, ym: float, yl: float | None, r: Reference) -> float:
+        u = step(t, ym, yl, r)
+        engaged.append(inv.rattling)
+        return u
+
+    inv.step = record  # type: ignore[method-assign]
+    simulate_closed_loop(nominal, inv, reference("sine"), 3.0, sensors=m.sensors)
+    assert not any(engaged)
+
+
+@pytest.mark.parametrize("model", ["shing1993_servo", "servo_2stage_phm09", "servo_3stage_quanser_srv02"])
+def test_mpc_contact_tolerance_of_a_train(model: str) -> None:
+    # 0.02 b for a pair; for a train plus the share of the lost motion of every stage but the last, computed
+    # here from the stages' data (2 b_i / (r_b2,i prod_(j>i) N_j) over the lost motion): 0.32 b for the SRV02
+    # (stages 1 and 2 hold 0.135 + 0.473 of its 2.02 mrad), 0.35 b for the PHM09
+    from gearctl.design.base import loop_info
+    from gearctl.design.mpc import contact_tolerance
+
+    plant = build_plant(load_model(model))
+    shares = []
+    for i, st in enumerate(plant.stages):
+        after = float(np.prod([s.ratio for s in plant.stages[i + 1:]]))
+        shares.append(2.0 * st.backlash / (st.rb2 * after))
+    assert sum(shares) == pytest.approx(plant.lost_motion, rel=1e-12)
+    expected = 0.02 + sum(shares[:-1]) / plant.lost_motion
+    assert contact_tolerance(loop_info(plant)) == pytest.approx(expected, rel=1e-12)
+    mpc = load_controller("mpc", plant)
+    assert mpc._tol == pytest.approx(expected * mpc._b, rel=1e-12)

@@ -27,23 +27,36 @@ How a flank change is made, and how a move is finished
 - *The crossing.* A flank change moves the offset from one flank to the other along a ``sin^2`` ramp of
   ``crossing_time`` (zero relative speed at both ends), aimed at where the load is predicted to be (its
   state when the motor left it, advanced with its inertia, friction and estimated load torque: a load
-  stuck by friction stays put, an inertial one coasts), not at the reference; the free motor's torque
-  ``N (J1 a + d1 v)`` is fed forward and the PID's feedback is scaled by ``J1 / J_eq`` while the motor is
-  alone (the same loop on the 4x lighter motor rings across the gap). After the landing the load's lag
-  behind the reference is taken up along a cubic over another ``crossing_time``. A step of ``2 b / r_b2``
-  in the PID's target instead makes the PID ring at its bandwidth, and the load leaves the moves with
-  the ring's speed.
-- *Feedforward.* With ``friction_feedforward`` the model's Coulomb friction of the load, ``T_c2 sign(r')``,
-  is fed forward with the rest of the transmitted torque, so the load does not stop short of the target
-  by the friction over the PID's stiffness; the acceleration fed forward is the one at the middle of the
-  sample the torque is held over (extrapolated from the last two samples: no preview), and the torque the
-  PID's derivative filter lag would add in every acceleration is taken off (see :func:`offset_torque`).
+  stuck by friction stays put, an inertial one coasts; at start-up the load is at rest), not at the
+  reference. While the motor is alone its feedforward is the free motor's, ``N (J1 a + d1 v)`` with ``a`` the
+  mean acceleration of the target over the sample the torque is held (the ramp's and the free load's:
+  the motor then follows the ramp to a few urad), and the PID's feedback is scaled by ``J1 / J_eq`` (the
+  same loop on the 4x lighter motor rings across the gap). A step of ``2 b / r_b2`` in the PID's target
+  instead makes the PID ring at its bandwidth, and the load leaves the moves with the ring's speed.
+- *Contact before the ramp's end.* With a backlash estimate that is too large the motor meets the load
+  before its ramp ends, and then lags the ramp (it pushes the load, or bounced off it). When, in the second
+  half of a crossing that started from a settled flank, the motor lags its ramp by more than
+  :data:`CONTACT_LAG` of half the lost motion, the crossing ends there: the offset stops at the furthest
+  point the motor reached relative to the predicted load (the flank), and the contact control takes over.
+  An estimate that is too small is kept (the motor stops short of the flank): the estimate bounds how far
+  the motor goes.
+- *The landing.* After a landing the load's lag behind the reference is taken up along a cubic over
+  ``crossing_time``, or longer so that it asks at most :data:`TAKE_UP_ACCELERATION` of the load
+  acceleration the torque limit gives; a lag larger than half the lost motion is no landing residual
+  (start-up, a disturbance) and is left to the PID.
+- *Rattle guard.* A motor whose speed jumps by more than the torque explains (more than
+  :attr:`DeadzoneInverse.jump_threshold`, half the speed at which it crosses the whole gap in two samples)
+  is hitting a flank; when such jumps come in a run (a leaky count above :data:`RATTLE_LEVEL`) the motor is
+  rattling between the flanks, which the PID's derivative action can feed on a nearly elastic mesh (the
+  Yang-Sun law at high impact speed). The feedback in contact is then scaled by ``RATTLE_GAIN J1 / J_eq``
+  until the jumps stop.
+- *Feedforward.* The PID feeds the rigid train's torque forward (inertia at mid-sample, viscous and Coulomb
+  friction, the load torque) and matches its derivative filter (see :class:`~gearctl.design.pid.PID`).
   When a move starts on a load with Coulomb friction, the PID's integrator is set to the disturbance the
-  observer sees beyond the static friction: what it held against the stuck load at rest is released,
-  instead of being added to the friction feedforward.
+  observer sees beyond the static friction: what it held against the stuck load at rest is released.
 
-With ``backlash = 0`` the inverse is the PID it wraps with these feedforward corrections (no offset, no
-observer). Its preview is 1 (it reads ``r(t)`` only, like the PID).
+With ``backlash = 0`` the inverse is the PID it wraps (bit for bit: no offset, no observer). Its preview is
+1 (it reads ``r(t)`` only, like the PID).
 
 The observer is the rigid train seen from the motor encoder (``[theta, omega, d]`` in load units,
 input the motor torque, measurement the motor angle less the offset), with three poles at
@@ -60,8 +73,12 @@ it is as good as the PID on the backlash-free plant.
 
 Limits (measured, see ``tests/test_compensation.py``): on a load without friction
 (``shing1993_servo``) the motor encoder cannot see a load that bounces off its flank at the end of a
-move; the short ISO 230-2 overshoot moves (0.02 rad) end with the load floating, so B and R there stay
-near the lost motion. A load encoder (``feedback = "load"``, or the MPC) is needed for that load.
+move (the mesh's restitution is about 0.85), and the load then floats on: at 3.7e-3 rad/s after a short
+ISO 230-2 overshoot move it drifts a lost motion over the 0.3 s dwell. Only impacts slower than the
+kernel's plastic limit (1e-6 m/s along the line of action, 1.3e-5 rad/s at this load) would leave it at
+rest, and a motor that resolves 1.1e-7 m of the line of action per encoder count cannot aim a landing that
+finely in the few ms of a crossing. B and R there stay near the lost motion; a load encoder (the MPC) sees
+the float.
 
 References
 ----------
@@ -95,6 +112,15 @@ __all__ = ["DeadzoneInverse", "InverseSettings", "LoadObserver", "OffsetRamp", "
 
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "deadzone_inverse"
+
+#: A crossing ends early when the motor lags its ramp by this share of half the lost motion (it met the load).
+CONTACT_LAG = 0.05
+#: Rattle guard: a motor speed jump above ``jump_threshold`` counts 1 in a level that decays by RATTLE_DECAY per
+#: sample; above RATTLE_LEVEL the feedback in contact is scaled by RATTLE_GAIN J1 / J_eq until the level drops
+#: below 1.
+RATTLE_DECAY, RATTLE_LEVEL, RATTLE_GAIN = 0.9, 3.0, 0.25
+#: A landing's lag is taken up asking at most this share of the load acceleration the torque limit gives.
+TAKE_UP_ACCELERATION = 0.25
 
 #: Shapes of the offset's ramp between the flanks (``sin2``: Beckhoff's; ``linear``: Heidenhain's speed
 #: command held over the compensation time; ``step``: all in one sample).
@@ -158,6 +184,12 @@ class OffsetRamp:
         """Time the last ramp ends [s]."""
         return self._t0 + self._T
 
+    def progress(self, t: float) -> float:
+        """Share of the ramp under way covered at ``t``, 0 to 1 (1 at rest)."""
+        if self._T <= 0.0:
+            return 1.0
+        return min(max((t - self._t0) / self._T, 0.0), 1.0)
+
     def moving(self, t: float) -> bool:
         """Whether a ramp is under way at ``t``."""
         return self._T > 0.0 and t < self._t0 + self._T
@@ -182,10 +214,10 @@ class OffsetRamp:
         return self._o0 + d * s, d * ds / self._T, d * dds / self._T**2
 
 
-def offset_torque(pid: PID, t: float, r: float, rd: float, rdd: float, offset: tuple[float, float, float],
-                  extra: float, y_motor: float, y_load: float | None, *, free: bool = False,
-                  lag: bool = True) -> float:
-    """The wrapped PID's torque for the target ``r + o``, with the right feedforward in contact and in the gap.
+def offset_torque(pid: PID, t: float, r: float, rd: float, a: float, offset: tuple[float, float, float],
+                  y_motor: float, y_load: float | None, *, free: bool = False, scale: float = 1.0) -> float:
+    """The wrapped PID's torque for the target ``r + o``, with the rigid train's feedforward in contact and the
+    free motor's in the gap.
 
     Parameters
     ----------
@@ -193,63 +225,44 @@ def offset_torque(pid: PID, t: float, r: float, rd: float, rdd: float, offset: t
         The position PID (motor or load feedback).
     t : float
         Sample time [s].
-    r, rd, rdd : float
-        Reference and its derivatives [rad, rad/s, rad/s^2].
+    r, rd : float
+        Reference and its speed [rad, rad/s].
+    a : float
+        Acceleration to feed forward [rad/s^2] (the reference's at mid-sample,
+        :meth:`PID.reference_update`).
     offset : tuple of float
         ``(o, o', o'')``: the motor's offset from the reference and its derivatives [rad, rad/s, rad/s^2].
-    extra : float
-        Further motor torque to feed forward in contact [N m] (e.g. the load's Coulomb friction over ``N``).
     y_motor : float
         Motor encoder [rad].
     y_load : float or None
         Load encoder [rad] (with load feedback the integral acts on ``r - y_load``).
     free : bool
         The motor is crossing the gap: the load is not attached.
-    lag : bool
-        Feed forward the torque the derivative filter's lag would take (see Notes).
 
     Notes
     -----
-    The PID's own feedforward is ``N (J_eq a + d_eq v) - load_torque / N`` for the acceleration ``a`` and
-    speed ``v`` it is given (the rigid train in contact). The wrapper hands it ``v = r' + o'`` and
-    ``a = r'' + T_x / (N J_eq)``, so that the feedforward becomes the rigid train's plus ``T_x``: in contact
-    ``T_x = extra`` (the offset is at rest); while the motor crosses the gap the feedforward is the free
-    motor's, ``N (J1 (r'' + o'') + d1 (r' + o'))``, without the load's inertia, friction or load torque,
-    and the feedback (the PID's torque less its feedforward) is scaled by ``J1 / J_eq``: the loop then drives
-    the motor alone with the crossover and damping it was designed for on the train (unscaled, the free
-    motor rings across the gap).
-
-    The PID differentiates the *filtered* measurement (time constant ``T_f = a Ts / (1 - a)``) but takes the
-    reference speed unfiltered, so while the target accelerates at ``a`` its derivative term adds about
-    ``kd T_f a`` of torque: 25 % of the inertia's feedforward for the catalog PID, which makes it lead
-    in every acceleration and lag in every deceleration (about 0.5 mrad in the ISO moves, measured on
-    the backlash-free plant). With ``lag`` that torque is taken off the feedforward.
-    With the offset at rest, ``extra = 0`` and ``lag = False`` the PID sees exactly ``r'`` and ``r''``.
+    The PID is given the target ``r + o`` with speed ``v = r' + o'`` and acceleration ``a + o''``. In contact
+    its own feedforward (the rigid train's, see :class:`PID`) holds. While the motor crosses the gap the
+    feedforward is the free motor's, ``N (J1 (a + o'') + d1 v) + T_c1 sign(v)``, without the load's inertia,
+    friction or load torque, and the feedback is scaled by ``J1 / J_eq``: the loop then drives the motor
+    alone with the crossover and damping it was designed for on the train (unscaled, the free motor rings
+    across the gap). With the offset at rest (``o' = o'' = 0``) the PID sees exactly the reference.
     """
     o, do, ddo = offset
-    info = pid.info
     N = pid.N
-    v = rd + do
-    if free:
-        p = info.plant
-        tx = N * (p.J1 * (rdd + ddo) + p.d1 * v) - N * (info.J_eq * rdd + info.d_eq * v) + p.load_torque / N
-    else:
-        tx = extra
-    if lag:  # the derivative acts on the filtered measurement: its lag T_f would cost kd T_f a of torque
-        a_f = pid._a
-        tx -= pid.gains.kd * a_f * pid.Ts / (1.0 - a_f) * (rdd + ddo) * (info.plant.J1 / info.J_eq if free else 1.0)
-    a = rdd if tx == 0.0 else rdd + tx / (N * info.J_eq)
+    v, acc = rd + do, a + ddo
     target = r + o
     ym = y_motor / N
-    if pid.feedback == "motor" or y_load is None:
-        u = pid.torque(t, target, v, a, target - ym, ym, target - ym)
-    else:
-        u = pid.torque(t, target, v, a, target - ym, ym, r - float(y_load))
-    if free:  # the loop drives the motor alone: feedback scaled by J1 / J_eq keeps its crossover and damping
-        ff = N * (info.J_eq * a + info.d_eq * v) - info.plant.load_torque / N
-        u = ff + (info.plant.J1 / info.J_eq) * (u - ff)
-        u = min(max(u, -pid.limit), pid.limit)
-    return u
+    e_i = target - ym if (pid.feedback == "motor" or y_load is None) else r - float(y_load)
+    if not free:
+        return pid.torque(t, target, v, acc, target - ym, ym, e_i, scale=scale)
+    p = pid.info.plant
+    ff = 0.0
+    if pid.feedforward:
+        ff = N * (p.J1 * acc + p.d1 * v)
+        if pid.friction > 0.0 and p.tc1 > 0.0 and v != 0.0:
+            ff += math.copysign(p.tc1, v)
+    return pid.torque(t, target, v, acc, target - ym, ym, e_i, ff=ff, scale=p.J1 / pid.info.J_eq)
 
 
 class LoadObserver:
@@ -268,7 +281,7 @@ class LoadObserver:
         Observer poles at ``exp(-2 pi bandwidth Ts)`` [Hz].
     """
 
-    __slots__ = ("A", "B", "L", "x", "N", "_tl")
+    __slots__ = ("A", "B", "L", "x", "N", "_tl", "innovation")
 
     def __init__(self, info: LoopInfo, Ts: float, bandwidth: float) -> None:
         N = info.N
@@ -290,10 +303,12 @@ class LoadObserver:
         self.N = N
         self._tl = info.plant.load_torque
         self.x: list[float] | None = None
+        self.innovation = 0.0
 
     def reset(self) -> None:
         """Forget the estimate (re-initialised from the first measurement)."""
         self.x = None
+        self.innovation = 0.0
 
     @property
     def disturbance(self) -> float:
@@ -311,6 +326,7 @@ class LoadObserver:
             return
         th, om, d = self.x
         e = theta - th
+        self.innovation = e
         (a00, a01, a02), (a10, a11, a12), _ = self.A
         b0, b1, _ = self.B
         l0, l1, l2 = self.L
@@ -338,11 +354,9 @@ class InverseSettings:
     disturbance_threshold: float = quantity(unit="N m", doc="load torque the observer must see beyond the load's "
                                             "static friction before it changes the flank", low=0.0, high=1e3,
                                             default=0.02)
-    friction_feedforward: bool = True
 
     def __post_init__(self) -> None:
         check_choice("rule", self.rule, ("torque", "velocity"))
-        check_choice("friction_feedforward", self.friction_feedforward, (True, False))
         validate_fields(self)
 
 
@@ -368,8 +382,6 @@ class DeadzoneInverse(Controller):
         the model's known load torque alone).
     disturbance_threshold : float
         Estimated load torque beyond the static friction that enters the flank decision [N m].
-    friction_feedforward : bool
-        Feed the model's load Coulomb friction ``T_c2 sign(r') / N`` forward.
     name : str
         Label.
 
@@ -385,7 +397,7 @@ class DeadzoneInverse(Controller):
 
     def __init__(self, pid: PID, *, backlash: float, rule: str = "torque", width: float | None = None,
                  crossing_time: float = 0.01, observer_hz: float = 5.0, disturbance_threshold: float = 0.02,
-                 friction_feedforward: bool = True, name: str = "deadzone_inverse") -> None:
+                 name: str = "deadzone_inverse") -> None:
         super().__init__()
         check_choice("rule", rule, ("torque", "velocity"))
         BACKLASH.check("backlash", backlash)
@@ -399,12 +411,16 @@ class DeadzoneInverse(Controller):
                 raise InputError(f"{key} = {v!r} is out of range: expected 0 <= value <= {hi:g}", field=key)
         self.crossing_time, self.observer_hz = crossing_time, observer_hz
         self.disturbance_threshold = disturbance_threshold
-        self.friction_feedforward = bool(friction_feedforward)
         self.Ts = pid.Ts
         self.uses_load_encoder = pid.feedback == "load"
         p = pid.info.plant
         self._J2, self._d2, self._tl = p.J2, p.d2, p.load_torque
         self._tc2 = p.tc2
+        self._a_limit = pid.limit / (pid.N * pid.info.J_eq)  # load acceleration at the torque limit [rad/s^2]
+        self._J1 = p.J1
+        #: motor speed jump [rad/s] that counts as an impact for the rattle guard: half the speed at which the
+        #: motor crosses the whole gap in two samples
+        self.jump_threshold = backlash / (2.0 * p.rb1 * pid.Ts) if backlash > 0.0 else math.inf
         self._ramp = OffsetRamp("sin2" if crossing_time > 0.0 else "step", crossing_time, 0.0)
         self._sigma, self._t, self._cross_end = 0.0, 0.0, -math.inf
         self.set_backlash(backlash)
@@ -434,8 +450,13 @@ class DeadzoneInverse(Controller):
         self._free = [0.0, 0.0]
         self._was_free = False
         self._moving_ref = False
-        self._rdd_prev = 0.0
-        self._lag: tuple[float, float, float] | None = None
+        self._lag: tuple[float, float, float, float] | None = None
+        self.contacts = 0
+        self._y_hist: tuple[float | None, float | None] = (None, None)
+        self._u_hist = (0.0, 0.0)
+        self._rattle = 0.0
+        self.rattling = False
+        self._reach = -math.inf
         self._ramp.reset(0.0)
         if self._observer is not None:
             self._observer.reset()
@@ -483,6 +504,41 @@ class DeadzoneInverse(Controller):
             self._sigma = -1.0
         return self._sigma
 
+    def _watch_rattle(self, y_motor: float) -> None:
+        """Update the rattle level from the motor encoder (see :attr:`rattling`).
+
+        The motor's speed change over the last sample, less what the torque held over it explains (alone or
+        with the load), is an impact's velocity jump; the level is a leaky count of jumps above
+        :attr:`jump_threshold` (decay 0.9 per sample)."""
+        y1, y2 = self._y_hist
+        self._y_hist = (y_motor, y1)
+        if y2 is None:
+            return
+        dv = (y_motor - 2.0 * y1 + y2) / self.Ts  # motor speed change [rad/s]
+        u_mean = 0.5 * (self._u_hist[0] + self._u_hist[1])
+        jump = min(abs(dv - u_mean * self.Ts / self._J1), abs(dv - u_mean * self.Ts / self.pid.info.J_eq))
+        self._rattle = RATTLE_DECAY * self._rattle + (1.0 if jump > self.jump_threshold else 0.0)
+        if self._rattle > RATTLE_LEVEL:
+            self.rattling = True
+        elif self._rattle < 1.0:
+            self.rattling = False
+
+    def _take_up(self, t: float) -> tuple[float, float, float]:
+        """The part of the load's lag behind the reference still to be taken up, its speed and its acceleration
+        at mid-sample [rad, rad/s, rad/s^2]: a cubic from the lag at the landing to zero (zeros when done)."""
+        if self._lag is None:
+            return 0.0, 0.0, 0.0
+        d0, dd0, t0, T = self._lag
+        x = (t - t0) / T
+        if x >= 1.0:
+            self._lag = None
+            return 0.0, 0.0, 0.0
+        h00, h10 = 2 * x**3 - 3 * x**2 + 1, x**3 - 2 * x**2 + x
+        h00d, h10d = 6 * x**2 - 6 * x, 3 * x**2 - 4 * x + 1
+        xm = min(x + 0.5 * self.Ts / T, 1.0)
+        h00dd, h10dd = 12 * xm - 6, 6 * xm - 4
+        return d0 * h00 + T * dd0 * h10, (d0 * h00d + T * dd0 * h10d) / T, (d0 * h00dd + T * dd0 * h10dd) / T**2
+
     def _start_crossing(self, t: float, sigma_old: float, y_motor: float, y_load: float | None, rd: float) -> None:
         """Where the load is when the motor leaves its flank: the state the crossing lands on."""
         N = self.pid.N
@@ -491,7 +547,10 @@ class DeadzoneInverse(Controller):
         else:  # in contact with the old flank (or centred before the first decision)
             theta = y_motor / N - self._ramp.at(t)[0]
         obs = self._observer
-        omega = obs.x[1] if (obs is not None and obs.x is not None) else rd
+        if obs is not None:  # before the first update the observer starts at rest, as the plant does
+            omega = obs.x[1] if obs.x is not None else 0.0
+        else:
+            omega = rd
         self._free = [theta, omega]
 
     def _free_load(self) -> tuple[float, float, float]:
@@ -511,53 +570,50 @@ class DeadzoneInverse(Controller):
         return th, om, alpha
 
     def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
+        if self.backlash == 0.0:  # no gap to invert: the PID itself
+            return self.pid.step(t, y_motor, y_load, ref)
         r, rd, rdd = ref.at(t)
         self._t = t
-        rdd_prev, self._rdd_prev = self._rdd_prev, rdd
-        if self.backlash == 0.0:  # no gap to invert: the PID with the inverse's feedforward corrections
-            return offset_torque(self.pid, t, r, rd, rdd + 0.5 * (rdd - rdd_prev), (0.0, 0.0, 0.0), 0.0, y_motor,
-                                 y_load)
+        self._watch_rattle(y_motor)
+        a = self.pid.reference_update(rd, rdd)  # at mid-sample (see PID)
         if self._tc2 > 0.0 and rd != 0.0 and not self._moving_ref:
             # a move starts: what the integrator held against the load's static friction at rest is released
             # (the friction feedforward takes over); it keeps the disturbance the observer sees beyond friction
-            self.pid._i = -self._disturbance_beyond_friction() / self.pid.N
+            self.pid.integral = -self._disturbance_beyond_friction() / self.pid.N
         self._moving_ref = rd != 0.0
         sigma_old = self._sigma
         sigma = self.flank(t, ref)
         if sigma != sigma_old:
+            # a contact met during this crossing is trusted only if it starts from a settled flank (the load it
+            # lands on is then predicted from that flank): not at start-up, nor during a take-up or a rattle
+            self._trusted = (sigma_old != 0.0 and self._lag is None and not self.rattling
+                             and t >= self._cross_end + self.crossing_time)
             if t >= self._cross_end:
                 self._start_crossing(t, sigma_old, y_motor, y_load, rd)
+            self._lag = None  # the landing of the new crossing sets the lag to take up
             self._ramp.move_to(t, sigma * self._offset)
             self._cross_end = self._ramp.end
+            self._reach = -math.inf
+        lag, dlag, ddlag = self._take_up(t)  # the load's target is the reference less the lag still to take up
         off = self._ramp.at(t)
+        if self._ramp.moving(t):  # the offset's acceleration fed forward: its mean over the sample the torque is held
+            off = (off[0], off[1], (self._ramp.at(t + self.Ts)[1] - off[1]) / self.Ts)
         friction = math.copysign(self._tc2, rd) if (self._tc2 > 0.0 and rd != 0.0) else 0.0
-        extra = friction / self.pid.N if self.friction_feedforward else 0.0
         free = t < self._cross_end
         if free:  # the motor lands on where the load is predicted to be, not on where the reference is
-            r_c, rd_c, rdd_c = self._free_load()
+            r_c, rd_c, _ = self._free_load()
             self._was_free = True
-            u = offset_torque(self.pid, t, r_c, rd_c, rdd_c, off, 0.0, y_motor, y_load, free=True)
+            a_c = (self._free[1] - rd_c) / self.Ts  # the free load's mean acceleration over the sample
+            u = offset_torque(self.pid, t, r_c, rd_c, a_c, off, y_motor, y_load, free=True)
+            self._check_contact(t, y_motor / self.pid.N - r_c, off[0])
         else:
             if self._was_free:  # landed: the load's lag behind the reference is taken up smoothly
                 self._was_free = False
-                th, om = self._free
-                self._lag = (r - th, rd - om, t)
-            if self._lag is not None:
-                d0, dd0, t0 = self._lag
-                T = max(self.crossing_time, self.Ts)
-                x = (t - t0) / T
-                if x >= 1.0:
-                    self._lag = None
-                else:  # cubic Hermite from (d0, d0') to (0, 0)
-                    h00, h10 = 2 * x**3 - 3 * x**2 + 1, x**3 - 2 * x**2 + x
-                    h00d, h10d = 6 * x**2 - 6 * x, 3 * x**2 - 4 * x + 1
-                    h00dd, h10dd = 12 * x - 6, 6 * x - 4
-                    r -= d0 * h00 + T * dd0 * h10
-                    rd -= (d0 * h00d + T * dd0 * h10d) / T
-                    rdd -= (d0 * h00dd + T * dd0 * h10dd) / T**2
-            # the torque is held over the coming sample: feed forward the acceleration at its middle,
-            # extrapolated from the last two samples (no preview)
-            u = offset_torque(self.pid, t, r, rd, rdd + 0.5 * (rdd - rdd_prev), off, extra, y_motor, y_load)
+                self._start_take_up(t, r, rd)
+                lag, dlag, ddlag = self._take_up(t)
+            scale = RATTLE_GAIN * self._J1 / self.pid.info.J_eq if self.rattling else 1.0
+            u = offset_torque(self.pid, t, r - lag, rd - dlag, a - ddlag, off, y_motor, y_load, scale=scale)
+        self._u_hist = (self._u_hist[1], u)
         obs = self._observer
         if obs is not None:  # the train model does not hold while the motor crosses, nor just after a landing
             theta = float(y_load) if (self.uses_load_encoder and y_load is not None) else y_motor / self.pid.N - off[0]
@@ -565,12 +621,41 @@ class DeadzoneInverse(Controller):
             obs.update(theta, u if not free else 0.0, friction, settling)
         return u
 
+    def _check_contact(self, t: float, rel: float, o: float) -> None:
+        """During a crossing: end it where the motor meets the load before the ramp's end.
+
+        ``rel`` is the motor's position relative to the predicted free load, ``o`` the ramp's offset [rad].
+        While the motor is free it follows the ramp (its feedforward is exact); when it lags the ramp by more
+        than :data:`CONTACT_LAG` of half the lost motion in the second half of a trusted crossing, it pushes
+        the load (or bounced off it): the backlash estimate is too large. The offset then stops at the
+        furthest point the motor reached (the flank), and the contact control takes over from there.
+        """
+        self._reach = max(self._reach, self._sigma * rel)
+        if (self._trusted and self._ramp.progress(t) > 0.5 and self._reach > 0.0
+                and self._sigma * (rel - o) < -CONTACT_LAG * self._offset):
+            self._cross_end = t
+            self._ramp.reset(self._sigma * self._reach)
+            self.contacts += 1
+
+    def _start_take_up(self, t: float, r: float, rd: float) -> None:
+        """At a landing: the predicted load's lag behind the reference, taken up along a cubic over
+        ``crossing_time``, or longer so that it asks at most :data:`TAKE_UP_ACCELERATION` of the torque limit's
+        acceleration. A lag larger than half the lost motion is no landing residual (start-up, a disturbance):
+        it is left to the PID."""
+        th, om = self._free
+        d0, dd0 = r - th, rd - om
+        a_lim = TAKE_UP_ACCELERATION * self._a_limit
+        T = max(self.crossing_time, self.Ts,
+                (4.0 * abs(dd0) + math.sqrt(16.0 * dd0 * dd0 + 24.0 * abs(d0) * a_lim)) / (2.0 * a_lim))
+        self._lag = (d0, dd0, t, T) if abs(d0) + T * abs(dd0) < self._offset else None
+
     def describe(self) -> dict[str, Any]:
         """Settings of the inverse and of the PID."""
         return {**self.pid.describe(), "name": self.name, "kind": "deadzone_inverse", "preview": self.preview,
                 "rule": self.rule, "width": self.width, "backlash_estimate": self.backlash,
                 "crossing_time": self.crossing_time, "observer_hz": self.observer_hz,
-                "disturbance_threshold": self.disturbance_threshold, "friction_feedforward": self.friction_feedforward}
+                "disturbance_threshold": self.disturbance_threshold, "contact_lag": CONTACT_LAG,
+                "jump_threshold": self.jump_threshold}
 
 
 #: The keys of a ``deadzone_inverse`` controller file and the settings fields they feed.
@@ -591,6 +676,6 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
         return DeadzoneInverse(pid, backlash=b, rule=settings.rule, width=settings.width,
                                crossing_time=settings.crossing_time, observer_hz=settings.observer_hz,
                                disturbance_threshold=settings.disturbance_threshold,
-                               friction_feedforward=settings.friction_feedforward, name=name)
+                               name=name)
     except InputError as exc:
         raise restate(path, exc, values) from None

@@ -108,6 +108,32 @@ O(1): the gap in ``b``, its rate in ``b / Ts``, mesh torques in N m).
 ``x0`` and ``lam_x0``; qrqp, osqp and proxqp use them, DAQP's CasADi interface starts from the
 unconstrained minimiser. The shifted plan is also the fallback (for every solver).
 
+*Scaled to the plant.* The torque weights and the observer's process noise are stated in shares of the
+torque limit, so the catalog's settings give a 1 N m servo and the 7.7 mN m Quanser SRV02 the same
+closed-loop bandwidth relative to what their motors can do (stated in N m, the SRV02's torque costs were
+17000 times too cheap and its disturbance estimate as noisy as its whole torque). For a 1 N m limit nothing
+changes. Measured on ``servo_3stage_quanser_srv02``, 1 Hz sine, RMS: 3.1e-3 rad before either change, 5.9e-4
+with the train's contact tolerance alone, 4.6e-3 with the scaling alone, 1.4e-4 with both.
+
+*Trains.* The MPC plans on the equivalent pair (:meth:`gearctl.plant.Plant.equivalent_pair`: one gap of the
+whole lost motion at the output, the stages' series stiffness), measured by the motor and load encoders,
+rather than on every stage. It sees only the two outer shafts: the intermediate ones are not measured, and
+each floating stage would multiply the mode sequences of the plan by three. The price is that the measured
+gap falls short of ``+-b`` while the intermediate shafts float between their flanks although the last stage
+already carries the load: contact is then declared within :func:`contact_tolerance` of the flank (0.02 b
+for a pair; plus the share of the lost motion of every stage but the last for a train), otherwise the plan
+never leaves its landing patterns (the figures above). The intermediate shafts are still hit at the
+crossing's speed and bounce between their flanks at every reversal: that remains the limit of the
+equivalent model (7x better than the PID on the three-stage train, 226x on the pair; see
+``tests/test_trains.py``).
+
+*A backlash estimate that is too large.* The gap never reaches ``b - tol`` then, and the plan would keep
+landing. Where the measured gap turns back on one side (its furthest point on that side, come back to
+within ``tol`` on two later samples) short of ``b - tol`` (on a train, short by twice the tolerance less a
+pair's: the floating intermediate shafts alone leave it short by up to the tolerance), that side's flank is
+taken there: it decides contact and where landings aim from then on. The furthest point only grows, so a
+flank taken short of the true one moves out when the gap goes further.
+
 *Standstill.* While the previewed reference rests (constant over the whole horizon) and the load is
 within ``standstill_deadband`` of it, the plan holds its flank: no crossing is planned in contact, a load
 that floats off its flank is not chased or flipped to (the plan waits, and lands on the flank the gap
@@ -208,9 +234,11 @@ class MPCSettings:
     tracking : float
         Weight of the load-angle error at every predicted sample [1/rad^2].
     torque : float
-        Weight of the torque's deviation from the rigid-train feedforward [1/(N m)^2].
+        Weight of the torque's deviation from the rigid-train feedforward, the torque counted in shares of
+        the torque limit [1] (so that one file suits a 1 N m servo and an 8 mN m one; with a 1 N m limit it is
+        the weight per (N m)^2).
     torque_rate : float
-        Weight of the torque change per sample [1/(N m)^2].
+        Weight of the torque change per sample, in shares of the torque limit [1].
     relative_velocity : float
         Weight of the closing speed's deviation from ``landing_velocity`` at a planned landing, along the
         line of action [s^2/m^2].
@@ -229,7 +257,7 @@ class MPCSettings:
         [N m]: the impacts then die out quickly instead of the motor floating off and landing again.
     process_noise : float
         Observer: std of the unmodelled torque on each shaft per sample, and of the load-torque
-        disturbance's change per sample [N m].
+        disturbance's change per sample, as a share of the torque limit [1].
     measurement_noise : float
         Observer: std of each encoder's error [rad].
     standstill_deadband : float
@@ -247,8 +275,10 @@ class MPCSettings:
     feedback: str = "load"
     tracking: float = quantity(unit="1/rad^2", doc="load-angle error weight", low=0.0, low_open=True, high=1e15,
                                default=1e8)
-    torque: float = quantity(unit="1/(N m)^2", doc="torque weight", low=0.0, high=1e15, default=1e-2)
-    torque_rate: float = quantity(unit="1/(N m)^2", doc="torque-rate weight", low=0.0, high=1e15, default=300.0)
+    torque: float = quantity(unit="1", doc="torque weight, torques in shares of the torque limit", low=0.0,
+                             high=1e15, default=1e-2)
+    torque_rate: float = quantity(unit="1", doc="torque-rate weight, torques in shares of the torque limit",
+                                  low=0.0, high=1e15, default=300.0)
     relative_velocity: float = quantity(unit="s^2/m^2", doc="landing-speed weight", low=0.0, high=1e15, default=1e7)
     terminal: float = quantity(unit="1", doc="terminal weight over tracking", low=0.0, high=1e6, default=10.0)
     soft_landing: str = "bound"
@@ -258,8 +288,8 @@ class MPCSettings:
                                      default=1e-3)
     smoothing: float = quantity(unit="N m", doc="mesh torque left on a flank after a landing", low=0.0, high=1e3,
                                 default=2e-3)
-    process_noise: float = quantity(unit="N m", doc="observer process noise", low=0.0, low_open=True, high=1e3,
-                                    default=1e-4)
+    process_noise: float = quantity(unit="1", doc="observer process noise, a share of the torque limit", low=0.0,
+                                    low_open=True, high=1e3, default=1e-4)
     measurement_noise: float = quantity(unit="rad", doc="observer measurement noise", low=0.0, low_open=True,
                                         high=1.0, default=2e-6)
     backlash: float = BACKLASH.field(default=5e-5, doc="backlash estimate (0: a backlash-free train)")
@@ -376,6 +406,32 @@ LAYOUT = MPC_LAYOUT
 
 
 # --- the gap model ---------------------------------------------------------------------------------------
+
+
+def contact_tolerance(info: LoopInfo) -> float:
+    """How far from a flank the equivalent gap may be and count as contact, as a share of ``b``.
+
+    For a pair, 0.02 (the encoders resolve about 1 % of ``b``). For a train the controller measures only the
+    motor and the load: its gap is the equivalent one, ``sum_i s_i / b_i * L_i / L``, and the intermediate
+    shafts, unmeasured and free between their flanks, leave it short of ``+-b`` while the last stage already
+    carries the load. The tolerance then adds the share of the lost motion ``L_i / L`` of every stage but the
+    last: with those stages anywhere in their gaps the load is still driven within the horizon by a torque
+    towards the flank.
+    """
+    nominal = info.nominal
+    if nominal.n_stages <= 1 or nominal.lost_motion <= 0.0:
+        return 0.02
+    shares = _stage_lost_motion(nominal)
+    return 0.02 + float(sum(shares[:-1])) / nominal.lost_motion
+
+
+def _stage_lost_motion(plant: Any) -> list[float]:
+    """Each stage's share of the lost motion at the output, ``2 b_i / (r_b2,i prod_(j>i) N_j)`` [rad]."""
+    out = []
+    for i, st in enumerate(plant.stages):
+        after = math.prod(s.ratio for s in plant.stages[i + 1:])
+        out.append(2.0 * st.backlash / (st.rb2 * after))
+    return out
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -527,6 +583,10 @@ class _QP:
     def prepare(self, pat: _Pattern) -> None:
         """Per-pattern work done once (nothing here: the compiled path reads ``pat.ptr``)."""
 
+    def form(self, pat: _Pattern, sig: int, p: NDArray[np.float64]) -> None:
+        """The gradient and the rows' lower bounds of pattern ``pat`` (flank ``sig``): ``gl = M[sig] p``."""
+        np.dot(pat.M[sig], p, out=self.gl)
+
     def use(self, pat: _Pattern, sig: int) -> None:
         """Use the Hessian and the rows of pattern ``pat`` (flank ``sig``) for the next solves."""
         self.set_matrices(pat.H, pat.A[sig], pat.ptr[sig])
@@ -596,7 +656,7 @@ class _GearctlQP:
     tol = 0.0  # ``kkt`` is 0 for a solved QP, inf otherwise
 
     def __init__(self, n: int, m: int) -> None:
-        from ..qp import DenseQP
+        from ..qp import DenseQP, matvec_function
 
         self._dqp = q = DenseQP(n, m)
         self.n, self.m = n, m
@@ -604,6 +664,7 @@ class _GearctlQP:
         self.x0, self.lam_x0 = np.zeros(n), np.zeros(n)  # the shifted plan: the fallback (not a warm start)
         self.gl = np.zeros(n + m)
         self.g, self.lba = self.gl[:n], self.gl[n:]
+        self._gl_ptr, self._matvec = self.gl.ctypes.data, matvec_function()
         self.uba = q.uba
         self.x, self.lam_x, self.lam_a, self.cost = q.x, q.lam_x, q.lam_a, q.cost
         self.kkt = np.zeros(1)
@@ -613,12 +674,20 @@ class _GearctlQP:
         self.note = "gearctl dense QP (Goldfarb-Idnani dual active set, C99), cold start"
 
     def prepare(self, pat: _Pattern) -> None:
-        """Factor the pattern's Hessian and keep its rows in C order (once per pattern)."""
-        pat.solver_data = (self._dqp.factor(pat.H), {sig: np.ascontiguousarray(A) for sig, A in pat.A.items()})
+        """Factor the pattern's Hessian, keep its rows and its gradient maps in C order (once per pattern)."""
+        maps = {sig: np.ascontiguousarray(M) for sig, M in pat.M.items()}
+        pat.solver_data = (self._dqp.factor(pat.H), {sig: np.ascontiguousarray(A) for sig, A in pat.A.items()},
+                           {sig: (M.shape[0], M.shape[1], M.ctypes.data, M) for sig, M in maps.items()})
+
+    def form(self, pat: _Pattern, sig: int, p: NDArray[np.float64]) -> None:
+        """``gl = M[sig] p``, each row summed in index order in C (:func:`gearctl.qp.matvec`): the same
+        rounding on every machine and in the exported controller, which sums its rows the same way."""
+        rows, cols, ptr, _ = pat.solver_data[2][sig]
+        self._matvec(rows, cols, ptr, p.ctypes.data, self._gl_ptr)
 
     def use(self, pat: _Pattern, sig: int) -> None:
         """Use the Hessian factor and the rows of pattern ``pat`` (flank ``sig``) for the next solves."""
-        factor, rows = pat.solver_data
+        factor, rows = pat.solver_data[:2]
         self._factor = factor
         self.h, self.a = pat.H, rows[sig]
         self._dqp.use_rows(self.a)
@@ -664,7 +733,14 @@ def _make_qp(n: int, m: int, solver: str, compiled: bool | None) -> _QP | _Gearc
 _INF = 1e20  # "no bound" for constraint rows (finite: some plugins reject inf)
 _CROSS_MARGIN = 2e-3  # a crossing must lower the plan's cost by this fraction (no flank change on a tie)
 _FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this much cheaper to land on
+_CROSS_SHARE = 0.25  # a planned crossing accelerates and decelerates the motor with this share of the torque limit
 _STANDSTILL_LANDING = 0.05  # at standstill, landings close at most this fraction of landing_velocity
+
+
+def _samples(steps: float, cap: int) -> int:
+    """``ceil(steps)``, at most ``cap`` (also for an infinite or overflowing count, e.g. a torque limit or a
+    closing speed near zero)."""
+    return cap if not steps < cap else math.ceil(steps)
 
 
 @dataclasses.dataclass(slots=True)
@@ -748,8 +824,15 @@ class MPC(Controller):
         self.preview = n + 1  # reference samples a step reads: r(t) .. r(t + N Ts)
         self._b = st.backlash
         self._rigid = st.backlash == 0.0  # backlash-free: one rigid train, the mesh pushes and pulls
-        self._tol = 0.02 * st.backlash  # contact when |s| >= b - tol (encoder resolution ~1 % of b)
+        self._tol = contact_tolerance(info) * st.backlash  # contact when |s| >= b - tol
+        # a flank is taken where the gap turns back only that far short of b: below the contact tolerance, and
+        # on a train also below what the floating intermediate shafts alone leave it short by (the tolerance's
+        # share beyond a pair's)
+        self._learn_below = st.backlash - self._tol - (self._tol - 0.02 * st.backlash)
         self._umax = min(info.torque_limit, 1e6)
+        # torques are weighed, and the observer's process noise is stated, as shares of the torque limit
+        lim = info.torque_limit
+        self._u_scale = max(lim, 1e-9) if math.isfinite(lim) and lim > 0.0 else 1.0
         self._tau_load = p.load_torque
         self._ratio = info.N
         self._rb1, self._rb2 = p.rb1, p.rb2
@@ -757,8 +840,9 @@ class MPC(Controller):
         # crossing: the lost motion 2b, a quarter of the torque limit accelerating then decelerating the
         # motor alone (none without backlash)
         self._a_max = p.rb1 * self._umax / p.J1  # relative acceleration at full torque [m/s^2]
-        t_cross = 2.0 * math.sqrt(2 * self._b / (0.25 * self._a_max))
-        self.n_cross = 0 if self._rigid else max(2, math.ceil(t_cross / Ts))
+        t_cross = 2.0 * math.sqrt(2 * self._b / (_CROSS_SHARE * self._a_max))
+        # (at most the horizon and one: a crossing the horizon cannot hold is planned as one that ends beyond it)
+        self.n_cross = 0 if self._rigid else max(2, _samples(t_cross / Ts, n + 1))
         self.n_lead = self.n_cross // 2
         # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
@@ -837,8 +921,8 @@ class MPC(Controller):
         add(cy @ states[-1], st.tracking * st.terminal, {self._ip_r + n - 1: -1.0})
         add(th * (cv @ states[-1]), st.tracking * st.terminal, {self._ip_rd: -th})
         for k in range(n):  # u_k - (FF_k - tau / N): torque about the rigid-train feedforward
-            add(zero, st.torque, {self._ip_ff + k: -1.0, 4: 1.0 / m.N}, {k: 1.0})
-            add(zero, st.torque_rate, {self._ip_u: -1.0} if k == 0 else None,
+            add(zero, st.torque / self._u_scale**2, {self._ip_ff + k: -1.0, 4: 1.0 / m.N}, {k: 1.0})
+            add(zero, st.torque_rate / self._u_scale**2, {self._ip_u: -1.0} if k == 0 else None,
                 {k: 1.0} if k == 0 else {k: 1.0, k - 1: -1.0})
         land_s = land_v = None
         if land is not None:
@@ -905,7 +989,8 @@ class MPC(Controller):
         Without backlash there is no gap to estimate (``s = v = 0``) and the gap gains are not designed.
         """
         st, m = self.settings, self.model
-        sp, sd, sm = st.process_noise, st.process_noise, st.measurement_noise
+        sp = sd = st.process_noise * self._u_scale
+        sm = st.measurement_noise
         load = st.feedback == "load"
         Ac = np.eye(3)
         Ac[:2, :2] = m.A_con[:2, :2]
@@ -942,6 +1027,9 @@ class MPC(Controller):
         self.solve_times, self.fallbacks, self.statuses, self.step_times = [], [], [], []
         self.overruns = 0
         self._z = None  # observer state [phi, omega, s, v, d]
+        self._flanks = [self._b, self._b]  # where the back (index 0) and front (1) flanks are, |s| [m]
+        self._reach = [0.0, 0.0]  # the furthest the measured gap has been on each side, |s| [m]
+        self._revisits = [0, 0]  # samples since then that came back within tol of it
         self._u = 0.0
         self._plan = np.zeros(n)
         self._lam = np.zeros(n)
@@ -998,7 +1086,23 @@ class MPC(Controller):
         if self._rigid:  # no gap: the rigid train (the mesh deflection F / k is below the encoders' resolution)
             s_n, v_n = 0.0, 0.0
         elif load:
-            if abs(s_m) >= b - tol:  # contact: the reduced model's plastic impact
+            side = 1 if s_m > 0.0 else -1
+            fl = self._flanks[side > 0]
+            # the flank is where the gap turns back: the furthest the gap has been on this side, once it has come
+            # back there (within tol) on a later sample. A backlash estimate that is too large is corrected by it
+            # (the gap never reaches b - tol); the furthest point only grows, so a flank learned short of the
+            # true one moves out when the gap goes further
+            k = side > 0
+            a_s = abs(s_m)
+            if a_s > self._reach[k]:
+                self._reach[k], self._revisits[k] = a_s, 0
+            elif a_s >= self._reach[k] - tol:
+                self._revisits[k] += 1
+            if self._reach[k] >= self._learn_below:  # the gap reached the flank the estimate puts there
+                fl = self._flanks[k] = b
+            elif self._revisits[k] >= 2 and self._reach[k] > 0.5 * b:
+                fl = self._flanks[k] = self._reach[k]
+            if abs(s_m) >= fl - tol:  # contact: the reduced model's plastic impact
                 s_n, v_n = s_m, 0.0
             else:
                 inn = s_m - s_p
@@ -1034,11 +1138,11 @@ class MPC(Controller):
         theta2 = float(z[0]) / self.model.N - self.model.kappa2 * float(z[2])
         return abs(r - theta2) <= self.settings.standstill_deadband
 
-    def _steps_to_land(self, s: float, flank: int, torque_share: float = 0.25) -> int:
+    def _steps_to_land(self, s: float, flank: int, torque_share: float | None = None) -> int:
         """Samples to close the gap to ``flank`` from ``s``, accelerating then decelerating."""
-        dist = max(self._b - flank * s, 0.0)
-        t = 2.0 * math.sqrt(dist / (torque_share * self._a_max))
-        return min(self.N, max(1, math.ceil(t / self.Ts)))
+        dist = max(self._flanks[flank > 0] - flank * s, 0.0)
+        t = 2.0 * math.sqrt(dist / ((torque_share or _CROSS_SHARE) * self._a_max))
+        return max(1, _samples(t / self.Ts, self.N))
 
     def _solve(self, key: tuple[int, int], p_new: float, sig: int, cost: bool = False) -> tuple[str, float, float]:
         """Solve the QP of pattern ``key`` (flank ``sig`` before any crossing).
@@ -1049,7 +1153,7 @@ class MPC(Controller):
         pat = self._patterns[key]
         p, qp, n = self._p, self._qp, self.N
         p[5] = p_new
-        np.dot(pat.M[sig], p, out=qp.gl)
+        qp.form(pat, sig, p)
         lba, uba = qp.lba, qp.uba
         if self._rigid:  # the mesh-torque rows are empty: no bound (the mesh pulls as well as pushes)
             lba[:n] = -_INF
@@ -1100,13 +1204,14 @@ class MPC(Controller):
 
         Returns the status, the solve time [s], the full cost and the pattern used.
         """
-        n, b = self.N, self._b
+        n = self.N
         key = (0, min(max(e, 1), n + 1))
         # the force rows take the sign of the flank *before* a crossing: for a landing, -flank
-        status, dt, cost = self._solve(key, flank * b, -flank, True)
+        target = flank * self._flanks[flank > 0]
+        status, dt, cost = self._solve(key, target, -flank, True)
         if status != "ok" and key[1] <= n:  # infeasible (the velocity bound): land later
             key = (0, min(key[1] + self._steps_to_land(s, flank, 0.5), n + 1))
-            status, dt2, cost = self._solve(key, flank * b, -flank, True)
+            status, dt2, cost = self._solve(key, target, -flank, True)
             dt += dt2
         return status, dt, cost, key
 
@@ -1148,7 +1253,8 @@ class MPC(Controller):
         qp.lam_x0[:-1] = self._lam[1:]
         qp.lam_x0[-1] = 0.0
         s = float(z[2])
-        side = 1 if s >= b - self._tol else (-1 if s <= -(b - self._tol) else 0)
+        b_hi, b_lo = self._flanks[True], self._flanks[False]
+        side = 1 if s >= b_hi - self._tol else (-1 if s <= -(b_lo - self._tol) else 0)
         sig = self._flank
         if sig == 0:  # first sample: in contact, or floating (both flanks are then tried, front first)
             self._flank = sig = side or 1
@@ -1162,7 +1268,7 @@ class MPC(Controller):
         elif side != 0 and side == sig:  # in contact on the target flank: stay, or cross if that is cheaper
             self._land = None
             key = self._all_contact
-            status, solve_time, _ = self._solve(key, sig * b, sig)
+            status, solve_time, _ = self._solve(key, sig * self._flanks[sig > 0], sig)
             lam = qp.lam_a[:n]
             if status == "ok" and not hold and lam.any():  # active-set solvers give exact zeros for inactive rows
                 la = np.abs(lam)
@@ -1172,7 +1278,7 @@ class MPC(Controller):
                     a = max(int(binding[0]) - self.n_lead, 0)
                     cross = (a, min(a + self.n_cross, n + 1))
                     self._set_aside()
-                    st2, dt, cost2 = self._solve(cross, -sig * b, sig, True)
+                    st2, dt, cost2 = self._solve(cross, -sig * self._flanks[sig < 0], sig, True)
                     solve_time += dt
                     if st2 == "ok" and cost2 < cost - _CROSS_MARGIN * abs(cost):
                         key = cross
@@ -1194,7 +1300,7 @@ class MPC(Controller):
                     e = n  # the slowest landing the horizon holds
                 elif v != 0.0:  # the flank the gap closes on by itself, and when (else: wait)
                     fl = 1 if v > 0.0 else -1
-                    e = min(n + 1, max(1, math.ceil((fl * b - s) / (v * self.Ts))))
+                    e = max(1, _samples((fl * self._flanks[fl > 0] - s) / (v * self.Ts), n + 1))
                     if e <= n:
                         self._flank = sig = fl
             else:

@@ -155,8 +155,9 @@ class ReversalOffset(Controller):
                     self._dir = d
                     self._ramp.move_to(t, 0.5 * d * self.value)
         self._r_prev = r
+        a = self.pid.reference_update(rd, rdd)
         o, do, _ = self._ramp.at(t)
-        return offset_torque(self.pid, t, r, rd, rdd, (o, do, 0.0), 0.0, y_motor, y_load, lag=False)
+        return offset_torque(self.pid, t, r, rd, a, (o, do, 0.0), y_motor, y_load)
 
     def describe(self) -> dict[str, Any]:
         """Settings of the reversal offset and of the PID."""

@@ -368,6 +368,16 @@ long gearctl_qp_factor_size(int n) { return n < 1 ? 0 : GEARCTL_QP_FACTOR_SIZE(n
 
 long gearctl_qp_work_size(int n, int m) { return (n < 1 || m < 0) ? 0 : GEARCTL_QP_WORK_SIZE(n, m); }
 
+void gearctl_qp_matvec(int rows, int cols, const double *a, const double *x, double *y)
+{
+    for (int i = 0; i < rows; i++) {
+        const double *ai = a + (long)i * cols;
+        double acc = 0.0;
+        for (int j = 0; j < cols; j++) acc += ai[j] * x[j];
+        y[i] = acc;
+    }
+}
+
 const char *gearctl_qp_status_name(int status)
 {
     switch (status) {

@@ -157,6 +157,11 @@ int gearctl_qp_factor(int n, const double *h, double *factor);
 int gearctl_qp_solve(const gearctl_qp_problem *qp, const gearctl_qp_settings *settings, int warm,
                      gearctl_qp_result *res, double *work);
 
+/* y = A x for a dense (rows x cols) A in C order, each row summed in index order (j = 0, 1, ...): a product
+ * whose rounding does not depend on a BLAS kernel, so that the QP data a caller forms with it is the same
+ * on every machine and in an exported controller that sums its rows the same way. */
+void gearctl_qp_matvec(int rows, int cols, const double *a, const double *x, double *y);
+
 /* A short English name of a status code ("solved", "infeasible", ...), or "unknown status". */
 const char *gearctl_qp_status_name(int status);
 
