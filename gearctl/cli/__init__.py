@@ -14,12 +14,12 @@ from collections.abc import Callable, Sequence
 
 from .. import __version__
 from ..errors import GearctlError
-from . import identify_cmds, loop_cmds, model_cmds, sweep_cmds
+from . import export_cmds, identify_cmds, loop_cmds, model_cmds, sweep_cmds
 
 __all__ = ["main"]
 
 #: The command groups, in the order ``gearctl --help`` lists them.
-GROUPS = (model_cmds, loop_cmds, sweep_cmds, identify_cmds)
+GROUPS = (model_cmds, loop_cmds, sweep_cmds, identify_cmds, export_cmds)
 
 
 def _parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]]:

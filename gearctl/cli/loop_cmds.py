@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
-from ..units import BACKLASH, DURATION, SEED
+from ..units import BACKLASH, DURATION, SEED, Spec
 from .common import (
     CYCLES,
     JOBS,
@@ -33,11 +33,19 @@ __all__ = ["register"]
 def _cmd_track(args: argparse.Namespace) -> int:
     from ..runs import execute, make_run
 
+    if args.exported is not None and args.estimate is not None:
+        raise InputError("--estimate and --exported: an exported controller runs with the numbers it was exported "
+                         "with; export it again with `gearctl export ... --estimate B`", field="estimate")
     run = make_run(args.model, args.controller, plant=args.plant, reference_kind=args.reference,
                    duration=args.duration, seed=args.seed, backlash=args.backlash, estimate=args.estimate,
                    realtime=args.realtime, overrides=dict(args.set))
     with progress_bar("gearctl track", expected_s=run.duration * 0.02):
-        out, res = execute(run, keep=True)
+        if args.exported is None:
+            out, res = execute(run, keep=True)
+        else:  # software in the loop: the folder's C in place of the Python controller, the same closed loop
+            from ..export.sil import execute_exported
+
+            out, res = execute_exported(run, args.exported, keep=True)
     if res is None or out.metrics is None:
         raise InputError(out.message)
     m = out.metrics
@@ -192,9 +200,14 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     print(text, end="")
     print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
                                           f"on {result['jobs']} process(es)"))
+    said: set[str] = set()
     for r in result["runs"]:
+        design = "" if r.get("design", r["plant"]) in ("improved", r["plant"]) else f", designed on {r['design']}"
         for wmsg in r.get("warnings", ()):
-            warn("bench", [f"{r['controller']} on {r['plant']} ({r['reference']}): {wmsg}"])
+            line = f"{r['controller']} on {r['plant']}{design} ({r['reference']}): {wmsg}"
+            if line not in said:
+                said.add(line)
+                warn("bench", [line])
     if args.json:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
@@ -225,7 +238,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 def _cmd_perf(args: argparse.Namespace) -> int:
     from ..catalog import controller_names
+    from ..export import export_timing
     from ..perf import bench_wall_time, mpc_timing, sim_speed, standstill_cost, train_speed
+    from ..sweep import sweep_perf
 
     out: dict[str, Any] = {}
     scen = {name: sim_speed(name) for name in ("free", "pd")}
@@ -235,6 +250,11 @@ def _cmd_perf(args: argparse.Namespace) -> int:
     out["trains"] = train_speed()
     out["standstill"] = standstill_cost()
     out["mpc"] = mpc_timing() if "mpc" in controller_names() else None
+    out["export"] = export_timing(batch=False) if "mpc" in controller_names() else None
+    # one worker: the Dask path's own cost against the plain loop (two workers on a machine whose two cores give
+    # about one core of throughput inflate each other's CPU time, which is not Dask's)
+    out["sweep"] = None if args.no_sweep else sweep_perf(("pid", "reversal_offset", "deadzone_inverse", "mpc"),
+                                                         runs=args.sweep_runs, workers=1)
     out["bench"] = None if args.no_bench else bench_wall_time(jobs=args.jobs)
     if args.json:
         print(dump_json(out))
@@ -262,11 +282,30 @@ def _cmd_perf(args: argparse.Namespace) -> int:
         print(f"MPC solve per step ({m['steps']} steps, Ts {m['Ts'] * 1e6:.0f} us): median {m['median'] * 1e6:.0f} us, "
               f"p99 {m['p99'] * 1e6:.0f} us, max {m['max'] * 1e6:.0f} us; whole step p99 {m['step_p99'] * 1e6:.0f} us")
         print("  within budget: " + ", ".join(f"{k} {v * 100:.1f} %" for k, v in m["budgets"].items()))
+    e = out["export"]
+    if e is not None:
+        c_fig = (f"median {e['step_median'] * 1e6:.3g} us, p99 {e['step_p99'] * 1e6:.3g} us"
+                 if e["step_median"] is not None else "not measured (no make or C compiler)")
+        print(f"exported MPC, whole step (observer, QP, fallback): C {c_fig}; from Python through the SIL path "
+              f"median {e['sil']['step_median'] * 1e6:.3g} us, p99 {e['sil']['step_p99'] * 1e6:.3g} us "
+              f"({e['sil']['within_8kHz'] * 100:.1f} % within 125 us); the Python MPC's step p99 "
+              f"{e['python']['step_p99'] * 1e6:.3g} us")
+    sw = out["sweep"]
+    if sw is not None:
+        print("sweep, 1 s sine runs of shing1993_servo with b from 0.5x to 2x, CPU per run (in a worker):")
+        for name, r in sw.items():
+            print(f"  {name:18s} {r['per_run_s'] * 1e3:7.3g} ms ({r['speedup']:.3g}x the Python loop's "
+                  f"{r['python_per_run_s'] * 1e3:.3g} ms); Dask over the plain loop at {r['runs']} runs: "
+                  f"{r['dask_overhead'] * 100:+.1f} % CPU on {r['workers']} workers, {r['runs_per_s']:.4g} runs/s "
+                  f"per worker")
     b = out["bench"]
     if b is not None:
         print(f"default bench: {b['runs']} runs, {b['simulated_time']:.0f} simulated s in {b['wall_time']:.1f} s wall "
               f"on {b['jobs']} process(es)")
     return 0
+
+
+SWEEP_RUNS = Spec(unit="1", doc="runs per controller", low=10, high=100_000, integer=True)
 
 
 def _set_arg(text: str) -> tuple[str, float | int]:
@@ -302,6 +341,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--realtime", action="store_true",
                    help="an optimisation that overruns its time budget falls back, as on the target "
                         "(default: overruns are counted, results are deterministic)")
+    p.add_argument("--exported", metavar="DIR",
+                   help="software in the loop: run the C controller of a `gearctl export` folder (compiled here) "
+                        "in place of the Python one; CONTROLLER names the same kind")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--csv", metavar="FILE", help="write the run per sample")
     p.add_argument("--plot", metavar="FILE", help="write reference/load angle, error, torque and gap plot")
@@ -344,9 +386,12 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--out", metavar="DIR", help="write plots and a Markdown report")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
-    p = sub.add_parser("perf", help="speed: simulator vs python-control, MPC solve times, bench wall time")
+    p = sub.add_parser("perf", help="speed: simulator vs python-control, MPC and exported C step times, sweeps, bench")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--no-bench", action="store_true", help="skip timing the default bench")
+    p.add_argument("--no-sweep", action="store_true", help="skip timing the sweeps (plain loop against Dask)")
+    p.add_argument("--sweep-runs", type=spec_arg(SWEEP_RUNS), default=1000,
+                   help="runs per controller of the sweep timing (the MPC: at most 100; default 1000)")
     p.add_argument("--jobs", type=spec_arg(JOBS), help="worker processes for the bench timing")
     return {"track": _cmd_track, "precision": _cmd_precision, "bench": _cmd_bench, "perf": _cmd_perf}
 

@@ -1,0 +1,103 @@
+/* SPDX-License-Identifier: MIT -- part of gearctl, written for it. */
+/* make check: replay the recorded test vectors (gearctl_vectors.bin: what the Python controller read and the
+ * torque it gave, in gearctl's closed loop) through the exported controller; print the largest difference.
+ * This program uses stdio and the heap; the controller library uses neither.
+ * Exit status: 0 when the largest |du| is within 1e-9 of the largest |u| (relative), 1 otherwise, 2 on a
+ * bad file. */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearctl_ctrl.h"
+
+#define TOLERANCE 1e-9
+
+static unsigned char *load(const char *path, long *size) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    fseek(f, 0, SEEK_END);
+    *size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    unsigned char *buf = malloc((size_t)*size + 1);
+    if (buf && fread(buf, 1, (size_t)*size, f) != (size_t)*size) {
+        free(buf);
+        buf = NULL;
+    }
+    fclose(f);
+    return buf;
+}
+
+/* little-endian readers (the file's byte order, whatever the host's) */
+static int32_t rd_i32(const unsigned char *p) {
+    uint32_t v = (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+    int32_t out;
+    memcpy(&out, &v, 4);
+    return out;
+}
+static double rd_f64(const unsigned char *p) {
+    uint64_t v = 0;
+    for (int i = 7; i >= 0; i--) v = v << 8 | p[i];
+    double out;
+    memcpy(&out, &v, 8);
+    return out;
+}
+
+int main(int argc, char **argv) {
+    const char *path = argc > 1 ? argv[1] : "gearctl_vectors.bin";
+    long size = 0;
+    unsigned char *buf = load(path, &size);
+    if (!buf || size < 16 || memcmp(buf, "GCXV", 4) != 0 || rd_i32(buf + 4) != 1) {
+        fprintf(stderr, "check: %s is not a gearctl test-vector file\n", path);
+        return 2;
+    }
+    int preview = rd_i32(buf + 8), ncase = rd_i32(buf + 12);
+    if (preview != GEARCTL_PREVIEW) {
+        fprintf(stderr, "check: the vectors have preview %d, the controller %d\n", preview, GEARCTL_PREVIEW);
+        return 2;
+    }
+    long pos = 16, total = 0, flagged = 0;
+    double max_du = 0.0, max_u = 0.0;
+    static gearctl_ctrl_t ctrl; /* statically allocated, as on a target */
+    double *rows = NULL;
+    for (int c = 0; c < ncase; c++) {
+        if (pos + 8 > size) return 2;
+        long steps = rd_i32(buf + pos), nrows = rd_i32(buf + pos + 4);
+        pos += 8;
+        long need = nrows * 24 + steps * (4 + 16 + 8);
+        if (steps < 0 || nrows < 0 || pos + need > size) {
+            fprintf(stderr, "check: %s is truncated\n", path);
+            return 2;
+        }
+        rows = realloc(rows, sizeof(double) * (size_t)(3 * nrows + 3));
+        for (long i = 0; i < 3 * nrows; i++) rows[i] = rd_f64(buf + pos + 8 * i);
+        const unsigned char *first = buf + pos + 24 * nrows;
+        const unsigned char *ys = first + 4 * steps;
+        const unsigned char *us = ys + 16 * steps;
+        gearctl_ctrl_init(&ctrl);
+        for (long k = 0; k < steps; k++) {
+            long f = rd_i32(first + 4 * k);
+            if (f < 0 || f + GEARCTL_PREVIEW > nrows) {
+                fprintf(stderr, "check: step %ld reads rows beyond the table\n", k);
+                return 2;
+            }
+            double y[2] = {rd_f64(ys + 16 * k), rd_f64(ys + 16 * k + 8)};
+            double u_ref = rd_f64(us + 8 * k), u = NAN;
+            if (gearctl_ctrl_step(&ctrl, y, rows + 3 * f, &u) > 0) flagged++;
+            double du = fabs(u - u_ref);
+            if (!(du <= max_du)) max_du = du; /* a NaN wins */
+            if (fabs(u_ref) > max_u) max_u = fabs(u_ref);
+        }
+        pos += need;
+        total += steps;
+    }
+    free(rows);
+    free(buf);
+    double rel = max_u > 0.0 ? max_du / max_u : max_du;
+    int ok = rel <= TOLERANCE;
+    printf("gearctl check: %ld steps in %d cases, largest |du| %.3g N m, relative %.3g (of the largest |u|, "
+           "%.3g N m; limit %g): %s\n", total, ncase, max_du, rel, max_u, TOLERANCE, ok ? "ok" : "FAILED");
+    if (flagged) printf("gearctl check: %ld steps used the fallback\n", flagged);
+    return ok ? 0 : 1;
+}

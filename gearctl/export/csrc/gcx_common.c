@@ -1,0 +1,18 @@
+/* SPDX-License-Identifier: MIT -- part of gearctl, written for it. */
+/* Helpers shared by the exported controllers (gcx_pid.c, gcx_mpc.c). Every function is static: an exported
+ * controller is one translation unit with two external symbols, gearctl_ctrl_init and gearctl_ctrl_step. */
+
+#if defined(__GNUC__) || defined(__clang__)
+#define GCX_FN static __attribute__((unused)) /* a kind uses only part of its family's functions */
+#else
+#define GCX_FN static
+#endif
+
+#define GCX_PI 3.141592653589793
+#define GCX_HALF_PI 1.5707963267948966        /* Python: 0.5 * math.pi */
+#define GCX_HALF_PI_SQ 4.934802200544679      /* Python: 0.5 * math.pi ** 2 */
+
+/* Python's min(a, b) and max(a, b) (the first argument unless the second is strictly beyond it) */
+GCX_FN double gcx_min(double a, double b) { return b < a ? b : a; }
+GCX_FN double gcx_max(double a, double b) { return b > a ? b : a; }
+

@@ -1,0 +1,24 @@
+
+#ifdef GCX_MPC_N
+/* backlash-aware MPC (gearctl/design/mpc.py: MPC): observer, plan, flank schedule, the QP's buffers */
+typedef struct {
+    double z[5];            /* observer [phi, omega, s, v, d] */
+    double u;               /* last torque [N m] */
+    double plan[GCX_MPC_N]; /* last plan (torques) */
+    double x0[GCX_MPC_N];   /* the plan shifted: the fallback */
+    double p[GCX_MPC_NP];   /* parameter vector */
+    double v_land_now;      /* landing-speed bound of the step being solved */
+    double flanks[2], reach[2]; /* the flanks learned from the gap, the furthest it has been [m] */
+    int revisits[2];
+    int z_set, flank, land, has_land;
+    /* QP buffers */
+    double g[GCX_MPC_N], lbx[GCX_MPC_N], ubx[GCX_MPC_N], lba[GCX_MPC_N + 2], uba[GCX_MPC_N + 2];
+    double x[GCX_MPC_N], lam_x[GCX_MPC_N], lam_a[GCX_MPC_N + 2], cost;
+    double keep_x[GCX_MPC_N];                /* a solution set aside while another is tried */
+    double factor[GCX_MPC_N * GCX_MPC_N];    /* the pattern's Hessian factor, unpacked */
+    double rows[(GCX_MPC_N + 2) * GCX_MPC_N]; /* the pattern's rows for the back flank (sign-flipped) */
+    int factor_q, rows_q;                    /* which pattern they hold (-1: none) */
+    int8_t active[2 * GCX_MPC_N + 2];
+    double work[GCX_MPC_WORK]; /* the QP solver's workspace */
+} gcx_mpc_s;
+#endif

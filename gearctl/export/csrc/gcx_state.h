@@ -1,0 +1,49 @@
+/* State of gearctl's exported controllers (all of it: a controller is one such struct, statically
+ * allocatable, with nothing else kept anywhere). Fields mirror the Python objects' attributes; read them
+ * for diagnostics if you like, never write them (gearctl_ctrl_init sets them). */
+
+/* PID (gearctl/design/pid.py): integrator, filtered measurement, last reference acceleration */
+typedef struct {
+    double integral, y_filtered, v_filtered, dy, rdd_prev, integral_moving;
+    int yf_set, vf_set, rdd_set; /* 0 until the first sample (Python: None) */
+    int moving;
+} gcx_pid_s;
+
+/* an offset moving between values along a ramp (deadzone.py: OffsetRamp) [rad, s] */
+typedef struct {
+    double o0, o1, t0, T, span;
+} gcx_ramp_s;
+
+/* load-disturbance observer (deadzone.py: LoadObserver): [theta, omega, d] */
+typedef struct {
+    double x[3];
+    int set; /* 0 until the first update (Python: x is None) */
+} gcx_obs_s;
+
+/* reversal offset (reversal.py) */
+typedef struct {
+    gcx_pid_s pid;
+    gcx_ramp_s ramp;
+    double r_prev;
+    int dir, has_prev;
+} gcx_rev_s;
+
+/* dead-zone inverse (deadzone.py) */
+typedef struct {
+    gcx_pid_s pid;
+    gcx_ramp_s ramp;
+    gcx_obs_s obs;
+    double backlash, offset, sigma, t, cross_end, free[2], lag[4];
+    double y_hist[2], u_hist[2], rattle, reach;
+    int was_free, moving_ref, has_lag, contacts, y_hist_n, rattling, trusted;
+} gcx_inv_s;
+
+#ifdef GCX_ADA_WINDOW
+/* adaptive inverse (adaptive.py): the inverse, the estimate and the window of s */
+typedef struct {
+    gcx_inv_s inv;
+    double b, u;
+    int head, len, count, fresh;
+    double recent[GCX_ADA_WINDOW], sorted[GCX_ADA_WINDOW];
+} gcx_ada_s;
+#endif

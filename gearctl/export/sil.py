@@ -1,0 +1,231 @@
+"""Software in the loop: an exported folder's C, compiled and called per sample as a :class:`Controller`.
+
+:func:`load_exported` compiles the folder's own sources (``gearctl_ctrl.c``, and ``gearctl_qp.c`` for an MPC)
+through :func:`gearctl.build.shared_library`, with a two-line shim that reports ``sizeof(gearctl_ctrl_t)``,
+and returns an :class:`ExportedController`: each :meth:`~ExportedController.step` writes the encoder
+readings and points at the reference rows (:class:`~gearctl.export.rows.PreviewRows`, the rows the Python
+controller reads), then calls ``gearctl_ctrl_step`` through :mod:`ctypes` on preallocated buffers. So the
+closed loop, the metrics and every command that takes a controller run the C itself.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..build import CompileError, shared_library
+from ..controller import Controller, ReferenceLike
+from ..errors import InputError
+from .emit import CFLAGS, FORMAT
+from .rows import PreviewRows
+
+__all__ = ["ExportedController", "load_exported", "compile_exported", "execute_exported"]
+
+_SHIM = b'#include "gearctl_ctrl.h"\nlong gearctl_sil_state_size(void) { return (long)sizeof(gearctl_ctrl_t); }\n'
+_SOURCES = ("gearctl_ctrl.h", "gearctl_ctrl.c", "gearctl_ctrl_params.h", "gearctl_qp.h", "gearctl_qp.c")
+
+
+def _manifest(folder: Path) -> dict[str, Any]:
+    path = folder / "controller.json"
+    try:
+        man = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError(f"{folder} holds no exported controller (no controller.json): make one with "
+                         f"`gearctl export MODEL CONTROLLER --out {folder}`", field="exported") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path} cannot be read: {exc}", field="exported") from None
+    if man.get("format") != FORMAT:
+        raise InputError(f"{path}: format {man.get('format')!r}: expected {FORMAT!r}", field="exported")
+    return man
+
+
+def compile_exported(folder: str | Path) -> tuple[ctypes.CDLL, dict[str, Any]]:
+    """Compile an exported folder's sources into a shared library (cached per content); also its manifest.
+
+    Raises
+    ------
+    InputError
+        For a folder without an exported controller, or sources that do not compile (the compiler's
+        message), or no C compiler.
+    """
+    folder = Path(folder)
+    man = _manifest(folder)
+    sources = {name: (folder / name).read_bytes() for name in _SOURCES if (folder / name).is_file()}
+    if "gearctl_ctrl.c" not in sources or "gearctl_ctrl.h" not in sources:
+        raise InputError(f"{folder}: gearctl_ctrl.c or gearctl_ctrl.h is missing", field="exported")
+    sources["gearctl_sil_shim.c"] = _SHIM
+    try:
+        lib = shared_library(f"export_{man['kind']}", sources, flags=(*CFLAGS.split(), "-Wall"), required=True)
+    except CompileError as exc:
+        raise InputError(f"cannot build the exported controller in {folder}: {exc}", field="exported") from None
+    assert lib is not None
+    lib.gearctl_ctrl_init.restype = None
+    lib.gearctl_ctrl_init.argtypes = [ctypes.c_void_p]
+    lib.gearctl_ctrl_step.restype = ctypes.c_int
+    lib.gearctl_ctrl_step.argtypes = [ctypes.c_void_p] * 4
+    lib.gearctl_sil_state_size.restype = ctypes.c_long
+    lib.gearctl_sil_state_size.argtypes = []
+    return lib, man
+
+
+class ExportedController(Controller):
+    """The compiled C of an exported folder, as a :class:`~gearctl.controller.Controller` (software in the loop).
+
+    Parameters
+    ----------
+    lib : ctypes.CDLL
+        The compiled folder (:func:`compile_exported`).
+    manifest : dict
+        Its ``controller.json``.
+    folder : Path
+        Where it came from (for reports).
+
+    Attributes
+    ----------
+    step_flags : int
+        Steps whose C call returned a fallback flag (each also in :attr:`fallbacks`).
+
+    Notes
+    -----
+    The C keeps its own clock, ``t = k Ts`` with ``k`` the steps since :meth:`reset`: the ``t`` the loop passes
+    is used only to evaluate the reference (gearctl's closed loop passes exactly ``k Ts``). For a controller
+    that solves an optimisation (the MPC), :attr:`solve_times` holds the wall time of each whole C step (the
+    C cannot read a clock), so overruns are counted against the whole step; the C does not fall back on an
+    overrun (``realtime`` has no effect).
+    """
+
+    def __init__(self, lib: ctypes.CDLL, manifest: dict[str, Any], folder: Path) -> None:
+        super().__init__()
+        self._lib, self.manifest, self.folder = lib, manifest, folder
+        self.name = str(manifest["name"])
+        self.kind = str(manifest["kind"])
+        self.Ts = float(manifest["Ts"])
+        self.preview = int(manifest["preview"])
+        self.uses_load_encoder = bool(manifest["uses_load_encoder"])
+        self._timed = self.kind == "mpc"
+        size = int(lib.gearctl_sil_state_size())
+        self._state = np.zeros((size + 7) // 8 + 1)  # 8-byte aligned
+        self._y = (ctypes.c_double * 2)()
+        self._u = ctypes.c_double()
+        self._c = self._state.ctypes.data
+        self._y_ref, self._u_ref = ctypes.addressof(self._y), ctypes.addressof(self._u)
+        self._rows = PreviewRows(self.Ts, self.preview)
+        self._fn = lib.gearctl_ctrl_step
+        self.step_flags = 0
+        self.state_bytes = size
+        self.reset()
+
+    def reset(self) -> None:
+        """``gearctl_ctrl_init``; forget the reference block and the records."""
+        self._lib.gearctl_ctrl_init(self._c)
+        self._rows.reset()
+        self._arr: np.ndarray | None = None
+        self._base = 0
+        self.solve_times, self.fallbacks = [], []
+        self.overruns = 0
+        self.step_flags = 0
+
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
+        arr, k = self._rows.at(t, ref)
+        if arr is not self._arr:
+            self._arr, self._base = arr, arr.ctypes.data
+        y = self._y
+        y[0] = y_motor
+        y[1] = math.nan if y_load is None else y_load
+        if self._timed:
+            t0 = time.perf_counter()
+            flag = self._fn(self._c, self._y_ref, self._base + 24 * k, self._u_ref)
+            self.solve_times.append(time.perf_counter() - t0)
+        else:
+            flag = self._fn(self._c, self._y_ref, self._base + 24 * k, self._u_ref)
+        if flag > 0:
+            self.step_flags += 1
+            self.fallbacks.append({"t": float(t), "reason": f"exported controller: fallback (flag {flag})"})
+        return self._u.value
+
+    def describe(self) -> dict[str, Any]:
+        """The exported controller's settings (the Python object's at export) and where the C came from."""
+        d = dict(self.manifest.get("describe") or {})
+        d.update({"name": self.name, "kind": self.kind, "Ts": self.Ts, "preview": self.preview,
+                  "implementation": "exported C (software in the loop)", "exported": str(self.folder),
+                  "state_bytes": self.state_bytes, "table_bytes": self.manifest.get("table_bytes")})
+        return d
+
+
+def load_exported(folder: str | Path) -> ExportedController:
+    """Compile an exported folder and return its C as a :class:`~gearctl.controller.Controller` (SIL).
+
+    Parameters
+    ----------
+    folder : str or Path
+        A folder written by :func:`gearctl.export_controller` / ``gearctl export``.
+
+    Returns
+    -------
+    ExportedController
+
+    Raises
+    ------
+    InputError
+        For a folder without an exported controller, sources that do not compile, or no C compiler.
+    """
+    lib, man = compile_exported(folder)
+    return ExportedController(lib, man, Path(folder))
+
+
+def execute_exported(run: Any, folder: str | Path, *, keep: bool = False) -> Any:
+    """:func:`gearctl.runs.execute` with an exported folder's C in place of the run's Python controller.
+
+    The run's plant, reference, duration, seed and sensors are used; its design names the controller the
+    folder must hold (the same kind; the folder's numbers are what runs).
+
+    Parameters
+    ----------
+    run : Run
+    folder : str or Path
+        A folder written by ``gearctl export``.
+    keep : bool
+        Also return the :class:`~gearctl.closedloop.ClosedLoopResult` (None if the run failed before it started).
+
+    Returns
+    -------
+    RunResult, or (RunResult, ClosedLoopResult or None) with ``keep``
+
+    Raises
+    ------
+    InputError
+        For a folder that holds no exported controller, one of another kind than the run's, or that does
+        not compile.
+    """
+    from ..closedloop import ClosedLoopResult, simulate_closed_loop
+    from ..errors import GearctlError
+    from ..metrics import tracking_metrics
+    from ..runs import RunResult
+
+    ctrl = load_exported(folder)
+    kind = (run.design.spec or {}).get("kind")
+    if kind is not None and kind != ctrl.kind:
+        raise InputError(f"{folder} holds an exported {ctrl.kind} controller ({ctrl.name!r}), but the command names "
+                         f"a {kind} controller ({run.design.label}): export that one, or name the exported kind",
+                         field="exported")
+    ctrl.realtime = run.realtime
+    try:
+        res = simulate_closed_loop(run.plant, ctrl, run.reference, run.duration, sensors=run.sensors, seed=run.seed)
+        ok, message = True, "ok"
+    except GearctlError as exc:
+        part = getattr(exc, "result", None)
+        if not isinstance(part, ClosedLoopResult) or part.t.size < 2:
+            out = RunResult(run=run, ok=False, message=str(exc), metrics=None, controller=ctrl.describe(),
+                            trace_t=np.zeros(0), trace_error=np.zeros(0))
+            return (out, None) if keep else out
+        res, ok, message = part, False, str(exc)
+    step = max(1, res.t.size // 600)
+    out = RunResult(run=run, ok=ok, message=message, metrics=tracking_metrics(res), controller=ctrl.describe(),
+                    trace_t=res.t[::step].copy(), trace_error=res.error[::step].copy())
+    return (out, res) if keep else out
