@@ -66,18 +66,19 @@ import numpy as np
 
 from .catalog import load_model
 from .errors import GearctlError, InputError
+from .export.batch import BATCH_KINDS, run_compiled
 from .geometry import GearPair, pair_geometry
 from .model import GearModel, check_model
 from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, default_workers
 from .params import MeshDynamics, Sensors, Servo
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
-from .runs import Design, Run, RunResult, controller_spec, design_controller, execute
+from .runs import Design, Run, RunResult, controller_spec, design_controller
 from .units import BACKLASH, DURATION, SEED, Spec, check_number
 
 __all__ = ["Vary", "SweepResult", "SweepContext", "SweepPlan", "sweep", "plan_sweep", "run_batch", "parse_vary",
            "parse_set", "perturb_model", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
-           "ROW_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size", "default_workers",
+           "ROW_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size", "run_cost", "default_workers",
            "SWEEP_RUNS", "GRID_POINTS", "METRICS", "FLAGS", "ISO_FIGURES", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
 
 #: Monte Carlo runs of one sweep.
@@ -659,7 +660,11 @@ def _build_run(ctx: SweepContext, job: Job) -> tuple[Run, float | None]:
 
 
 def run_batch(runs: Sequence[Run], *, precision: bool = False) -> list[tuple[RunResult, dict[str, Any] | None]]:
-    """Run closed loops: THE place a sweep runs them (a compiled loop for the linear controllers plugs in here).
+    """Run closed loops: THE place a sweep runs them, in C for the linear controllers.
+
+    The PID family (``pid``, ``reversal_offset``, ``deadzone_inverse``) runs in the compiled batch loop
+    (:func:`gearctl.export.batch.run_compiled`: kernel and controller in C, the Python run's result to the
+    last bit); every other controller, or a machine without a C compiler, through :func:`gearctl.runs.execute`.
 
     Parameters
     ----------
@@ -691,7 +696,7 @@ def run_batch(runs: Sequence[Run], *, precision: bool = False) -> list[tuple[Run
             if shared:
                 ctrl.set_backlash(run.design.backlash)  # type: ignore[union-attr]
                 run = dataclasses.replace(run, design=base)
-            res = execute(run)
+            res = run_compiled(run)
             iso = _precision(run) if precision else None
         finally:
             if shared:
@@ -764,16 +769,26 @@ def sweep_task(ctx: SweepContext, jobs: Sequence[Job]) -> list[dict[str, Any]]:
 
 # --- the engine -----------------------------------------------------------------------------------------
 
-def batch_size(n: int, workers: int, duration: float) -> int:
+def batch_size(n: int, workers: int, duration: float, cost_per_s: float = 0.015) -> int:
     """Runs per task: about half a second of work, and at least four tasks per worker; 1 to 256.
 
     A task costs about 5 ms of CPU in the client and the scheduler (measured on the two-core machine;
-    shipping the context by value or scattered once made no difference there), a simulated second of a
-    linear controller's loop about 15 ms: half a second of work per task keeps Dask's share near 1 %,
-    four tasks per worker keep the workers evenly loaded to the end and make a lost worker cost little.
+    shipping the context by value or scattered once made no difference there). ``cost_per_s`` is the CPU
+    time of one simulated second of a run (:func:`run_cost`): half a second of work per task keeps Dask's
+    share near 1 %, four tasks per worker keep the workers evenly loaded to the end and make a lost worker
+    cost little.
     """
-    work = math.ceil(0.5 / (0.015 * max(duration, 1e-3)))
+    work = math.ceil(0.5 / (max(cost_per_s, 1e-6) * max(duration, 1e-3)))
     return max(1, min(256, work, math.ceil(n / (4 * max(workers, 1)))))
+
+
+def run_cost(ctx: SweepContext) -> float:
+    """CPU seconds per simulated second of one run, roughly (for :func:`batch_size`), measured on the two-core
+    machine: 4 ms for the compiled batch loop's controllers (PID family), 100 ms for the MPC, 15 ms else."""
+    kind = (ctx.design.spec or {}).get("kind")
+    if kind in BATCH_KINDS:
+        return 0.004
+    return 0.1 if kind == "mpc" else 0.015
 
 
 def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: str | None, client: Any,
@@ -784,7 +799,7 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     done = 0
     info: dict[str, Any] = {"engine": engine}
     if engine == "serial":
-        size = batch or batch_size(n, 1, plan.context.duration)
+        size = batch or batch_size(n, 1, plan.context.duration, run_cost(plan.context))
         info.update(workers=1, where="this process", batch=size)
         for i0 in range(0, n, size):
             for r in sweep_task(plan.context, jobs[i0:i0 + size]):
@@ -800,7 +815,7 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     eng = Engine(workers=workers, scheduler=scheduler, client=client)
     try:
         w = eng.workers
-        size = batch or batch_size(n, w, plan.context.duration)
+        size = batch or batch_size(n, w, plan.context.duration, run_cost(plan.context))
         info.update(workers=w, where=eng.where, batch=size)
         tag = uuid.uuid4().hex[:12]
         futures = {}
@@ -1100,25 +1115,33 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
 
 def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), *, runs: int = 200,
                duration: float = 1.0, model: str = "shing1993_servo", workers: int | None = None,
-               batch: int | None = None) -> dict[str, dict[str, Any]]:
+               batch: int | None = None, python_runs: int = 40, slow_runs: int = 50,
+               repeats: int = 3) -> dict[str, dict[str, Any]]:
     """Throughput of sweeps: the Dask path against a plain sequential loop of the same runs, in one call.
 
-    Each controller runs ``runs`` sine runs of ``duration`` seconds on plants with the backlash drawn from
-    0.5x to 2x nominal: first a plain loop in this process (:func:`sweep_task` over the batches), then the
-    same runs through a local Dask cluster started beforehand (its start-up is reported apart, and every
-    worker has designed the controller before the clock starts, as this process has).
+    Each controller runs ``runs`` sine runs (``slow_runs`` for a controller outside the compiled batch loop,
+    e.g. the MPC) of ``duration`` seconds on plants with the backlash drawn from
+    0.5x to 2x nominal: first a plain loop (:func:`sweep_task` over the batches, one after the other) in one
+    worker process of a local Dask cluster started beforehand, then the same runs through that cluster. Both
+    run in worker processes, so both see what a sweep sees: one BLAS thread (Dask's nanny sets that) and a
+    controller designed before the clock starts. The two paths alternate ``repeats`` times and each keeps its
+    least time. The cluster's start-up is reported apart.
 
     Returns
     -------
     dict
-        controller -> {``per_run_s``: CPU seconds of one run in the plain loop; ``runs_per_s``: runs per
-        second per worker through Dask (``runs / (dask wall time x workers)``); ``dask_overhead``: the CPU
-        time Dask adds over the loop, ``(workers' + this process's CPU time during the Dask sweep) / loop
-        CPU time - 1`` (this process hosts the scheduler); ``dask_overhead_wall``: ``workers x Dask wall
-        time / loop wall time - 1``, which only means something on an otherwise idle machine; ``loop_s``,
-        ``dask_s`` (wall), ``loop_cpu_s``, ``dask_cpu_s`` [s]; ``runs``, ``workers``, ``batch``,
-        ``duration``, ``cluster_start_s``; ``load``: the 1-minute load average after the measurement;
-        ``identical``: whether both paths gave the same results}.
+        controller -> {``per_run_s``: CPU seconds of one run in the plain loop (the compiled batch loop for
+        the PID family); ``python_per_run_s``: the same runs through :func:`gearctl.runs.execute` (the Python
+        loop around the compiled kernel; ``python_runs`` of them), and ``speedup``, their ratio;
+        ``runs_per_s``: runs per second per worker through Dask (``runs / (dask wall time x workers)``);
+        ``dask_overhead``: the CPU time Dask adds over the plain loop, ``(workers' + this process's CPU time
+        during the Dask sweep) / loop CPU time - 1`` (this process hosts the scheduler);
+        ``dask_overhead_wall``: ``workers x Dask wall time / loop wall time - 1``, which only means something
+        on an otherwise idle machine; ``loop_s``, ``dask_s`` (wall), ``loop_cpu_s``, ``dask_cpu_s`` [s];
+        ``client_cpu_s``: this process's share of ``dask_cpu_s`` (client and scheduler), the part of the
+        overhead the worker's noise does not blur;
+        ``runs``, ``workers``, ``batch``, ``duration``, ``cluster_start_s``; ``load``: the 1-minute load
+        average after the measurement; ``identical``: whether both paths gave the same results}.
 
     Notes
     -----
@@ -1138,27 +1161,60 @@ def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), 
             distributed.Client(cluster, set_as_default=False) as client:
         client.run(_warm)  # import gearctl in every worker: start-up, not sweep
         start = time.perf_counter() - t
+        first = sorted(client.scheduler_info()["workers"])[:1]
         for c in controllers:
-            plan = plan_sweep(model, c, vary=["backlash=0.5x:2x"], runs=runs, duration=duration)
-            sweep_task(plan.context, plan.jobs[:1])  # the design, once per process, as every worker does below
-            t, c0 = time.perf_counter(), time.process_time()
-            loop_rows, _ = _run_jobs(plan, engine="serial", workers=None, scheduler=None, client=None, batch=batch,
-                                     progress=None)
-            loop_s, loop_cpu = time.perf_counter() - t, time.process_time() - c0
+            n = runs if controller_spec(c)[0].get("kind") in BATCH_KINDS else min(runs, slow_runs)
+            plan = plan_sweep(model, c, vary=["backlash=0.5x:2x"], runs=n, duration=duration)
             client.run(_design, plan.context)
-            w0 = client.run(time.process_time)
-            t, c0 = time.perf_counter(), time.process_time()
-            dask_rows, info = _run_jobs(plan, engine="dask", workers=None, scheduler=None, client=client,
-                                        batch=batch, progress=None)
-            dask_s, here = time.perf_counter() - t, time.process_time() - c0
-            w1 = client.run(time.process_time)
-            dask_cpu = here + sum(w1[k] - w0[k] for k in w1)
-            out[c] = {"per_run_s": loop_cpu / runs, "runs_per_s": runs / dask_s / w,
+            loop_s = loop_cpu = dask_s = dask_cpu = math.inf
+            py_cpu, client_cpu = math.nan, math.inf
+            identical = True
+            for rep in range(repeats):  # alternate the two paths; the least time of each (the machine's noise
+                # is one-sided: another process only ever adds time)
+                rows_l, size, ls, lc, py = client.submit(_plain_loop, plan, batch, python_runs if rep == 0 else 0, w,
+                                                         workers=first, pure=False).result()
+                if rep == 0:
+                    py_cpu = py
+                w0 = client.run(time.process_time)
+                t, c0 = time.perf_counter(), time.process_time()
+                rows_d, info = _run_jobs(plan, engine="dask", workers=None, scheduler=None, client=client,
+                                         batch=size, progress=None)
+                ds, here = time.perf_counter() - t, time.process_time() - c0
+                w1 = client.run(time.process_time)
+                dc = here + sum(w1[k] - w0[k] for k in w1)
+                loop_s, loop_cpu = min(loop_s, ls), min(loop_cpu, lc)
+                dask_s, dask_cpu, client_cpu = min(dask_s, ds), min(dask_cpu, dc), min(client_cpu, here)
+                identical = identical and rows_l == rows_d
+            out[c] = {"per_run_s": loop_cpu / n, "python_per_run_s": py_cpu, "speedup": py_cpu / (loop_cpu / n),
+                      "runs_per_s": n / dask_s / w,
                       "dask_overhead": dask_cpu / loop_cpu - 1.0, "dask_overhead_wall": w * dask_s / loop_s - 1.0,
                       "loop_s": loop_s, "dask_s": dask_s, "loop_cpu_s": loop_cpu, "dask_cpu_s": dask_cpu,
-                      "runs": runs, "workers": w, "batch": info["batch"], "duration": duration,
-                      "cluster_start_s": start, "load": os.getloadavg()[0], "identical": loop_rows == dask_rows}
+                      "client_cpu_s": client_cpu,
+                      "runs": n, "workers": w, "batch": info["batch"], "duration": duration,
+                      "cluster_start_s": start, "load": os.getloadavg()[0], "identical": identical,
+                      "repeats": repeats}
     return out
+
+
+def _plain_loop(plan: SweepPlan, batch: int | None, python_runs: int,
+                workers: int) -> tuple[list, int, float, float, float]:
+    """The plain loop of :func:`sweep_perf`, in a worker: rows, batch size, wall and CPU time; and the CPU
+    time of one run built as the sweep builds it and run by :func:`gearctl.runs.execute` (the Python loop),
+    median over ``python_runs``."""
+    from .runs import execute
+
+    sweep_task(plan.context, plan.jobs[:1])  # the design, once per process, as every worker does
+    size = batch or batch_size(len(plan.jobs), workers, plan.context.duration, run_cost(plan.context))
+    t, c0 = time.perf_counter(), time.process_time()
+    rows, _ = _run_jobs(plan, engine="serial", workers=None, scheduler=None, client=None, batch=size, progress=None)
+    loop_s, loop_cpu = time.perf_counter() - t, time.process_time() - c0
+    cpu = []
+    for job in plan.jobs[:python_runs]:
+        c0 = time.process_time()
+        run, _ = _build_run(plan.context, job)
+        execute(run)
+        cpu.append(time.process_time() - c0)
+    return rows, size, loop_s, loop_cpu, float(np.median(cpu)) if cpu else math.nan
 
 
 def _warm() -> None:

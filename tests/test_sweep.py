@@ -235,17 +235,20 @@ def test_each_row_is_the_run_built_by_hand_with_a_fresh_design() -> None:
 
 
 def test_a_failing_run_is_recorded_and_the_sweep_goes_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    import gearctl.export.batch
     import gearctl.runs
     from gearctl.errors import SimulationError
 
-    real = gearctl.runs.simulate_closed_loop
+    def flaky(real):  # noqa: ANN001, ANN202
+        def run(plant, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
+            if plant.backlash > 1.5 * B0:
+                raise SimulationError("closed loop failed: diverged (test)")
+            return real(plant, *args, **kw)
+        return run
 
-    def flaky(plant, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
-        if plant.backlash > 1.5 * B0:
-            raise SimulationError("closed loop failed: diverged (test)")
-        return real(plant, *args, **kw)
-
-    monkeypatch.setattr(gearctl.runs, "simulate_closed_loop", flaky)
+    # the PID runs in the compiled batch loop where a C compiler exists, in the Python loop elsewhere
+    monkeypatch.setattr(gearctl.runs, "simulate_closed_loop", flaky(gearctl.runs.simulate_closed_loop))
+    monkeypatch.setattr(gearctl.export.batch, "simulate_compiled", flaky(gearctl.export.batch.simulate_compiled))
     res = sweep(MODEL, "pid", vary=["backlash=1x,2x"], grid=True, duration=0.3, engine="serial")
     ok, bad = res.runs
     assert ok["status"] == "ok" and bad["status"] == "failed" and "diverged (test)" in bad["message"]
@@ -464,3 +467,14 @@ def test_tolerance_study_example(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert out.count("| deadzone_inverse |") == 2 and out.count("| mpc |") == 2
     assert (tmp_path / "tolerance.png").stat().st_size > 0 and "| controller |" in (tmp_path / "report.md").read_text()
 
+
+
+def test_sweep_perf_reports_the_contract_keys_and_equal_paths() -> None:
+    """``gearctl perf``'s ``sweep`` section: the plain loop and the Dask path run the same runs to the same rows."""
+    from gearctl.sweep import sweep_perf
+
+    out = sweep_perf(("pid",), runs=12, workers=1, repeats=1, python_runs=2)
+    r = out["pid"]
+    assert {"runs_per_s", "per_run_s", "dask_overhead", "python_per_run_s", "client_cpu_s"} <= set(r)
+    assert r["identical"] and r["runs"] == 12 and r["per_run_s"] > 0 and r["runs_per_s"] > 0
+    assert r["dask_cpu_s"] >= r["client_cpu_s"] >= 0
