@@ -692,6 +692,12 @@ FOUND_CASES = {
         fixed=(
         "fixed: the line names [servo] motor_inertia (at most 9.877e5 kg m^2 with the 1.2e4 kg m^2 "
         "pinion: a shaft at most 1e6)")),
+    "no_torque_limit_inverse": Found("no_torque_limit_inverse.toml", (
+        ("track", "MODEL", "deadzone_inverse", "--reference", "sine", "--duration", "0.1"),), 4.0,
+        "noisy stderr: without a torque limit the dead-zone inverse's take-up time divides inf by inf "
+        "(design/deadzone.py _start_take_up: RuntimeWarning, invalid value in scalar divide)",
+        fixed=(
+        "fixed: without a torque limit no acceleration bound lengthens the take-up (Python and exported C)")),
 }
 
 

@@ -645,8 +645,9 @@ class DeadzoneInverse(Controller):
         th, om = self._free
         d0, dd0 = r - th, rd - om
         a_lim = TAKE_UP_ACCELERATION * self._a_limit
-        T = max(self.crossing_time, self.Ts,
-                (4.0 * abs(dd0) + math.sqrt(16.0 * dd0 * dd0 + 24.0 * abs(d0) * a_lim)) / (2.0 * a_lim))
+        T = max(self.crossing_time, self.Ts)
+        if math.isfinite(a_lim):  # without a torque limit no acceleration bound lengthens the take-up
+            T = max(T, (4.0 * abs(dd0) + math.sqrt(16.0 * dd0 * dd0 + 24.0 * abs(d0) * a_lim)) / (2.0 * a_lim))
         self._lag = (d0, dd0, t, T) if abs(d0) + T * abs(dd0) < self._offset else None
 
     def describe(self) -> dict[str, Any]:

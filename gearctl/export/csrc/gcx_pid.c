@@ -395,8 +395,9 @@ GCX_FN void gcx_inv_start_take_up(const gcx_inv_p *P, gcx_inv_s *S, double t, do
     double th = S->free[0], om = S->free[1];
     double d0 = r - th, dd0 = rd - om;
     double a_lim = P->take_up_acceleration * P->a_limit;
-    double T = gcx_max(gcx_max(P->crossing_time, P->pid.Ts),
-                       (4.0 * fabs(dd0) + sqrt(16.0 * dd0 * dd0 + 24.0 * fabs(d0) * a_lim)) / (2.0 * a_lim));
+    double T = gcx_max(P->crossing_time, P->pid.Ts);
+    if (isfinite(a_lim)) /* without a torque limit no acceleration bound lengthens the take-up */
+        T = gcx_max(T, (4.0 * fabs(dd0) + sqrt(16.0 * dd0 * dd0 + 24.0 * fabs(d0) * a_lim)) / (2.0 * a_lim));
     if (fabs(d0) + T * fabs(dd0) < S->offset) {
         S->lag[0] = d0, S->lag[1] = dd0, S->lag[2] = t, S->lag[3] = T;
         S->has_lag = 1;
