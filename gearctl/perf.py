@@ -219,8 +219,11 @@ def loop_speed(model: str, controller: str = "pid", *, reference_kind: str = "si
     Returns
     -------
     dict
-        ``sim_per_wall``, ``per_sample_s`` [s of wall time per controller sample], ``model``, ``controller``,
-        ``stages``, ``reference``, ``duration``, ``impacts``.
+        ``sim_per_wall``, ``per_sample_s`` [s of wall time per controller sample] (the closed loop in Python
+        around the compiled kernel, :func:`gearctl.runs.execute`); ``compiled_sim_per_wall``: the same run in the
+        compiled batch loop (:func:`gearctl.export.batch.run_compiled`, the sweeps' loop; the Python loop for
+        controllers it does not cover); ``model``, ``controller``, ``stages``, ``reference``, ``duration``,
+        ``impacts``.
     """
     import dataclasses
 
@@ -230,16 +233,22 @@ def loop_speed(model: str, controller: str = "pid", *, reference_kind: str = "si
     run = make_run(model, controller, reference_kind=reference_kind, duration=duration, backlash=backlash)
     if hold:
         run = dataclasses.replace(run, reference=Reference(kind="step", amplitude=0.0))
-    walls, last = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        last = execute(run)
-        walls.append(time.perf_counter() - t0)
-    wall = float(np.median(walls))
+    from .export.batch import run_compiled
+
+    def median_wall(fn: Any) -> tuple[float, Any]:
+        walls, res = [], None
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            res = fn(run)
+            walls.append(time.perf_counter() - t0)
+        return float(np.median(walls)), res
+
+    wall, last = median_wall(execute)
+    wall_c, _ = median_wall(run_compiled)  # the same run, the loop in C where the controller allows it
     Ts = last.controller.get("Ts", 1e-3) if last is not None else 1e-3
     return {"model": model, "controller": controller, "stages": run.plant.n_stages,
             "reference": "hold" if hold else reference_kind, "duration": duration, "sim_per_wall": duration / wall,
-            "per_sample_s": wall * Ts / duration,
+            "per_sample_s": wall * Ts / duration, "compiled_sim_per_wall": duration / wall_c,
             "impacts": last.metrics.impacts if last is not None and last.metrics is not None else None}
 
 
