@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import pickle
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,8 @@ from .plant import Plant, build_plant
 from .references import DEFAULT_DURATION, Reference, reference
 from .units import DURATION, SEED
 
-__all__ = ["Design", "Run", "RunResult", "make_run", "execute", "design_controller", "controller_spec"]
+__all__ = ["Design", "Run", "RunResult", "make_run", "execute", "execute_controller", "design_controller",
+           "controller_spec"]
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -220,9 +221,28 @@ def execute(run: Run, *, keep: bool = False) -> RunResult | tuple[RunResult, Clo
         out = RunResult(run=run, ok=False, message=str(exc), metrics=None, controller={}, trace_t=np.zeros(0),
                         trace_error=np.zeros(0))
         return (out, None) if keep else out
+    return execute_controller(run, ctrl, keep=keep)
+
+
+def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,
+                       keep: bool = False) -> RunResult | tuple[RunResult, ClosedLoopResult | None]:
+    """:func:`execute` with the controller given (designed, compiled or exported) and, optionally, the loop.
+
+    Parameters
+    ----------
+    run : Run
+        Plant, reference, duration, sensors, seed and ``realtime`` of the run (its design is not used).
+    ctrl : Controller
+    simulate : callable, optional
+        ``simulate(plant, ctrl, reference, duration, sensors=, seed=) -> ClosedLoopResult`` (default
+        :func:`gearctl.closedloop.simulate_closed_loop`; the compiled batch loop passes its own).
+    keep : bool
+        Also return the whole :class:`ClosedLoopResult`.
+    """
     ctrl.realtime = run.realtime
     try:
-        res = simulate_closed_loop(run.plant, ctrl, run.reference, run.duration, sensors=run.sensors, seed=run.seed)
+        res = (simulate or simulate_closed_loop)(run.plant, ctrl, run.reference, run.duration, sensors=run.sensors,
+                                                 seed=run.seed)
         ok, message = True, "ok"
     except GearctlError as exc:
         part = getattr(exc, "result", None)

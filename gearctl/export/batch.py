@@ -27,9 +27,8 @@ from ..closedloop import ClosedLoopResult
 from ..controller import Controller
 from ..errors import GearctlError, InputError, SimulationError
 from ..kernel import Kernel, c_structs
-from ..metrics import tracking_metrics
 from ..references import Reference, move_times
-from ..runs import Run, RunResult, design_controller, execute
+from ..runs import Run, RunResult, design_controller, execute, execute_controller
 from ..simulate import DIVERGENCE_LIMIT
 from ..units import DURATION, SEED
 from .kinds import KIND_IDS, kind_spec, kind_structs, source_text
@@ -272,19 +271,7 @@ def run_compiled(run: Run) -> RunResult:
         return execute(run)  # type: ignore[return-value]
     if type(run.reference) is not Reference or not _runs_in_c(ctrl):
         return execute(run)  # type: ignore[return-value]
-    ctrl.realtime = run.realtime
-    try:
-        res = simulate_compiled(run.plant, ctrl, run.reference, run.duration, sensors=run.sensors, seed=run.seed)
-        ok, message = True, "ok"
-    except GearctlError as exc:
-        part = getattr(exc, "result", None)
-        if not isinstance(part, ClosedLoopResult) or part.t.size < 2:
-            return RunResult(run=run, ok=False, message=str(exc), metrics=None, controller=ctrl.describe(),
-                             trace_t=np.zeros(0), trace_error=np.zeros(0))
-        res, ok, message = part, False, str(exc)
-    step = max(1, res.t.size // 600)
-    return RunResult(run=run, ok=ok, message=message, metrics=tracking_metrics(res), controller=ctrl.describe(),
-                     trace_t=res.t[::step].copy(), trace_error=res.error[::step].copy())
+    return execute_controller(run, ctrl, simulate=simulate_compiled)  # type: ignore[return-value]
 
 
 def _runs_in_c(ctrl: Controller) -> bool:

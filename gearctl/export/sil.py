@@ -203,10 +203,7 @@ def execute_exported(run: Any, folder: str | Path, *, keep: bool = False) -> Any
         For a folder that holds no exported controller, one of another kind than the run's, or that does
         not compile.
     """
-    from ..closedloop import ClosedLoopResult, simulate_closed_loop
-    from ..errors import GearctlError
-    from ..metrics import tracking_metrics
-    from ..runs import RunResult
+    from ..runs import execute_controller
 
     ctrl = load_exported(folder)
     kind = (run.design.spec or {}).get("kind")
@@ -214,18 +211,4 @@ def execute_exported(run: Any, folder: str | Path, *, keep: bool = False) -> Any
         raise InputError(f"{folder} holds an exported {ctrl.kind} controller ({ctrl.name!r}), but the command names "
                          f"a {kind} controller ({run.design.label}): export that one, or name the exported kind",
                          field="exported")
-    ctrl.realtime = run.realtime
-    try:
-        res = simulate_closed_loop(run.plant, ctrl, run.reference, run.duration, sensors=run.sensors, seed=run.seed)
-        ok, message = True, "ok"
-    except GearctlError as exc:
-        part = getattr(exc, "result", None)
-        if not isinstance(part, ClosedLoopResult) or part.t.size < 2:
-            out = RunResult(run=run, ok=False, message=str(exc), metrics=None, controller=ctrl.describe(),
-                            trace_t=np.zeros(0), trace_error=np.zeros(0))
-            return (out, None) if keep else out
-        res, ok, message = part, False, str(exc)
-    step = max(1, res.t.size // 600)
-    out = RunResult(run=run, ok=ok, message=message, metrics=tracking_metrics(res), controller=ctrl.describe(),
-                    trace_t=res.t[::step].copy(), trace_error=res.error[::step].copy())
-    return (out, res) if keep else out
+    return execute_controller(run, ctrl, keep=keep)
