@@ -25,7 +25,7 @@ from .plant import Plant
 from .simulate import DIVERGENCE_LIMIT, Event, located_events
 from .units import DURATION, SEED
 
-__all__ = ["ClosedLoopResult", "simulate_closed_loop", "Encoder"]
+__all__ = ["ClosedLoopResult", "simulate_closed_loop", "loop_samples", "Encoder"]
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -139,6 +139,25 @@ class ClosedLoopResult:
         return int(np.sum(c["impacts_front"] + c["impacts_back"] + c["plastic_front"] + c["plastic_back"]))
 
 
+def loop_samples(plant: Plant, controller: Controller, duration: float, seed: int) -> int:
+    """The number of controller samples of a closed-loop run, after checking its inputs (duration, seed,
+    and the size of the output the run would write).
+
+    Raises
+    ------
+    InputError
+        For a duration or seed out of range, a run shorter than one sample, or an output too large.
+    """
+    DURATION.check("duration", duration)
+    SEED.check("seed", seed)
+    n = int(round(duration / controller.Ts))
+    if n < 1:
+        raise InputError(f"duration = {duration!r} is shorter than one sample ({controller.Ts:g} s)",
+                         field="duration")
+    check_output_size(n + 1, plant.nx + 8, field="duration", fix="a shorter --duration")
+    return n
+
+
 def simulate_closed_loop(
     plant: Plant,
     controller: Controller,
@@ -185,12 +204,7 @@ def simulate_closed_loop(
         If the loop diverges or the plant state becomes NaN; ``error.result`` holds the run so far.
     """
     Ts = controller.Ts
-    DURATION.check("duration", duration)
-    SEED.check("seed", seed)
-    n = int(round(duration / Ts))
-    if n < 1:
-        raise InputError(f"duration = {duration!r} is shorter than one sample ({Ts:g} s)", field="duration")
-    check_output_size(n + 1, plant.nx + 8, field="duration", fix="a shorter --duration")
+    n = loop_samples(plant, controller, duration, seed)
     sensors = sensors or Sensors()
     enc_m = Encoder(sensors.motor_encoder_cpr, sensors.motor_noise)
     enc_l = Encoder(sensors.load_encoder_cpr, sensors.load_noise)

@@ -23,14 +23,13 @@ from typing import Any
 import numpy as np
 
 from ..build import compile_disabled, shared_library
-from ..closedloop import ClosedLoopResult
+from ..closedloop import ClosedLoopResult, loop_samples
 from ..controller import Controller
 from ..errors import GearctlError, InputError, SimulationError
 from ..kernel import Kernel, c_structs
 from ..references import Reference, move_times
 from ..runs import Run, RunResult, design_controller, execute, execute_controller
 from ..simulate import DIVERGENCE_LIMIT
-from ..units import DURATION, SEED
 from .kinds import KIND_IDS, kind_spec, kind_structs, source_text
 
 __all__ = ["run_compiled", "compiled_kinds", "simulate_compiled", "batch_available"]
@@ -147,7 +146,6 @@ def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: fl
     SimulationError
         As :func:`~gearctl.closedloop.simulate_closed_loop`: diverged, or the kernel failed.
     """
-    from ..limits import check_output_size
     from ..params import Sensors
 
     lib = _library() if batch_available() else None
@@ -156,12 +154,7 @@ def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: fl
         raise InputError(f"the compiled batch loop runs {', '.join(BATCH_KINDS)} (with a C compiler); not "
                          f"{spec.kind}", field="controller")
     Ts = controller.Ts
-    DURATION.check("duration", duration)
-    SEED.check("seed", seed)
-    n = int(round(duration / Ts))
-    if n < 1:
-        raise InputError(f"duration = {duration!r} is shorter than one sample ({Ts:g} s)", field="duration")
-    check_output_size(n + 1, plant.nx + 8, field="duration", fix="a shorter --duration")
+    n = loop_samples(plant, controller, duration, seed)
     sensors = sensors or Sensors()
     use_load = controller.uses_load_encoder
     kn = Kernel(plant, np.zeros(plant.nx), dt=Ts, compiled=True)
