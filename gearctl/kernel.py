@@ -776,6 +776,16 @@ class Kernel:
         status = self._fn(self._pp, self._sp)  # two pointer arguments: the cheapest ctypes call
         if status == 0 and st.n_events == 0:
             return 0
+        return self.finish_call(status)
+
+    def finish_call(self, status: int) -> int:
+        """After a call of the compiled ``gc_step`` that stopped early (``status``) or located events: drain the
+        events, build the pattern it asks for, call again until the interval ends; return the final status.
+
+        :meth:`advance` and the compiled batch loop (:mod:`gearctl.export.batch`, which calls ``gc_step``
+        from C) both end their calls here, so the event budget and the patterns are handled in one place.
+        """
+        st = self._st
         budget = self._budget(st.t_end, st.n_events)  # what this call could locate when it started
         used = 0
         while True:

@@ -115,26 +115,6 @@ def _ref_struct(ref: Any) -> _RefP | None:
     return r
 
 
-def _finish_interval(kn: Kernel, status: int) -> int:
-    """Kernel.advance after its first call: drain events, build patterns, call again until the interval ends."""
-    st = kn._st
-    budget = kn._budget(st.t_end, st.n_events)
-    used = 0
-    while True:
-        if st.n_events:
-            used += st.n_events
-            kn._drain(min(st.n_events, kn._cap))
-        if used > budget:
-            return 3
-        if status == 6:
-            kn._ensure_pattern(st.need)
-        elif status != 5:
-            return status
-        kn._prm.max_events = max(min(budget - used, kn.max_events), 0)
-        status = kn._fn(kn._pp, kn._sp)
-        kn._prm.max_events = kn.max_events
-
-
 def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: float, *, sensors: Any = None,
                       seed: int = 0) -> ClosedLoopResult:
     """:func:`gearctl.closedloop.simulate_closed_loop` with the loop in C (same arguments, same result).
@@ -201,7 +181,7 @@ def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: fl
             ctypes.addressof(params), state.ctypes.data)
     wall0 = time.perf_counter()
     while lib.gcx_batch_run(*args):
-        L.pending = _finish_interval(kn, int(L.pending))
+        L.pending = kn.finish_call(int(L.pending))
     wall = time.perf_counter() - wall0
     last = int(L.last)
     message = "ok"
