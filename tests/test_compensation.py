@@ -173,6 +173,28 @@ def test_wrong_backlash_estimate_keeps_reversal_down(runs: _Runs, model: str, fa
     assert B_pid >= 4.0 * B
 
 
+@pytest.mark.parametrize("factor", [0.9, pytest.param(1.1, marks=pytest.mark.xfail(strict=True, reason=(
+    "known weakness: with an estimate above the true b the inverse's crossing predicts the far flank 2 (b_est - b) "
+    "too far and meets the frictionless load at speed (0.13 rad/s at 1.08 b); the 0.85-restitution mesh kicks the "
+    "load off, and only the back flank can catch it up: a spike of the whole lost motion every other reversal "
+    "(the contact check resets one flank only). Measured max error 1.46e-3 rad at 1.1 b (0.80-0.98 b: no spike). "
+    "With an uncertain b the adaptive inverse stays at 70-80 urad RMS over 0.8-1.2 b")))])
+def test_inverse_with_a_wrong_estimate_tracks_the_sine_without_losing_the_gap(factor: float) -> None:
+    # sine on shing1993_servo with the estimate off by 10 %: the tracking error must stay well below the lost
+    # motion (1.33e-3 rad) and the RMS well below the PID's (6.47e-4). Measured at 0.9 b: RMS 6.5e-5, max 8.7e-5
+    # (after 0.5 s); kept below a third of the lost motion and a third of the PID's RMS
+    m = load_model(SERVO)
+    plant = build_plant(m)
+    ctrl = load_controller("deadzone_inverse", plant, backlash=factor * plant.backlash)
+    res = simulate_closed_loop(plant, ctrl, reference("sine"), 3.0, sensors=m.sensors)
+    e = np.abs(res.error[res.t >= 0.5])
+    lost = 2.0 * plant.backlash / plant.rb2
+    rms = np.sqrt(np.mean(e ** 2))
+    print(f"\nestimate {factor} b: RMS {rms:.3g} rad, max {e.max():.3g} rad, lost motion {lost:.3g}")
+    assert e.max() < lost / 3.0
+    assert rms < 6.47e-4 / 3.0
+
+
 def test_mpc_with_an_underestimated_backlash_keeps_its_accuracy(runs: _Runs) -> None:
     # the MPC measures the gap with both encoders: with 0.8 b on shing1993_servo_friction it gives B = 3.1 urad
     # (2.8 with the right estimate), 480x below the PID's 1502; kept within 30 urad and 30x
