@@ -213,3 +213,24 @@ def test_cli_bench_unknown_plant(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["bench", "--plants", "foo", "--quiet"]) == 2
     cap = capsys.readouterr()
     assert cap.err.count("\n") == 1 and "foo" in cap.err and "Traceback" not in cap.err
+
+
+def test_bench_warnings_come_one_line_per_kind() -> None:
+    """The bench's loop warnings: one stderr line per kind, naming every run that has it (a long table of runs
+    with the same warning would bury the result)."""
+    from gearctl.cli.loop_cmds import _grouped_warnings
+
+    runs = [
+        {"controller": "pid_load", "plant": "improved", "reference": "sine",
+         "warnings": ["sustained limit cycle: 169 impacts in the last 0.75 s",
+                      "impact rate 226 per s, above 100 per s"]},
+        {"controller": "mpc", "plant": "yang-sun", "reference": "move",
+         "warnings": ["impact rate 1494 per s, above 100 per s"]},
+        {"controller": "pid", "plant": "improved", "design": "yang-sun", "reference": "sine", "warnings": []},
+    ]
+    lines = _grouped_warnings(runs)
+    assert lines == [
+        "sustained limit cycle in 1 run(s): pid_load on improved (sine) (figures: --json)",
+        "impact rate above 100 per s in 2 run(s): pid_load on improved (sine), mpc on yang-sun (move) "
+        "(figures: --json)",
+    ]

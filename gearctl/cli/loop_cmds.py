@@ -200,14 +200,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     print(text, end="")
     print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
                                           f"on {result['jobs']} process(es)"))
-    said: set[str] = set()
-    for r in result["runs"]:
-        design = "" if r.get("design", r["plant"]) in ("improved", r["plant"]) else f", designed on {r['design']}"
-        for wmsg in r.get("warnings", ()):
-            line = f"{r['controller']} on {r['plant']}{design} ({r['reference']}): {wmsg}"
-            if line not in said:
-                said.add(line)
-                warn("bench", [line])
+    warn("bench", _grouped_warnings(result["runs"]))
     if args.json:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
@@ -307,6 +300,24 @@ def _cmd_perf(args: argparse.Namespace) -> int:
 
 
 SWEEP_RUNS = Spec(unit="1", doc="runs per controller", low=10, high=100_000, integer=True)
+
+
+def _grouped_warnings(runs: list[dict[str, Any]]) -> list[str]:
+    """One line per kind of loop warning (limit cycle, impact rate, ...) naming the runs that have it."""
+    import re
+
+    groups: dict[str, list[str]] = {}
+    for r in runs:
+        design = "" if r.get("design", r["plant"]) in ("improved", r["plant"]) else f", designed on {r['design']}"
+        label = f"{r['controller']} on {r['plant']}{design} ({r['reference']})"
+        for wmsg in r.get("warnings", ()):
+            if ":" in wmsg:  # "sustained limit cycle: 56 impacts ..."
+                kind = wmsg.split(":")[0]
+            else:  # "impact rate 112 per s, above 100 per s" -> "impact rate above 100 per s"
+                kind = re.split(r"\s[-+]?\d", wmsg)[0] + (f" {wmsg.rsplit(', ', 1)[1]}" if ", " in wmsg else "")
+            if label not in groups.setdefault(kind.strip(), []):
+                groups[kind.strip()].append(label)
+    return [f"{kind} in {len(labels)} run(s): {', '.join(labels)} (figures: --json)" for kind, labels in groups.items()]
 
 
 def _set_arg(text: str) -> tuple[str, float | int]:
