@@ -50,7 +50,6 @@ Decisions
 from __future__ import annotations
 
 import dataclasses
-import logging
 import math
 import os
 import re
@@ -69,7 +68,7 @@ from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
 from .geometry import GearPair, pair_geometry
 from .model import GearModel, check_model
-from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, default_workers
+from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, default_workers, local_cluster
 from .params import MeshDynamics, Sensors, Servo
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
@@ -1156,9 +1155,7 @@ def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), 
     w = workers or default_workers()
     out: dict[str, dict[str, Any]] = {}
     t = time.perf_counter()
-    with distributed.LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
-                                  silence_logs=logging.ERROR) as cluster, \
-            distributed.Client(cluster, set_as_default=False) as client:
+    with local_cluster(w) as cluster, distributed.Client(cluster, set_as_default=False) as client:
         client.run(_warm)  # import gearctl in every worker: start-up, not sweep
         start = time.perf_counter() - t
         first = sorted(client.scheduler_info()["workers"])[:1]
