@@ -16,11 +16,16 @@ params      :class:`MeshDynamics`, :class:`Servo`, :class:`Sensors`, :class:`Con
 plant       :class:`Plant`, :func:`build_plant`, :class:`Mode`, :class:`PlantKind`
 catalog     :func:`load_model`, :func:`model_names`, :class:`GearModel`
 summary     :func:`model_summary`
-simulate    :func:`simulate`, :func:`report_case` (open loop, events located exactly)
+simulate    :func:`report_case`, ``gearctl.simulate.simulate`` (open loop, events located exactly)
 modes       :func:`linearize_modes`, :func:`contact_mode_model`, :func:`loop_margins` (python-control)
 design      :class:`PID`, :func:`design_pid`, :class:`DeadzoneInverse`, MPC (``gearctl.design.mpc``)
 closedloop  :func:`simulate_closed_loop`; references :func:`reference`; metrics :func:`tracking_metrics`
 precision   :func:`precision_test` (ISO 230-2); bench :func:`run_bench`
+runs        :func:`make_run`, :func:`execute` (one closed-loop run as a value)
+identify    :func:`read_log`, ``gearctl.identify.identify``, :func:`write_identified_model`; excite
+            :func:`record_excitation`
+sweep       ``gearctl.sweep.sweep`` (Monte Carlo and grids on Dask.distributed)
+export      :func:`export_controller` (C99), :func:`load_exported` (the C in the loop)
 errors      :class:`GearctlError`, :class:`InputError`, :class:`SimulationError`
 
 Modules that need python-control (which loads matplotlib) are imported on first use, so
@@ -48,17 +53,31 @@ from .summary import model_summary
 __version__ = "0.1.0"
 
 _LAZY = {
-    "simulate": "gearctl.simulate", "report_case": "gearctl.simulate",
+    "report_case": "gearctl.simulate",
     "linearize_modes": "gearctl.modes", "contact_mode_model": "gearctl.modes", "separation_model": "gearctl.modes",
     "rigid_model": "gearctl.modes", "loop_margins": "gearctl.modes",
     "simulate_closed_loop": "gearctl.closedloop", "reference": "gearctl.references",
     "tracking_metrics": "gearctl.metrics", "precision_test": "gearctl.precision", "run_bench": "gearctl.bench",
     "load_controller": "gearctl.catalog", "plant_nlsys": "gearctl.plant",
+    "make_run": "gearctl.runs", "execute": "gearctl.runs",
+    "read_log": "gearctl.identify", "write_identified_model": "gearctl.identify",
+    "record_excitation": "gearctl.excite",
+    "export_controller": "gearctl.export", "load_exported": "gearctl.export",
 }
+
+
+#: Submodules whose main function has the module's name (``gearctl.simulate.simulate``, ``gearctl.identify.identify``,
+#: ``gearctl.sweep.sweep``): ``gearctl.<name>`` is always the module (a function of that name would be replaced by
+#: the module as soon as anything imports it).
+_SUBMODULES = ("simulate", "identify", "sweep")
 
 
 def __getattr__(name: str) -> object:
     """Import the heavier parts of the API on first use."""
+    if name in _SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f"{__name__}.{name}")
     if name in _LAZY:
         import importlib
 
@@ -67,6 +86,7 @@ def __getattr__(name: str) -> object:
 
 __all__ = [
     *_LAZY,
+    *_SUBMODULES,
     "ContactLaw",
     "GearModel",
     "GearPair",

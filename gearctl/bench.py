@@ -299,8 +299,8 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
         body.append(row)
     table(["controller", "reference", *plants, "solve p99 (worst plant) / Ts [us]", "preview"], body)
 
-    lines.append("Ratios of RMS error: over the PID's on the same plant | over the backlash-free plant's under the "
-                 "same controller:")
+    lines.append("Ratios of RMS error, per plant: over the PID's on the same plant / over the backlash-free plant's "
+                 "under the same controller:")
     lines.append("")
     body = []
     for m, c, ref in rows:
@@ -311,7 +311,7 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
                 continue
             a = ratios["over_pid"].get(key, {}).get(p)
             b = ratios["over_backlash_free"].get(key, {}).get(p)
-            row.append(f"{_fmt(a, 1, 3)} | {_fmt(b, 1, 3)}")
+            row.append(f"{_fmt(a, 1, 3)} / {_fmt(b, 1, 3)}")
         row.append(_fmt(ratios["improved_over_yang_sun"].get(key), 1, 3))
         body.append(row)
     table(["controller", "reference", *[p for p in plants if p != FREE], "improved / yang-sun"], body)

@@ -16,7 +16,7 @@ import math
 from typing import Any
 
 from .errors import InputError
-from .units import BACKLASH_FLOOR, FACE_WIDTH, MODULE, quantity, validate_fields
+from .units import BACKLASH, FACE_WIDTH, MODULE, quantity, validate_fields
 
 __all__ = [
     "GearPair",
@@ -177,8 +177,7 @@ class GearPair:
         unit="rad", doc="pressure angle", low=math.radians(10.0), high=math.radians(35.0)
     )
     face_width: float = FACE_WIDTH.field()
-    backlash: float = quantity(unit="m", doc="backlash b along the line of action", low=0.0, high=0.01,
-                               floor=BACKLASH_FLOOR)
+    backlash: float = BACKLASH.field()
     addendum_coefficient: float = quantity(
         unit="1", doc="addendum / module", low=0.5, high=1.6, default=1.0
     )

@@ -130,14 +130,15 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
 
     Notes
     -----
-    Growing error: the largest error of the last quarter of the run, ``e_4``, against that of the second,
-    ``e_2``. A reference that changes after the second quarter (a step, the start of a ramp or a move) puts
-    up to its own change into the error of a stable loop (right after a step of ``h`` the error is ``h``),
-    which no earlier error foretells. So the yardstick is the larger of ``e_2`` and that change: the error grows
-    when ``e_4 > growth x max(e_2, dr)`` with ``dr = max(0, ptp(r, second half) - ptp(r, second quarter))``
-    (``ptp``: the reference's range; a sine or a ramp that moves as much in the second quarter as after it
-    gives ``dr = 0``) and ``e_4 > 1 mrad``. A loop that cannot move at all (error = the step) is not growing;
-    one that diverges passes ten times the step within a few of its time constants.
+    Growing error: the largest error of the last quarter of the run, ``e_4``, against that of the middle half
+    (second and third quarters), ``e_23``: half the run, so that an error that comes back once per period of
+    a slower motion (a 1 Hz sine's reversal in a 3 s run) is seen in both. A reference that changes after
+    the middle half (a step, the start of a ramp or a move) puts up to its own change into the error of a
+    stable loop (right after a step of ``h`` the error is ``h``), which no earlier error foretells. So the
+    yardstick is the larger of ``e_23`` and that change: the error grows when ``e_4 > growth x max(e_23, dr)``
+    with ``dr = max(0, ptp(r, last quarter) - ptp(r, middle half))`` (``ptp``: the reference's range) and
+    ``e_4 > 1 mrad``. A loop that cannot move at all (error = the step) is not growing; one that diverges
+    passes ten times the step within a few of its time constants.
     """
     lim = HEALTH_LIMITS
     t0 = res.settle if settle is None else settle
@@ -157,9 +158,9 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
         np.any(keep) else 0.0
     e = np.abs(res.error)
     q = max(len(e) // 4, 1)
-    early, last = float(np.max(e[q:2 * q])) if len(e) >= 4 else 0.0, float(np.max(e[-q:]))
+    early, last = float(np.max(e[q:3 * q])) if len(e) >= 4 else 0.0, float(np.max(e[-q:]))
     r = res.reference
-    explained = max(float(np.ptp(r[2 * q:])) - float(np.ptp(r[q:2 * q])), 0.0) if len(r) >= 8 else 0.0
+    explained = max(float(np.ptp(r[3 * q:])) - float(np.ptp(r[q:3 * q])), 0.0) if len(r) >= 8 else 0.0
     growing = bool(len(e) >= 8 and last > lim["growth"] * max(early, explained, 1e-12) and last > 1e-3)
     warnings = []
     if cycle:

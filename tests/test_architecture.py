@@ -46,7 +46,7 @@ LAYERS: dict[str, int] = {
     "gearctl.catalog": 5, "gearctl.summary": 5, "gearctl.metrics": 5, "gearctl.runs": 5, "gearctl.precision": 5,
     "gearctl.bench": 5, "gearctl.describe": 5, "gearctl.perf": 5, "gearctl.identify": 5, "gearctl.sweep": 5,
     "gearctl.excite": 5, "gearctl.parallel": 5,
-    "gearctl.export": 5, "gearctl.sil": 5,
+    "gearctl.export": 5,
     "gearctl.plots": 6, "gearctl.cli": 6,
 }
 NAMES = {0: "foundation", 1: "model", 2: "plant", 3: "simulation", 4: "design", 5: "analysis", 6: "apps"}
@@ -242,3 +242,17 @@ def test_layer_check_can_fail(tmp_path: Path) -> None:
     src.write_text("def f():\n    from .cli import main\n")
     deps = {t for t in imports_of("gearctl.plant", src) if t.startswith("gearctl.")}
     assert any(layer_of(t) > layer_of("gearctl.plant") for t in deps)
+
+
+def test_every_public_name_resolves_to_one_object() -> None:
+    """``gearctl.<name>`` for each name of ``__all__`` imports, and asking twice gives the same object (a lazy
+    function named like its submodule would turn into the module once the submodule is imported)."""
+    import importlib
+
+    import gearctl
+
+    for name in gearctl.__all__:
+        first = getattr(gearctl, name)
+        importlib.import_module("gearctl.simulate")  # what closedloop, bench, ... import anyway
+        assert getattr(gearctl, name) is first, name
+    assert gearctl.export_controller.__module__ == "gearctl.export.emit"

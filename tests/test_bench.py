@@ -119,12 +119,15 @@ def test_tiny_bench_ratios(tiny: dict[str, Any]) -> None:
 def test_bench_table_has_both_ratio_tables(tiny: dict[str, Any]) -> None:
     text = bench_table(tiny)
     assert "Load-angle error" in text
-    assert "Ratios of RMS error: over the PID's" in text  # over PID | over backlash-free
+    assert "Ratios of RMS error, per plant: over the PID's" in text  # over PID / over backlash-free
     assert "improved / yang-sun" in text
     assert "Designed on one plant, run on another" in text  # the cross-design table
     assert "FAILED" not in text
     md = bench_table(tiny, markdown=True)
     assert md.count("|---|") >= 3  # three Markdown tables
+    for table in md.split("\n\n"):  # every row of a Markdown table has its header's number of cells
+        rows = [line for line in table.splitlines() if line.startswith("|")]
+        assert len({line.count("|") for line in rows}) <= 1, table
     for c in CTRLS:
         assert c in text and c in md
 

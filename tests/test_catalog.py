@@ -266,6 +266,8 @@ FILE_CASES = [
      ["[pair] face_width = 0.0001", "at least 0.1 x module = 0.0002 [m]"]),
     ("backlash_floor", [("backlash = 5e-5", "backlash = 1e-124")],
      ["[pair] backlash = 1e-124", "either 0 or at least 1e-09 [m]"]),
+    # the range of every estimate and --backlash (units.BACKLASH), so a model that loads can build every controller
+    ("backlash_ceiling", [("backlash = 5e-5", "backlash = 0.01")], ["[pair] backlash = 0.01", "0 <= value < 0.01"]),
     ("gear_too_large", [("teeth = 80", "teeth = 1000"), (MODULE_LINE, "module = 0.05\n")],
      ["[gear2] teeth = 1000 with [pair] module = 0.05", "base radius of 23.49 m", "<= 10 [m]"]),
     ("gear_inertia_light", [("teeth = 20\n", "teeth = 20\ninertia = 1e-300\n")],

@@ -20,7 +20,7 @@ pid                         1386 / 1318 / 1349      1690 / 1502 / 1519
 pid, backlash-free plant    1.5 / 1.0 / 1.5         7.6 / 4.8 / 5.4
 deadzone_inverse            2458 / 562 / 1569       24 / 2.4 / 24
 reversal_offset             2668 / 2642 / 2668      190 / 88 / 102
-mpc                         327 / 44 / 327          7.7 / 2.8 / 7.7
+mpc                         370 / 123 / 343         7.2 / 3.9 / 6.9
 ==========================  ======================  ========================
 
 The PID's feedforward (inertia at mid-sample, the reference speed filtered as its measurement is, Coulomb
@@ -104,8 +104,8 @@ def _servo_slow_xfail(reason: str) -> list[pytest.MarkDecorator]:
 @pytest.mark.parametrize("model", [
     FRICTION,
     pytest.param(SERVO, marks=_servo_slow_xfail(
-        "issue 12 claim not met on the frictionless servo: best ISO accuracy is the MPC's, A = 327 urad against "
-        "1.5 urad for the PID on the backlash-free plant (218x, not <= 3x; before the PID's feedforward "
+        "issue 12 claim not met on the frictionless servo: best ISO accuracy is the MPC's, A = 370 urad against "
+        "1.5 urad for the PID on the backlash-free plant (250x, not <= 3x; before the PID's feedforward "
         "corrections the backlash-free PID gave 17.7 urad). The MPC ends each move within a few urad, but the "
         "free load (no friction, elastic mesh impacts, restitution ~0.85) leaves its flank at a few 1e-4 rad/s "
         "after some stops and drifts within the standstill deadband: only impacts slower than the kernel's "

@@ -30,7 +30,8 @@ warm server (tests/data/capped_cli.py ``ForkServer``): the isolation of a fresh 
 fresh state) without seconds of imports per model.
 
 The default suite runs a handful of models (``test_fuzz_sample``) and the reduced cases the long run found
-(``test_fuzz_found``, model files in tests/data/fuzz/, strict xfails until fixed); the long run
+(``test_fuzz_found``, model files in tests/data/fuzz/: each a strict xfail while it fails, a plain test once
+fixed, with how it ends since the fix); the long run
 (``test_fuzz_long``, at least 1000 models, on all cores) is selected with ``python -m pytest tests/test_fuzz.py
 -m fuzz -s`` and writes its figures (models tried and valid, outcomes per kind, slowest run, largest memory,
 every failure with its model file) to ``fuzz_report.json`` in the pytest tmp dir (or ``$GEARCTL_FUZZ_REPORT``).
