@@ -265,8 +265,9 @@ def standstill_cost(model: str = "shing1993_servo_friction", controller: str = "
     -------
     dict
         ``standstill``, ``motion`` (:func:`loop_speed`), ``ratio`` (standstill's simulated s per wall s over
-        motion's: >= 1 means a standstill is not dearer), ``precision`` {``backlash_free``, ``backlash``:
-        wall time [s] of ``gearctl precision MODEL CONTROLLER --cycles 1``}.
+        motion's: >= 1 means a standstill is not dearer; the Python loop around the kernel), ``compiled_ratio``
+        (the same in the compiled batch loop, where the kernel's own cost shows), ``precision``
+        {``backlash_free``, ``backlash``: wall time [s] of ``gearctl precision MODEL CONTROLLER --cycles 1``}.
     """
     from .catalog import load_controller
     from .precision import precision_test
@@ -282,7 +283,7 @@ def standstill_cost(model: str = "shing1993_servo_friction", controller: str = "
         precision_test(plant, ctrl, cycles=1, sensors=m.sensors)
         walls[label] = time.perf_counter() - t0
     return {"standstill": still, "motion": moving, "ratio": still["sim_per_wall"] / moving["sim_per_wall"],
-            "precision": walls}
+            "compiled_ratio": still["compiled_sim_per_wall"] / moving["compiled_sim_per_wall"], "precision": walls}
 
 
 def train_speed(*, duration: float = 5.0) -> dict[str, Any]:

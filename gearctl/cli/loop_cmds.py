@@ -269,7 +269,8 @@ def _cmd_perf(args: argparse.Namespace) -> int:
     sc = out["standstill"]
     print(f"Coulomb friction at standstill ({sc['standstill']['model']}, backlash-free, stick-slip): "
           f"{sc['standstill']['sim_per_wall']:.4g} sim-s/wall-s held at rest vs {sc['motion']['sim_per_wall']:.4g} "
-          f"on the sine (ratio {sc['ratio']:.3g}); ISO 230-2 one cycle: {sc['precision']['backlash_free']:.3g} s "
+          f"on the sine (ratio {sc['ratio']:.3g}; in the compiled loop {sc['compiled_ratio']:.3g}); ISO 230-2 one "
+          f"cycle: {sc['precision']['backlash_free']:.3g} s "
           f"backlash-free, {sc['precision']['backlash']:.3g} s with backlash")
     m = out["mpc"]
     if m is not None:
