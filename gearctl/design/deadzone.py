@@ -441,8 +441,27 @@ class DeadzoneInverse(Controller):
             if self._t < self._cross_end:
                 self._cross_end = self._ramp.end
 
+    def set_crossing_time(self, crossing_time: float) -> None:
+        """Change the crossing time [s] (``0 <= crossing_time <= 1``) and with it the ramp: ``sin^2`` for a
+        positive time, a step for 0 (as at construction). Every other state is kept.
+
+        Call it with the offset at rest (``not self.offset_moving(t)``, e.g. an adaptive law between
+        crossings): a ramp under way would go on in the new shape.
+        """
+        if not (0.0 <= crossing_time <= 1.0):
+            raise InputError(f"crossing_time = {crossing_time!r} is out of range: expected 0 <= value <= 1",
+                             field="crossing_time")
+        self.crossing_time = crossing_time
+        self._ramp.shape = "sin2" if crossing_time > 0.0 else "step"
+        self._ramp.duration = crossing_time
+
+    def offset_moving(self, t: float) -> bool:
+        """Whether the offset is on its ramp at ``t`` [s] (a crossing, or a change of the estimate)."""
+        return self._ramp.moving(t)
+
     def reset(self) -> None:
-        """Reset the wrapped PID, the observer, the offset (centred) and the held flank."""
+        """Reset the wrapped PID, the observer, the offset (centred) and the held flank (the backlash estimate
+        and the crossing time are kept)."""
         self.pid.reset()
         self._sigma = 0.0
         self._t = 0.0

@@ -15,7 +15,7 @@ from typing import Any
 
 from ..controller import Controller
 from ..design import deadzone
-from ..design.adaptive import AdaptiveInverse
+from ..design.adaptive import CONVERGED_MEASUREMENTS, AdaptiveInverse
 from ..design.deadzone import DeadzoneInverse
 from ..design.mpc import MPC
 from ..design.pid import PID
@@ -61,7 +61,8 @@ _struct("gcx_inv_p", [("pid", "gcx_pid_p"), ("plant", "gcx_plant_p"), ("obs", "g
 _struct("gcx_ada_p", [("inv", "gcx_inv_p"), ("rb1", "double"), ("rb2", "double"), ("k", "double"),
                       ("window", "int")] + [(f, "double") for f in (
                           "gain", "max_step", "min_backlash", "max_backlash", "plateau_tolerance", "apply_threshold",
-                          "initial")])
+                          "initial", "converged_crossing_time", "converged_tolerance", "diverged_tolerance")]
+        + [("converged_measurements", "int")])
 _struct("gcx_mpc_p", [
     ("n_pat", "int"), ("n_p", "int"), ("all_contact", "int"), ("rigid", "int"), ("uses_load", "int"),
     ("n_cross", "int"), ("n_lead", "int"), ("bound_landing", "int"),
@@ -202,10 +203,17 @@ def kind_spec(controller: Controller) -> KindSpec:
         return KindSpec(kind="deadzone_inverse", prefix="inv", values=_inv_values(c), dims={}, **common)
     if type(c) is AdaptiveInverse and type(c.inner) is DeadzoneInverse:
         p = c.inner.pid.info.plant
-        vals = {"inv": _inv_values(c.inner), "rb1": c._rb1, "rb2": c._rb2, "k": c._k, "window": c._window,
-                "gain": c.settings.gain, "max_step": c.settings.max_step, "min_backlash": c.min_backlash,
-                "max_backlash": c.max_backlash, "plateau_tolerance": c.settings.plateau_tolerance,
-                "apply_threshold": c.settings.apply_threshold, "initial": c.initial}
+        st = c.settings
+        # the inverse as reset() leaves it: the learning crossing (the object may have switched in a run)
+        learning = c.learning_crossing_time
+        inv = {**_inv_values(c.inner), "crossing_time": learning,
+               "ramp_shape": _RAMP_CODES["sin2" if learning > 0.0 else "step"]}
+        vals = {"inv": inv, "rb1": c._rb1, "rb2": c._rb2, "k": c._k, "window": c._window,
+                "gain": st.gain, "max_step": st.max_step, "min_backlash": c.min_backlash,
+                "max_backlash": c.max_backlash, "plateau_tolerance": st.plateau_tolerance,
+                "apply_threshold": st.apply_threshold, "initial": c.initial,
+                "converged_crossing_time": st.converged_crossing_time, "converged_tolerance": st.converged_tolerance,
+                "diverged_tolerance": st.diverged_tolerance, "converged_measurements": CONVERGED_MEASUREMENTS}
         assert p.rb1 == c._rb1
         return KindSpec(kind="adaptive_inverse", prefix="ada", values=vals, dims={"GCX_ADA_WINDOW": c._window},
                         **common)

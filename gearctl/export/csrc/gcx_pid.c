@@ -239,12 +239,21 @@ GCX_FN void gcx_inv_set_backlash(const gcx_inv_p *P, gcx_inv_s *S, double backla
     S->offset = backlash / P->plant.rb2;
     S->ramp.span = 2.0 * S->offset;
     if (S->sigma != 0.0) {
-        gcx_ramp_move_to(&S->ramp, P->ramp_shape, P->crossing_time, S->t, S->sigma * S->offset);
+        gcx_ramp_move_to(&S->ramp, S->ramp_shape, S->crossing_time, S->t, S->sigma * S->offset);
         if (S->t < S->cross_end) S->cross_end = S->ramp.t0 + S->ramp.T;
     }
 }
 
-/* DeadzoneInverse.reset (the backlash estimate is kept, as in Python) */
+/* DeadzoneInverse.set_crossing_time (a sin^2 ramp for a positive time, a step for 0) */
+GCX_FN void gcx_inv_set_crossing_time(gcx_inv_s *S, double crossing_time) {
+    S->crossing_time = crossing_time;
+    S->ramp_shape = crossing_time > 0.0 ? GCX_SIN2 : GCX_STEP;
+}
+
+/* DeadzoneInverse.offset_moving */
+GCX_FN int gcx_inv_offset_moving(const gcx_inv_s *S, double t) { return gcx_ramp_moving(&S->ramp, t); }
+
+/* DeadzoneInverse.reset (the backlash estimate and the crossing time are kept, as in Python) */
 GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     gcx_pid_reset(&S->pid);
     S->sigma = 0.0;
@@ -309,7 +318,7 @@ GCX_FN void gcx_inv_start_crossing(const gcx_inv_p *P, gcx_inv_s *S, double t, d
         theta = y_load;
     } else {
         double at[3];
-        gcx_ramp_at(&S->ramp, P->ramp_shape, t, at);
+        gcx_ramp_at(&S->ramp, S->ramp_shape, t, at);
         theta = y_motor / P->pid.N - at[0];
     }
     double omega;
@@ -395,7 +404,7 @@ GCX_FN void gcx_inv_start_take_up(const gcx_inv_p *P, gcx_inv_s *S, double t, do
     double th = S->free[0], om = S->free[1];
     double d0 = r - th, dd0 = rd - om;
     double a_lim = P->take_up_acceleration * P->a_limit;
-    double T = gcx_max(P->crossing_time, P->pid.Ts);
+    double T = gcx_max(S->crossing_time, P->pid.Ts);
     if (isfinite(a_lim)) /* without a torque limit no acceleration bound lengthens the take-up */
         T = gcx_max(T, (4.0 * fabs(dd0) + sqrt(16.0 * dd0 * dd0 + 24.0 * fabs(d0) * a_lim)) / (2.0 * a_lim));
     if (fabs(d0) + T * fabs(dd0) < S->offset) {
@@ -423,20 +432,20 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     double sigma = gcx_inv_flank(P, S, rd, rdd);
     if (sigma != sigma_old) {
         /* a contact met during this crossing is trusted only if it starts from a settled flank */
-        S->trusted = sigma_old != 0.0 && !S->has_lag && !S->rattling && t >= S->cross_end + P->crossing_time;
+        S->trusted = sigma_old != 0.0 && !S->has_lag && !S->rattling && t >= S->cross_end + S->crossing_time;
         if (t >= S->cross_end) gcx_inv_start_crossing(P, S, t, y_motor, y_load, has_yl, rd);
         S->has_lag = 0; /* the landing of the new crossing sets the lag to take up */
-        gcx_ramp_move_to(&S->ramp, P->ramp_shape, P->crossing_time, t, sigma * S->offset);
+        gcx_ramp_move_to(&S->ramp, S->ramp_shape, S->crossing_time, t, sigma * S->offset);
         S->cross_end = S->ramp.t0 + S->ramp.T;
         S->reach = -INFINITY;
     }
     double lag[3];
     gcx_inv_take_up(P, S, t, lag); /* the load's target is the reference less the lag still to take up */
     double off[3];
-    gcx_ramp_at(&S->ramp, P->ramp_shape, t, off);
+    gcx_ramp_at(&S->ramp, S->ramp_shape, t, off);
     if (gcx_ramp_moving(&S->ramp, t)) { /* the offset's acceleration: its mean over the sample the torque is held */
         double nxt[3];
-        gcx_ramp_at(&S->ramp, P->ramp_shape, t + P->pid.Ts, nxt);
+        gcx_ramp_at(&S->ramp, S->ramp_shape, t + P->pid.Ts, nxt);
         off[2] = (nxt[1] - off[1]) / P->pid.Ts;
     }
     double friction = (pl->tc2 > 0.0 && rd != 0.0) ? copysign(pl->tc2, rd) : 0.0;
@@ -462,7 +471,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     S->u_hist[0] = S->u_hist[1], S->u_hist[1] = u;
     if (P->has_observer) { /* the train model does not hold while the motor crosses, nor just after a landing */
         double theta = (P->pid.feedback_load && has_yl) ? y_load : y_motor / P->pid.N - off[0];
-        int settling = free || t < S->cross_end + P->crossing_time;
+        int settling = free || t < S->cross_end + S->crossing_time;
         gcx_obs_update(&P->obs, &S->obs, theta, !free ? u : 0.0, friction, settling);
     }
     return u;
@@ -473,15 +482,32 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
 
 GCX_FN void gcx_ada_reset(const gcx_ada_p *P, gcx_ada_s *S) {
     S->b = P->initial;
+    gcx_inv_set_crossing_time(&S->inv, P->inv.crossing_time); /* the learning crossing */
     gcx_inv_set_backlash(&P->inv, &S->inv, P->initial);
     gcx_inv_reset(&S->inv);
+    S->converged = 0;
+    S->agree = 0;
     S->head = S->len = S->count = S->fresh = 0;
     S->u = 0.0;
 }
 
+/* AdaptiveInverse._switch_crossing: the crossing time of the state, given with the offset at rest */
+GCX_FN void gcx_ada_switch_crossing(const gcx_ada_p *P, gcx_ada_s *S, double t) {
+    double want = P->inv.crossing_time;
+    if (S->converged && P->converged_crossing_time > 0.0) want = P->converged_crossing_time; /* 0: never switch */
+    if (want != S->inv.crossing_time && !gcx_inv_offset_moving(&S->inv, t)) gcx_inv_set_crossing_time(&S->inv, want);
+}
+
 /* AdaptiveInverse.update */
-GCX_FN void gcx_ada_update(const gcx_ada_p *P, gcx_ada_s *S, double b_m) {
+GCX_FN void gcx_ada_update(const gcx_ada_p *P, gcx_ada_s *S, double t, double b_m) {
     double b = S->b;
+    double miss = fabs(b_m - b);
+    S->agree = miss <= P->converged_tolerance * b ? S->agree + 1 : 0;
+    if (miss > P->diverged_tolerance * b)
+        S->converged = 0;
+    else if (S->agree >= P->converged_measurements)
+        S->converged = 1;
+    gcx_ada_switch_crossing(P, S, t);
     double nw = b + P->gain * (b_m - b);
     nw = gcx_min(gcx_max(nw, (1.0 - P->max_step) * b), (1.0 + P->max_step) * b);
     nw = gcx_min(gcx_max(nw, P->min_backlash), P->max_backlash);
@@ -491,7 +517,7 @@ GCX_FN void gcx_ada_update(const gcx_ada_p *P, gcx_ada_s *S, double b_m) {
 }
 
 /* AdaptiveInverse._observe: the window is a ring buffer, sorted into sorted[] when examined */
-GCX_FN void gcx_ada_observe(const gcx_ada_p *P, gcx_ada_s *S, double s) {
+GCX_FN void gcx_ada_observe(const gcx_ada_p *P, gcx_ada_s *S, double t, double s) {
     int n = P->window;
     S->recent[S->head] = s;
     S->head = S->head + 1 == n ? 0 : S->head + 1;
@@ -515,13 +541,14 @@ GCX_FN void gcx_ada_observe(const gcx_ada_p *P, gcx_ada_s *S, double s) {
     double near = gcx_max(P->plateau_tolerance, 0.02 * b);
     if (hi - lo > 0.8 * b && hi - v[n - 5] <= near && v[4] - lo <= near) {
         S->fresh = 0;
-        gcx_ada_update(P, S, 0.5 * (hi - lo));
+        gcx_ada_update(P, S, t, 0.5 * (hi - lo));
     }
 }
 
 GCX_FN double gcx_ada_step(const gcx_ada_p *P, gcx_ada_s *S, double t, const double y[2], const double *ref) {
     int has_yl = !isnan(y[1]);
-    if (has_yl) gcx_ada_observe(P, S, P->rb1 * y[0] - P->rb2 * y[1] - S->u / (P->rb1 * P->k));
+    if (has_yl) gcx_ada_observe(P, S, t, P->rb1 * y[0] - P->rb2 * y[1] - S->u / (P->rb1 * P->k));
+    gcx_ada_switch_crossing(P, S, t);
     /* the inner inverse gets y_load only with load feedback (Python: None otherwise) */
     double yi[2] = {y[0], P->inv.pid.feedback_load ? y[1] : NAN};
     double u = gcx_inv_step(&P->inv, &S->inv, t, yi, has_yl && P->inv.pid.feedback_load, ref);
@@ -559,6 +586,7 @@ GCX_FN void gcx_inv_init(const gcx_inv_p *P, gcx_inv_s *S) {
     S->sigma = 0.0;
     S->t = 0.0;
     S->cross_end = -INFINITY;
+    S->crossing_time = P->crossing_time, S->ramp_shape = P->ramp_shape;
     gcx_inv_set_backlash(P, S, P->backlash);
     gcx_inv_reset(S);
 }

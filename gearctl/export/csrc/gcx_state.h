@@ -35,6 +35,8 @@ typedef struct {
     gcx_obs_s obs;
     double backlash, offset, sigma, t, cross_end, free[2], lag[4];
     double y_hist[2], u_hist[2], rattle, reach;
+    double crossing_time; /* set_crossing_time: the crossing time and ramp shape now (init: the parameters') */
+    int ramp_shape;
     int was_free, moving_ref, has_lag, contacts, y_hist_n, rattling, trusted;
 } gcx_inv_s;
 
@@ -44,6 +46,7 @@ typedef struct {
     gcx_inv_s inv;
     double b, u;
     int head, len, count, fresh;
+    int converged, agree; /* the estimate counts as converged; consecutive measurements that agree with it */
     double recent[GCX_ADA_WINDOW], sorted[GCX_ADA_WINDOW];
 } gcx_ada_s;
 #endif
