@@ -123,7 +123,7 @@ def test_grid_points() -> None:
     ("load_inertia=lognormal(5e-3,0.2x)", "not relative"),
     ("load_inertia=lognormal(-1,0.2)", "median of a lognormal"),
     ("load_inertia=loguniform(0,1e-3)", "0 < low"),
-    ("backlash=0:0.02", r"backlash = 0.02 is out of range: expected 0 <= value <= 0.01 \[m\]"),
+    ("backlash=0:0.02", r"backlash = 0.02 is out of range: expected 0 <= value < 0.01 \[m\]"),
     ("backlash=1e-5,-1e-5", "backlash = -1e-05 is out of range"),
     ("teeth1=20.5,21", "a whole-number key takes a list"),
     ("mesh_stiffness=1:inf", "inf is allowed only as a truncation bound"),

@@ -121,15 +121,11 @@ GCX_FN void gcx_ramp_reset(gcx_ramp_s *R, double value) {
 
 /* OffsetRamp.at */
 GCX_FN void gcx_ramp_at(const gcx_ramp_s *R, int shape, double t, double out[3]) {
-    if (R->T <= 0.0) {
+    if (!(R->T > 0.0 && t < R->t0 + R->T)) { /* ended exactly when gcx_ramp_moving says so */
         out[0] = R->o1, out[1] = 0.0, out[2] = 0.0;
         return;
     }
     double x = (t - R->t0) / R->T;
-    if (x >= 1.0) {
-        out[0] = R->o1, out[1] = 0.0, out[2] = 0.0;
-        return;
-    }
     double s, ds, dds;
     gcx_ramp_shape(shape, x, &s, &ds, &dds);
     double d = R->o1 - R->o0;
@@ -140,7 +136,7 @@ GCX_FN void gcx_ramp_at(const gcx_ramp_s *R, int shape, double t, double out[3])
 
 /* OffsetRamp.progress */
 GCX_FN double gcx_ramp_progress(const gcx_ramp_s *R, double t) {
-    if (R->T <= 0.0) return 1.0;
+    if (!(R->T > 0.0 && t < R->t0 + R->T)) return 1.0;
     return gcx_min(gcx_max((t - R->t0) / R->T, 0.0), 1.0);
 }
 
