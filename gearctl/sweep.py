@@ -1123,8 +1123,10 @@ def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), 
     0.5x to 2x nominal: first a plain loop (:func:`sweep_task` over the batches, one after the other) in one
     worker process of a local Dask cluster started beforehand, then the same runs through that cluster. Both
     run in worker processes, so both see what a sweep sees: one BLAS thread (Dask's nanny sets that) and a
-    controller designed before the clock starts. The two paths alternate ``repeats`` times and each keeps its
-    least time. The cluster's start-up is reported apart.
+    controller designed before the clock starts. The two paths alternate chunk by chunk (an eighth of the runs
+    through the plain loop, then the same through Dask), ``repeats`` times over: a drift of the machine's speed
+    falls on both alike. ``dask_overhead`` compares the totals; the times per path are the least total over the
+    repeats. The cluster's start-up is reported apart.
 
     Returns
     -------
@@ -1163,31 +1165,43 @@ def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), 
             n = runs if controller_spec(c)[0].get("kind") in BATCH_KINDS else min(runs, slow_runs)
             plan = plan_sweep(model, c, vary=["backlash=0.5x:2x"], runs=n, duration=duration)
             client.run(_design, plan.context)
-            loop_s = loop_cpu = dask_s = dask_cpu = math.inf
-            py_cpu, client_cpu = math.nan, math.inf
-            identical = True
-            for rep in range(repeats):  # alternate the two paths; the least time of each (the machine's noise
-                # is one-sided: another process only ever adds time)
-                rows_l, size, ls, lc, py = client.submit(_plain_loop, plan, batch, python_runs if rep == 0 else 0, w,
-                                                         workers=first, pure=False).result()
-                if rep == 0:
-                    py_cpu = py
-                w0 = client.run(time.process_time)
-                t, c0 = time.perf_counter(), time.process_time()
-                rows_d, info = _run_jobs(plan, engine="dask", workers=None, scheduler=None, client=client,
-                                         batch=size, progress=None)
-                ds, here = time.perf_counter() - t, time.process_time() - c0
-                w1 = client.run(time.process_time)
-                dc = here + sum(w1[k] - w0[k] for k in w1)
-                loop_s, loop_cpu = min(loop_s, ls), min(loop_cpu, lc)
-                dask_s, dask_cpu, client_cpu = min(dask_s, ds), min(dask_cpu, dc), min(client_cpu, here)
-                identical = identical and rows_l == rows_d
+            size = batch or batch_size(n, w, duration, run_cost(plan.context))
+            # the two paths alternate chunk by chunk (8 chunks of the runs, each through the plain loop, then through
+            # Dask), ``repeats`` times: the machine's drifts fall on both alike, and the totals are compared
+            step = max(size, math.ceil(n / 8))
+            chunks = [dataclasses.replace(plan, jobs=[(j, prm, sd) for j, (_, prm, sd)
+                                                      in enumerate(plan.jobs[i:i + step])])
+                      for i in range(0, n, step)]  # numbered from 0 in each chunk (the runs keep their seeds)
+            sums = {"loop_s": [0.0] * repeats, "loop_cpu": [0.0] * repeats, "dask_s": [0.0] * repeats,
+                    "dask_cpu": [0.0] * repeats, "client": [0.0] * repeats}
+            py_cpu, identical = math.nan, True
+            for rep in range(repeats):
+                for k, part in enumerate(chunks):
+                    first_py = python_runs if (rep == 0 and k == 0) else 0
+                    rows_l, _, ls, lc, py = client.submit(_plain_loop, part, size, first_py, w, workers=first,
+                                                          pure=False).result()
+                    if first_py:
+                        py_cpu = py
+                    w0 = client.run(time.process_time)
+                    t, c0 = time.perf_counter(), time.process_time()
+                    rows_d, info = _run_jobs(part, engine="dask", workers=None, scheduler=None, client=client,
+                                             batch=size, progress=None)
+                    ds, here = time.perf_counter() - t, time.process_time() - c0
+                    w1 = client.run(time.process_time)
+                    for key, v in (("loop_s", ls), ("loop_cpu", lc), ("dask_s", ds),
+                                   ("dask_cpu", here + sum(w1[q] - w0[q] for q in w1)), ("client", here)):
+                        sums[key][rep] += v
+                    identical = identical and rows_l == rows_d
+            loop_s, loop_cpu, dask_s = min(sums["loop_s"]), min(sums["loop_cpu"]), min(sums["dask_s"])
+            client_cpu = min(sums["client"])
+            overhead = sum(sums["dask_cpu"]) / sum(sums["loop_cpu"]) - 1.0
+            dask_cpu = min(sums["dask_cpu"])
             out[c] = {"per_run_s": loop_cpu / n, "python_per_run_s": py_cpu, "speedup": py_cpu / (loop_cpu / n),
                       "runs_per_s": n / dask_s / w,
-                      "dask_overhead": dask_cpu / loop_cpu - 1.0, "dask_overhead_wall": w * dask_s / loop_s - 1.0,
+                      "dask_overhead": overhead, "dask_overhead_wall": w * dask_s / loop_s - 1.0,
                       "loop_s": loop_s, "dask_s": dask_s, "loop_cpu_s": loop_cpu, "dask_cpu_s": dask_cpu,
                       "client_cpu_s": client_cpu,
-                      "runs": n, "workers": w, "batch": info["batch"], "duration": duration,
+                      "runs": n, "workers": w, "batch": size, "duration": duration,
                       "cluster_start_s": start, "load": os.getloadavg()[0], "identical": identical,
                       "repeats": repeats}
     return out
