@@ -50,7 +50,7 @@ def test_backlash_is_zero_or_at_least_a_nanometre() -> None:
 
 def test_gear_pair_backlash_has_the_floor(pair) -> None:
     assert dataclasses.replace(pair, backlash=0.0).backlash == 0.0
-    with pytest.raises(InputError, match=r"backlash = 1e-124 is out of range: expected 0 <= value <= 0\.01 \[m\], "
+    with pytest.raises(InputError, match=r"backlash = 1e-124 is out of range: expected 0 <= value < 0\.01 \[m\], "
                                          r"either 0 or at least 1e-09 \[m\]"):
         dataclasses.replace(pair, backlash=1e-124)
     with pytest.raises(InputError, match="backlash"):
