@@ -1085,6 +1085,22 @@ def _check_log(lg: EncoderLog) -> None:
     SAMPLE_TIME.check("sample_time", lg.sample_time)
 
 
+def _load_encoder_direction(log: EncoderLog) -> tuple[EncoderLog, bool]:
+    """The log with ``theta2`` counting in gearctl's direction (the load turning with the motor, the gap
+    ``r_b1 theta1 - r_b2 theta2``), and whether it had to be turned round.
+
+    A spur pair turns its gears in opposite directions, and a simulator or a drive may count the load that
+    way: the load's increments then run against the motor's. The least-squares slope of the load's angle on
+    the motor's tells (``+1/N`` in gearctl's convention, ``-1/N`` in the other).
+    """
+    assert log.theta2 is not None
+    x, y = log.theta1 - np.mean(log.theta1), log.theta2 - np.mean(log.theta2)
+    sxx = float(np.dot(x, x))
+    if sxx <= 0.0 or float(np.dot(x, y)) >= 0.0:
+        return log, False
+    return dataclasses.replace(log, theta2=-log.theta2), True
+
+
 def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None = None) -> Identification:
     """Estimate backlash, friction and inertias of a gear pair from a servo log.
 
@@ -1164,6 +1180,12 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         raise InputError(f"{lg.name}: missing column 'theta2' (load encoder) for --encoders motor+load: give the "
                          f"load encoder's column or use --encoders motor", field="theta2")
     nominal = build_plant(mdl)
+    notes: list[str] = []
+    if lg.theta2 is not None:
+        lg, flipped = _load_encoder_direction(lg)
+        if flipped:
+            notes.append("the load encoder counts against the motor's direction (another convention than gearctl's, "
+                         "where r_b1 theta1 - r_b2 theta2 is the gap): read as -theta2")
     p = _Problem(lg, nominal, encoders, mdl.pair.module)
     _check_motion(p)
     N = p.N
@@ -1314,7 +1336,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
                   f"(largest: {biggest}, {shifts.get(biggest, 0.0) * 1e6:.3g} um)")
         offset = 0.0
     rms, rm, rl = _residuals(p, fits)
-    warnings = []
+    warnings = list(notes)
     noise = math.hypot(m.sigma / N, p.l.sigma if p.l is not None else 0.0)
     if math.isfinite(rms) and rms > RESIDUAL_WARNING * noise:
         what = ("b, read off the plateaus, does not depend on it; the friction and inertias may be off"

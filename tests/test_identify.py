@@ -161,6 +161,18 @@ def test_estimate_does_not_depend_on_the_encoders_zeros(logs: Callable, results:
     assert_allclose(res.offset - ref.offset, rb1 * 1.2345 + rb2 * 0.5, rtol=1e-9)
 
 
+def test_a_load_encoder_counting_the_other_way_is_turned_round(logs: Callable, results: Callable) -> None:
+    """Another simulator's or drive's convention: the load of a spur pair turns against the motor, and its encoder
+    may count that way. The same log with -theta2 gives the same b, and says what it did."""
+    path, _ = logs("identify", 1.0)
+    log = read_log(path)
+    ref, _ = results("identify", 1.0, "motor+load")
+    res = identify(dataclasses.replace(log, theta2=-log.theta2), START_MODEL)
+    assert_allclose(res.backlash, ref.backlash, rtol=1e-9)
+    assert any("counts against the motor" in w for w in res.warnings)
+    assert not any("counts against the motor" in w for w in ref.warnings)
+
+
 def test_log_round_trip(tmp_path: Path) -> None:
     t = np.arange(600) * 1e-3
     log = EncoderLog(t=t, torque=np.sin(t), theta1=0.1 * np.cos(t), theta2=None, extra={"r": t**2},
