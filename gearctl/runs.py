@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import pickle
+import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -131,18 +132,23 @@ class RunResult:
     trace_error: np.ndarray
 
 
-_DESIGNS: dict[str, Controller] = {}
+#: Designed controllers per thread: a controller holds the state of the run it is in, so two threads of one
+#: process (a Dask worker started with ``--nthreads 2`` or more) must not share one.
+_LOCAL = threading.local()
 
 
 def design_controller(design: Design) -> Controller:
-    """The controller of ``design``, built once per process (then reset before each run)."""
+    """The controller of ``design``, built once per process and thread (then reset before each run)."""
+    designs: dict[str, Controller] | None = getattr(_LOCAL, "designs", None)
+    if designs is None:
+        designs = _LOCAL.designs = {}
     key = design.key()
-    ctrl = _DESIGNS.get(key)
+    ctrl = designs.get(key)
     if ctrl is None:
-        if len(_DESIGNS) > 64:  # a sweep over estimates builds many: keep the cache bounded
-            _DESIGNS.clear()
+        if len(designs) > 64:  # a sweep over estimates builds many: keep the cache bounded
+            designs.clear()
         ctrl = build_controller(dict(design.spec), design.nominal, path=design.label, backlash=design.backlash)
-        _DESIGNS[key] = ctrl
+        designs[key] = ctrl
     return ctrl
 
 

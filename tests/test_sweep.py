@@ -478,3 +478,20 @@ def test_sweep_perf_reports_the_contract_keys_and_equal_paths() -> None:
     assert {"runs_per_s", "per_run_s", "dask_overhead", "python_per_run_s", "client_cpu_s"} <= set(r)
     assert r["identical"] and r["runs"] == 12 and r["per_run_s"] > 0 and r["runs_per_s"] > 0
     assert r["dask_cpu_s"] >= r["client_cpu_s"] >= 0
+
+
+@pytest.mark.parametrize("controller", ["deadzone_inverse", "mpc"])
+def test_batches_in_threads_of_one_worker_give_the_serial_results(controller: str) -> None:
+    """A Dask worker with ``--nthreads 2`` runs two batches at once in one process: each thread has its own
+    designed controller (a controller holds its run's state), so the rows are those of the serial loop."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from gearctl.sweep import plan_sweep, sweep_task
+
+    plan = plan_sweep(MODEL, controller, vary=["backlash=0.5x:2x"], runs=8, duration=0.3)  # one design for all
+    serial = sweep_task(plan.context, plan.jobs)
+    halves = [plan.jobs[:4], plan.jobs[4:]]
+    with ThreadPoolExecutor(2) as pool:
+        for _ in range(2):  # twice: the second time both threads reuse their own cached designs
+            parts = list(pool.map(lambda jobs: sweep_task(plan.context, jobs), halves))
+            assert parts[0] + parts[1] == serial
