@@ -25,7 +25,7 @@ from .plant import Plant
 from .simulate import DIVERGENCE_LIMIT, Event, located_events
 from .units import DURATION, SEED
 
-__all__ = ["ClosedLoopResult", "simulate_closed_loop", "loop_samples", "Encoder"]
+__all__ = ["ClosedLoopResult", "simulate_closed_loop", "loop_samples", "loop_result", "Encoder"]
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -273,9 +273,22 @@ def simulate_closed_loop(
     yl = np.array([*yl_l, enc_l.read(xs[w - 1, -1], rng) if use_load else nan])
     wall = time.perf_counter() - wall0
     sl = slice(0, last + 1)
+    return loop_result(plant, controller, ref, kn, message, wall, t=t[sl], x=xs[:, sl], reference=r[sl],
+                       torque=u[sl], command=cmd[sl], y_motor=ym[sl], y_load=yl[sl], mode=mode[..., sl])
+
+
+def loop_result(plant: Plant, controller: Controller, ref: ReferenceLike, kn: Kernel, message: str, wall: float,
+                **samples: Any) -> ClosedLoopResult:
+    """The :class:`ClosedLoopResult` of a finished loop (the Python one here, or the compiled batch loop): the
+    per-sample arrays given, the kernel's events, the controller's solve times and fallbacks.
+
+    Raises
+    ------
+    SimulationError
+        Unless ``message`` is ``"ok"``; ``error.result`` holds the run so far.
+    """
     res = ClosedLoopResult(
-        t=t[sl], x=xs[:, sl], reference=r[sl], torque=u[sl], command=cmd[sl], y_motor=ym[sl], y_load=yl[sl],
-        mode=mode[..., sl], event_log=kn.event_log, counts=kn.counts,
+        **samples, event_log=kn.event_log, counts=kn.counts,
         solve_times=np.asarray(controller.solve_times, dtype=float),
         fallbacks=list(controller.fallbacks), plant=plant, controller=controller.describe(),
         success=message == "ok", message=message, wall_time=wall, settle=ref.settle,

@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 
 from ..build import compile_disabled, shared_library
-from ..closedloop import ClosedLoopResult, loop_samples
+from ..closedloop import ClosedLoopResult, loop_result, loop_samples
 from ..controller import Controller
-from ..errors import GearctlError, InputError, SimulationError
+from ..errors import GearctlError, InputError
 from ..kernel import Kernel, c_structs
 from ..references import Reference, move_times
 from ..runs import Run, RunResult, design_controller, execute, execute_controller
@@ -210,18 +210,10 @@ def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: fl
     mode = np.sign(modes[: last + 1].T.astype(int))
     mode = mode[0] if mode.shape[0] == 1 else mode
     r = ref.at(t)[0]
-    res = ClosedLoopResult(
-        t=t[sl], x=xs[: last + 1].T.copy(), reference=np.asarray(r)[sl],
-        torque=np.append(u[:last], u[last - 1]), command=np.append(cmd[:last], cmd[last - 1]),
-        y_motor=np.append(ym[:last], y_m), y_load=np.append(yl[:last], y_l), mode=mode,
-        event_log=kn.event_log, counts=kn.counts, solve_times=np.asarray(controller.solve_times, dtype=float),
-        fallbacks=list(controller.fallbacks), plant=plant, controller=controller.describe(),
-        success=message == "ok", message=message, wall_time=wall, settle=ref.settle,
-        overruns=getattr(controller, "overruns", 0),
-    )
-    if not res.success:
-        raise SimulationError(f"closed loop failed: {message}", result=res)
-    return res
+    return loop_result(plant, controller, ref, kn, message, wall, t=t[sl], x=xs[: last + 1].T.copy(),
+                       reference=np.asarray(r)[sl], torque=np.append(u[:last], u[last - 1]),
+                       command=np.append(cmd[:last], cmd[last - 1]), y_motor=np.append(ym[:last], y_m),
+                       y_load=np.append(yl[:last], y_l), mode=mode)
 
 
 def run_compiled(run: Run) -> RunResult:
