@@ -51,6 +51,12 @@ def resolve(name_or_path: str | Path, kind: str) -> Path:
         If it is neither an existing file nor a catalog name; the message lists close names.
     """
     p = Path(name_or_path)
+    # a bare name that is a folder here (``gearctl export ... --out pid``) still names the catalog entry
+    bare_dir = p.suffix == "" and len(p.parts) == 1 and p.is_dir()
+    if bare_dir:
+        for d in catalog_dirs(kind):
+            if (d / f"{p.name}.toml").is_file():
+                return d / f"{p.name}.toml"
     if p.suffix == ".toml" or p.exists() or len(p.parts) > 1:
         if p.is_file():
             return p

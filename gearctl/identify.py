@@ -1091,12 +1091,14 @@ def _load_encoder_direction(log: EncoderLog) -> tuple[EncoderLog, bool]:
 
     A spur pair turns its gears in opposite directions, and a simulator or a drive may count the load that
     way: the load's increments then run against the motor's. The least-squares slope of the load's angle on
-    the motor's tells (``+1/N`` in gearctl's convention, ``-1/N`` in the other).
+    the motor's tells (``+1/N`` in gearctl's convention, ``-1/N`` in the other), with a correlation below -0.5.
     """
     assert log.theta2 is not None
     x, y = log.theta1 - np.mean(log.theta1), log.theta2 - np.mean(log.theta2)
-    sxx = float(np.dot(x, x))
-    if sxx <= 0.0 or float(np.dot(x, y)) >= 0.0:
+    sxx, syy, sxy = float(np.dot(x, x)), float(np.dot(y, y)), float(np.dot(x, y))
+    # turned round only when the two angles clearly move against each other (correlation below -0.5): a log in
+    # which the load barely moves leaves its encoder as it is
+    if sxx <= 0.0 or syy <= 0.0 or sxy >= -0.5 * math.sqrt(sxx * syy):
         return log, False
     return dataclasses.replace(log, theta2=-log.theta2), True
 

@@ -24,7 +24,7 @@ HEALTH_LIMITS = {
     "saturated_fraction": 0.2,  # of the samples after the start-up, at the torque limit
     "limit_cycle_impacts": 20,  # impacts in the last quarter of the run, on alternating flanks ...
     "limit_cycle_alternation": 0.6,  # ... this fraction of consecutive impact pairs on opposite flanks
-    "growth": 10.0,  # error of the last quarter over that of the second quarter and the reference's later change
+    "growth": 10.0,  # error of the last quarter over that of the middle half and the reference's later change
 }
 
 
@@ -71,8 +71,8 @@ class LoopHealth(_Mapping):
     impact_rate_high : bool
         More impacts per second than :data:`HEALTH_LIMITS` ``impact_rate``.
     growing : bool
-        The error grows: the last quarter's is ten times the second quarter's and ten times any change of the
-        reference after the second quarter (see :func:`loop_health`).
+        The error grows: the last quarter's is ten times the middle half's (second and third quarters) and ten
+        times any change of the reference after the middle half (see :func:`loop_health`).
     impact_rate : float
         Impacts per second after the start-up [1/s].
     warnings : tuple of str
@@ -174,7 +174,7 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
     if growing:
         beyond = f" and the reference's own change of {explained:.3g} rad" if explained > 0 else ""
         warnings.append(f"growing error: {last:.3g} rad in the last quarter against {early:.3g} rad in the "
-                        f"second{beyond}")
+                        f"middle half{beyond}")
     return LoopHealth(limit_cycle=cycle, saturated=sat > lim["saturated_fraction"], impact_rate_high=rate >
                       lim["impact_rate"], growing=growing, impact_rate=rate, warnings=tuple(warnings))
 

@@ -267,8 +267,9 @@ def mesh_stiffness(pair: GearPair, *, points: int = 1001, harmonics: int = 4, or
     """Mesh stiffness over one mesh cycle, its mean and harmonics (Figure 11, Table 1).
 
     The result depends on the tooth geometry and the material only, not on the backlash or the inertias:
-    the last 64 results are kept per process (keyed on those inputs, arrays read-only), so that a sweep
-    over backlash, friction or inertias does not integrate the same stiffness again for every run.
+    the last 64 results of up to :data:`CACHED_POINTS` points are kept per process (keyed on those inputs,
+    arrays read-only), so that a sweep over backlash, friction or inertias does not integrate the same
+    stiffness again for every run.
 
     Parameters
     ----------
@@ -338,9 +339,16 @@ def mesh_stiffness(pair: GearPair, *, points: int = 1001, harmonics: int = 4, or
     points = int(POINTS.check("points", points))
     harmonics = int(HARMONICS.check("harmonics", harmonics))
     order = int(QUADRATURE_ORDER.check("order", order))
+    if points > CACHED_POINTS:  # a long curve for a plot or a CSV: computed, not kept
+        return _mesh_stiffness.__wrapped__(pair, points, harmonics, order)
     key = pair if (pair.backlash == 0.0 and pair.inertia1 is None and pair.inertia2 is None) else \
         dataclasses.replace(pair, backlash=0.0, inertia1=None, inertia2=None)
     return _mesh_stiffness(key, points, harmonics, order)
+
+
+#: Results of :func:`mesh_stiffness` up to this many points are kept (the last 64: at most 64 x 3 x 10 001
+#: doubles, 15 MB); longer curves are computed each time.
+CACHED_POINTS = 10_001
 
 
 @functools.lru_cache(maxsize=64)

@@ -276,3 +276,15 @@ def test_example_writes_the_convergence_plot(tmp_path: Path, capsys: pytest.Capt
     assert (tmp_path / "adaptive_inverse.png").stat().st_size > 10_000
     out = capsys.readouterr().out
     assert out.count("within 5 % after") == 4
+
+
+def test_the_law_keeps_the_estimate_above_the_backlash_floor() -> None:
+    """Started at 3 nm (a valid estimate) and fed gaps of 0.1 nm, the law stops at the 1 nm floor of every
+    estimate instead of handing the inverse a value it refuses mid-run."""
+    from gearctl.units import BACKLASH_FLOOR
+
+    plant = build_plant(load_model("shing1993_servo"))
+    ctrl = load_controller("adaptive_inverse", plant, backlash=3e-9)
+    for i in range(8):
+        ctrl.update(0.1 * i, 1e-10)
+    assert ctrl.min_backlash == BACKLASH_FLOOR and ctrl.inner.backlash == BACKLASH_FLOOR

@@ -233,7 +233,7 @@ def test_bench_warnings_come_one_line_per_kind() -> None:
     ]
     lines = _grouped_warnings(runs)
     assert lines == [
-        "sustained limit cycle in 1 run(s): pid_load on improved (sine) (figures: --json)",
+        "sustained limit cycle in 1 run(s): pid_load on improved (sine) (figures: --json FILE)",
         "impact rate above 100 per s in 2 run(s): pid_load on improved (sine), mpc on yang-sun (move) "
-        "(figures: --json)",
+        "(figures: --json FILE)",
     ]

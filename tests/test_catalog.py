@@ -368,3 +368,18 @@ def test_relative_limits_keep_the_catalog_valid() -> None:
             for j in range(2):
                 ratio = g.inertia[j] / disk_inertia(p, g.pitch_radius[j])
                 assert 1 / GEAR_INERTIA_FACTOR < ratio / 100 and ratio * 100 < GEAR_INERTIA_FACTOR, name
+
+
+def test_a_folder_named_like_a_catalog_entry_does_not_hide_it(tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """``gearctl export MODEL pid --out pid`` then ``gearctl track MODEL pid --exported pid`` in the same folder:
+    the bare name still names the catalog's controller (and model), a path to the folder is still refused."""
+    from gearctl.files import resolve
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "pid").mkdir()
+    (tmp_path / "shing1993").mkdir()
+    assert resolve("pid", "controllers").name == "pid.toml"
+    assert resolve("shing1993", "models").name == "shing1993.toml"
+    with pytest.raises(InputError, match="is a folder"):
+        resolve(str(tmp_path / "pid"), "controllers")

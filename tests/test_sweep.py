@@ -281,10 +281,12 @@ def _track_has_set() -> bool:
 def test_a_runs_command_reproduces_its_figures_exactly(tmp_path: Path) -> None:
     if not _track_has_set():
         pytest.skip("gearctl track has no --set KEY=VALUE yet (asked for in issue 15's report)")
-    res = sweep(MODEL, "deadzone_inverse", vary=["backlash=0.5x:2x", "estimate_error=-0.3:0.3",
+    # the sweep reuses one designed inverse for every estimate (set_backlash); its command designs afresh: the
+    # two must agree to the last bit over a wide range of estimates (the rattle guard's threshold follows b)
+    res = sweep(MODEL, "deadzone_inverse", vary=["backlash=0.5x:2x", "estimate_error=-0.6:1.0",
                                                  "load_inertia=lognormal(1x,0.2)"], runs=6, duration=0.8, seed=3,
                 engine="serial")
-    for row in (res.runs[1], res.runs[4]):
+    for row in res.runs:
         argv = shlex.split(row["command"])
         assert argv[:2] == ["gearctl", "track"]
         rc, out, err = _cli([*argv[1:], "--json"])

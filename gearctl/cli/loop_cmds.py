@@ -318,7 +318,8 @@ def _grouped_warnings(runs: list[dict[str, Any]]) -> list[str]:
                 kind = re.split(r"\s[-+]?\d", wmsg)[0] + (f" {wmsg.rsplit(', ', 1)[1]}" if ", " in wmsg else "")
             if label not in groups.setdefault(kind.strip(), []):
                 groups[kind.strip()].append(label)
-    return [f"{kind} in {len(labels)} run(s): {', '.join(labels)} (figures: --json)" for kind, labels in groups.items()]
+    return [f"{kind} in {len(labels)} run(s): {', '.join(labels)} (figures: --json FILE)"
+            for kind, labels in groups.items()]
 
 
 def _set_arg(text: str) -> tuple[str, float | int]:
@@ -404,7 +405,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--no-bench", action="store_true", help="skip timing the default bench")
     p.add_argument("--no-sweep", action="store_true", help="skip timing the sweeps (plain loop against Dask)")
     p.add_argument("--sweep-runs", type=spec_arg(SWEEP_RUNS), default=1000,
-                   help="runs per controller of the sweep timing (the MPC: at most 100; default 1000)")
+                   help="runs per controller of the sweep timing (the MPC: at most 50; default 1000)")
     p.add_argument("--jobs", type=spec_arg(JOBS), help="worker processes for the bench timing")
     return {"track": _cmd_track, "precision": _cmd_precision, "bench": _cmd_bench, "perf": _cmd_perf}
 

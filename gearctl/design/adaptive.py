@@ -75,7 +75,7 @@ from typing import Any
 from ..controller import ReferenceLike
 from ..errors import InputError
 from ..files import Layout, build_dataclass, spec_values
-from ..units import BACKLASH, quantity, validate_fields
+from ..units import BACKLASH, BACKLASH_FLOOR, quantity, validate_fields
 from . import deadzone
 from .base import Controller, LoopInfo
 
@@ -167,6 +167,8 @@ class AdaptiveInverse(Controller):
         self.initial = float(inverse.backlash)
         st = self.settings
         self.min_backlash = st.min_backlash if st.min_backlash is not None else 0.2 * self.initial
+        if self.initial > 0.0:  # an estimate is 0 or at least the floor: the law never leaves that range
+            self.min_backlash = max(self.min_backlash, BACKLASH_FLOOR)
         self.max_backlash = st.max_backlash if st.max_backlash is not None else min(5.0 * self.initial, 0.0099)
         if not (self.min_backlash <= self.initial <= self.max_backlash):
             raise InputError(f"backlash = {self.initial!r} is out of range: the initial estimate must lie within "

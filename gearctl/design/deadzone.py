@@ -421,9 +421,7 @@ class DeadzoneInverse(Controller):
         self._tc2 = p.tc2
         self._a_limit = pid.limit / (pid.N * pid.info.J_eq)  # load acceleration at the torque limit [rad/s^2]
         self._J1 = p.J1
-        #: motor speed jump [rad/s] that counts as an impact for the rattle guard: half the speed at which the
-        #: motor crosses the whole gap in two samples
-        self.jump_threshold = backlash / (2.0 * p.rb1 * pid.Ts) if backlash > 0.0 else math.inf
+        self._jump_den = 2.0 * p.rb1 * pid.Ts  # the rattle guard's threshold is b / this (set_backlash)
         self._ramp = OffsetRamp("sin2" if crossing_time > 0.0 else "step", crossing_time, 0.0)
         self._sigma, self._t, self._cross_end = 0.0, 0.0, -math.inf
         self.set_backlash(backlash)
@@ -437,6 +435,9 @@ class DeadzoneInverse(Controller):
         """
         BACKLASH.check("backlash", backlash)
         self.backlash = backlash
+        #: motor speed jump [rad/s] that counts as an impact for the rattle guard: half the speed at which the
+        #: motor crosses the whole gap of the estimate in two samples (a fresh design's, whatever the estimate)
+        self.jump_threshold = backlash / self._jump_den if backlash > 0.0 else math.inf
         self._offset = backlash / self.pid.info.plant.rb2  # half the lost motion, load angle [rad]
         self._ramp.span = 2.0 * self._offset
         if self._sigma != 0.0:  # in contact the motor follows the new offset; a crossing lands on it

@@ -232,6 +232,7 @@ GCX_FN void gcx_obs_update(const gcx_obs_p *P, gcx_obs_s *O, double theta, doubl
 /* DeadzoneInverse.set_backlash */
 GCX_FN void gcx_inv_set_backlash(const gcx_inv_p *P, gcx_inv_s *S, double backlash) {
     S->backlash = backlash;
+    S->jump_threshold = backlash > 0.0 ? backlash / P->jump_den : INFINITY;
     S->offset = backlash / P->plant.rb2;
     S->ramp.span = 2.0 * S->offset;
     if (S->sigma != 0.0) {
@@ -358,7 +359,7 @@ GCX_FN void gcx_inv_watch_rattle(const gcx_inv_p *P, gcx_inv_s *S, double y_moto
     double dv = (y_motor - 2.0 * y1 + y2) / Ts; /* motor speed change [rad/s] */
     double u_mean = 0.5 * (S->u_hist[0] + S->u_hist[1]);
     double jump = gcx_min(fabs(dv - u_mean * Ts / P->plant.J1), fabs(dv - u_mean * Ts / P->pid.J_eq));
-    S->rattle = P->rattle_decay * S->rattle + (jump > P->jump_threshold ? 1.0 : 0.0);
+    S->rattle = P->rattle_decay * S->rattle + (jump > S->jump_threshold ? 1.0 : 0.0);
     if (S->rattle > P->rattle_level)
         S->rattling = 1;
     else if (S->rattle < 1.0)

@@ -36,6 +36,7 @@ typedef struct {
     double backlash, offset, sigma, t, cross_end, free[2], lag[4];
     double y_hist[2], u_hist[2], rattle, reach;
     double crossing_time; /* set_crossing_time: the crossing time and ramp shape now (init: the parameters') */
+    double jump_threshold; /* set_backlash: the rattle guard's motor speed jump, b / jump_den */
     int ramp_shape;
     int was_free, moving_ref, has_lag, contacts, y_hist_n, rattling, trusted;
 } gcx_inv_s;
