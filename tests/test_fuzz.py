@@ -733,8 +733,8 @@ def test_fuzz_long(request: pytest.FixtureRequest, tmp_path: Path) -> None:
 
     Before the fixes of issue 11 the 1000-model run ended 746 of 13 912 runs (88 models) in ways not allowed:
     10 hangs, 148 tracebacks, 76 warnings on stderr, 512 exit-2 lines naming no key of the file (each cause
-    reduced to a model in ``test_fuzz_found``). Since: 1000 models, 452 valid, 14 000 runs, 6252 ok, 7717 exit 2,
-    31 SimulationError, 0 failures, largest memory 135 MB, slowest run 1.46 s (5 min 10 s on one job).
+    reduced to a model in ``test_fuzz_found``). Since: 1000 models, 452 valid, 14 000 runs, 6262 ok, 7707 exit 2,
+    31 SimulationError, 0 failures, largest memory 135 MB, slowest run 0.76 s (2 min 8 s on two jobs).
     The model folders go to ``GEARCTL_FUZZ_DIR`` (default: the pytest tmp dir), the figures to
     ``GEARCTL_FUZZ_REPORT`` (default: fuzz_report.json there)."""
     if "fuzz" not in (request.config.getoption("markexpr") or ""):
