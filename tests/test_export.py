@@ -326,6 +326,9 @@ def test_cli_track_exported_equals_track(exported, capsys) -> None:
     c = json.loads(capsys.readouterr().out)
     assert c["controller"]["implementation"].startswith("exported C")
     assert c["rms_error"] == py["rms_error"] and c["impacts"] == py["impacts"]
+    # without CONTROLLER the folder's own controller runs (not the default inverse)
+    assert main(["track", MODEL, "--reference", "move", "--json", "--exported", str(exported["mpc"])]) == 0
+    assert json.loads(capsys.readouterr().out)["controller"]["kind"] == "mpc"
     # another kind than the folder holds, an estimate the C cannot take: one line, exit 2
     for extra in (["pid"], ["deadzone_inverse", "--estimate", "1e-5"]):
         assert main(["track", MODEL, *extra, "--exported", str(exported["deadzone_inverse"])]) == 2

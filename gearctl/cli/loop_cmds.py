@@ -36,6 +36,12 @@ def _cmd_track(args: argparse.Namespace) -> int:
     if args.exported is not None and args.estimate is not None:
         raise InputError("--estimate and --exported: an exported controller runs with the numbers it was exported "
                          "with; export it again with `gearctl export ... --estimate B`", field="estimate")
+    if args.controller is None:  # not named: the exported folder's controller, else the catalog's inverse
+        args.controller = "deadzone_inverse"
+        if args.exported is not None:
+            from ..export.sil import exported_name
+
+            args.controller = exported_name(args.exported)
     run = make_run(args.model, args.controller, plant=args.plant, reference_kind=args.reference,
                    duration=args.duration, seed=args.seed, backlash=args.backlash, estimate=args.estimate,
                    realtime=args.realtime, overrides=dict(args.set))
@@ -338,9 +344,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     plants = ("improved", "yang-sun", "tvms")
     p = sub.add_parser("track", help="run a controller against the nonlinear plant on a reference")
     p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
-    p.add_argument("controller", nargs="?", default="deadzone_inverse",
+    p.add_argument("controller", nargs="?", default=None,
                    help="controller: catalog name (pid, deadzone_inverse, mpc, ...) or TOML path "
-                        "(default deadzone_inverse)")
+                        "(default deadzone_inverse; with --exported, the exported one)")
     p.add_argument("--plant", choices=plants, default="improved", help="plant (default improved)")
     p.add_argument("--reference", choices=("sine", "step", "ramp", "move"), default="sine",
                    help="sine: 0.1 rad 1 Hz; step: 0.05 rad + 0.5 N m load step; ramp; move: S-curve (default sine)")

@@ -25,7 +25,7 @@ from ..errors import InputError
 from .emit import CFLAGS, FORMAT
 from .rows import PreviewRows
 
-__all__ = ["ExportedController", "load_exported", "compile_exported", "execute_exported"]
+__all__ = ["ExportedController", "load_exported", "compile_exported", "execute_exported", "exported_name"]
 
 _SHIM = b'#include "gearctl_ctrl.h"\nlong gearctl_sil_state_size(void) { return (long)sizeof(gearctl_ctrl_t); }\n'
 _SOURCES = ("gearctl_ctrl.h", "gearctl_ctrl.c", "gearctl_ctrl_params.h", "gearctl_qp.h", "gearctl_qp.c")
@@ -156,6 +156,21 @@ class ExportedController(Controller):
                   "implementation": "exported C (software in the loop)", "exported": str(self.folder),
                   "state_bytes": self.state_bytes, "table_bytes": self.manifest.get("table_bytes")})
         return d
+
+
+def exported_name(folder: str | Path) -> str:
+    """The catalog name of the controller an exported folder holds (its kind where the name is no catalog entry).
+
+    Raises
+    ------
+    InputError
+        For a folder without an exported controller.
+    """
+    from ..catalog import controller_names
+
+    man = _manifest(Path(folder))
+    name = str(man.get("name") or "")
+    return name if name in controller_names() else str(man.get("kind"))
 
 
 def load_exported(folder: str | Path) -> ExportedController:
