@@ -9,6 +9,7 @@ The folder :func:`export_controller` writes::
     LICENSE                 gearctl's licence (MIT), which covers every C file here
     Makefile                make: libgearctl_ctrl.a; make check: replay the vectors; make bench: step times
     check.c, bench.c        the programs of make check / make bench (they use stdio; the library does not)
+    gearctl_vectors.h       their readers of the test vectors' file
     gearctl_vectors.bin     test vectors recorded from the Python controller in the closed loop
     controller.json         what was exported (kind, settings, Ts, preview, file digests, table sizes)
 """
@@ -227,10 +228,10 @@ $(LIB): $(OBJS)
 gearctl_ctrl.o: {deps}
 \t$(CC) $(STD) $(CFLAGS) -c gearctl_ctrl.c -o gearctl_ctrl.o
 
-{qp_rule}check_vectors: check.c gearctl_ctrl.h $(LIB)
+{qp_rule}check_vectors: check.c gearctl_ctrl.h gearctl_vectors.h $(LIB)
 \t$(CC) $(STD) $(CFLAGS) check.c $(LIB) -lm -o check_vectors
 
-bench_vectors: bench.c gearctl_ctrl.h $(LIB)
+bench_vectors: bench.c gearctl_ctrl.h gearctl_vectors.h $(LIB)
 \t$(CC) $(STD) $(CFLAGS) -D_POSIX_C_SOURCE=199309L bench.c $(LIB) -lm -o bench_vectors
 
 check: check_vectors
@@ -315,6 +316,7 @@ def export_controller(controller: Controller, out: str | Path, *, plant: Any = N
     files["Makefile"] = _makefile(spec)
     files["check.c"] = (CSRC / "check.c").read_text()
     files["bench.c"] = (CSRC / "bench.c").read_text()
+    files["gearctl_vectors.h"] = (CSRC / "gearctl_vectors.h").read_text()
     steps = 0
     cases_info: list[dict[str, Any]] = []
     if vectors:

@@ -10,20 +10,8 @@
 #include <time.h>
 
 #include "gearctl_ctrl.h"
+#include "gearctl_vectors.h"
 
-static int32_t rd_i32(const unsigned char *p) {
-    uint32_t v = (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-    int32_t out;
-    memcpy(&out, &v, 4);
-    return out;
-}
-static double rd_f64(const unsigned char *p) {
-    uint64_t v = 0;
-    for (int i = 7; i >= 0; i--) v = v << 8 | p[i];
-    double out;
-    memcpy(&out, &v, 8);
-    return out;
-}
 static int cmp(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);

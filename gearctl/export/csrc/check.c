@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "gearctl_ctrl.h"
+#include "gearctl_vectors.h"
 
 #define TOLERANCE 1e-9
 
@@ -29,20 +30,6 @@ static unsigned char *load(const char *path, long *size) {
     return buf;
 }
 
-/* little-endian readers (the file's byte order, whatever the host's) */
-static int32_t rd_i32(const unsigned char *p) {
-    uint32_t v = (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-    int32_t out;
-    memcpy(&out, &v, 4);
-    return out;
-}
-static double rd_f64(const unsigned char *p) {
-    uint64_t v = 0;
-    for (int i = 7; i >= 0; i--) v = v << 8 | p[i];
-    double out;
-    memcpy(&out, &v, 8);
-    return out;
-}
 
 int main(int argc, char **argv) {
     const char *path = argc > 1 ? argv[1] : "gearctl_vectors.bin";
