@@ -155,6 +155,9 @@ class ExportedController(Controller):
         d.update({"name": self.name, "kind": self.kind, "Ts": self.Ts, "preview": self.preview,
                   "implementation": "exported C (software in the loop)", "exported": str(self.folder),
                   "state_bytes": self.state_bytes, "table_bytes": self.manifest.get("table_bytes")})
+        if self.kind == "adaptive_inverse":  # what the C learns lives in its state, which is not read back
+            d["settings_at_export"] = True
+            d["note"] = "backlash_estimate and the adaptation's figures are the exported object's, not the run's"
         return d
 
 
