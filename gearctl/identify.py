@@ -474,6 +474,11 @@ class _Encoder:
         self.sigma = max(1.4826 * mad / math.sqrt(20.0), self.q / math.sqrt(12.0), 1e-12)
         hv = float(np.linalg.norm(np.convolve(h, [0.5, 0.0, -0.5]))) / Ts
         hvg = float(np.linalg.norm(np.convolve(hg, [0.5, 0.0, -0.5]))) / Ts
+        ha = float(np.linalg.norm(np.convolve(h, [1.0, -2.0, 1.0]))) / Ts**2
+        hag = float(np.linalg.norm(np.convolve(hg, [1.0, -2.0, 1.0]))) / Ts**2
+        #: variances of the reading's noise in (a, w) and (ag, wg): what it adds to a regression's normal matrix
+        self.noise = (self.sigma**2 * ha**2, self.sigma**2 * hv**2)
+        self.noise_g = (self.sigma**2 * hag**2, self.sigma**2 * hvg**2)
         self.v_thr = 5.0 * self.sigma * hv
         self.vg_thr = 5.0 * self.sigma * hvg
 
@@ -488,45 +493,88 @@ class _Encoder:
 # --- the friction and inertia regression ---------------------------------------------------------------
 
 
-def _regress(blocks: list[tuple[NDArray[np.float64], NDArray[np.float64], float]], mean: NDArray[np.float64],
-             sd: NDArray[np.float64], lower: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Bounded least squares of torque balances with a prior: ``(theta, covariance)``.
+Block = tuple[NDArray[np.float64], NDArray[np.float64], float, NDArray[np.float64] | None]
 
-    Each block ``(A, y, correlation)`` holds rows ``A theta = y`` of one kind (their noise is estimated
+
+def _noise_cov(columns: tuple[tuple[NDArray[np.float64], float], ...]) -> NDArray[np.float64]:
+    """Covariance of a row's regressor noise: ``sum_j var_j v_j v_j^T`` for noise of variance ``var_j`` entering
+    the regressors along ``v_j`` (e.g. an acceleration's noise in the ``J1`` and ``J2 / N^2`` columns)."""
+    return sum((var * np.outer(v, v) for v, var in columns), np.zeros((len(columns[0][0]),) * 2))
+
+
+def _contact_noise(m: _Encoder, N: float) -> NDArray[np.float64]:
+    """Regressor noise of a contact row ``[a, a / N^2, w, w / N^2, sign w, sign w / N]`` (the motor's signals)."""
+    return _noise_cov(((np.array([1.0, 1.0 / N**2, 0.0, 0.0, 0.0, 0.0]), m.noise[0]),
+                       (np.array([0.0, 0.0, 1.0, 1.0 / N**2, 0.0, 0.0]), m.noise[1])))
+
+
+def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.float64],
+             lower: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Bounded least squares of torque balances with a prior, corrected for noisy regressors:
+    ``(theta, covariance)``.
+
+    Each block ``(A, y, correlation, noise)`` holds rows ``A theta = y`` of one kind (their noise is estimated
     from their own residuals, robustly, and rows beyond five times it are dropped); ``correlation`` is
     the number of samples a filtered residual stays correlated over, by which the information of a row
     is divided so that the covariance is honest. The prior ``N(mean, sd^2)`` keeps the directions the
     data do not see (e.g. how the viscous friction splits between the shafts when they always move
     together) at the model's values.
+
+    ``noise`` (or None) is the covariance of one row's regressor noise: the accelerations and speeds are
+    differences of noisy encoder readings, and that noise adds ``n noise`` to ``A^T A`` on ``n`` rows, which
+    pulls the inertias towards zero (regression dilution: 34 % low on the motor's free flights of a 2 kHz
+    log, whose raw second differences are 4x noisier than at 1 kHz). It is subtracted from the normal
+    matrix (the errors-in-variables correction of Fuller, *Measurement Error Models*, 1987, ch. 2), halved
+    until the matrix stays positive definite.
     """
     from scipy.optimize import lsq_linear
 
     blocks = [blk for blk in blocks if len(blk[1]) >= 10]
     theta = mean.copy()
-    keeps = [np.ones(len(y), bool) for _, y, _ in blocks]
+    keeps = [np.ones(len(blk[1]), bool) for blk in blocks]
     sig = []
-    for A, y, _ in blocks:
+    for A, y, _, _ in blocks:
         r = y - A @ mean
         sig.append(max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-12))
+    D = np.diag(sd)
+
+    def normal(with_rhs: bool) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        G = np.eye(len(mean))
+        h = mean / sd
+        E = np.zeros_like(G)
+        for (A, y, corr, noise), s, keep in zip(blocks, sig, keeps, strict=True):
+            wgt2 = 1.0 / (s * s * corr)
+            As = A[keep] @ D
+            G = G + wgt2 * (As.T @ As)
+            if with_rhs:
+                h = h + wgt2 * (As.T @ y[keep])
+            if noise is not None:
+                E = E + wgt2 * int(keep.sum()) * (D @ noise @ D)
+        return G, h, E
+
+    def corrected(G: NDArray[np.float64], E: NDArray[np.float64]) -> NDArray[np.float64]:
+        for f in (1.0, 0.5, 0.25, 0.125, 0.0):
+            try:
+                return np.linalg.cholesky(G - f * E)
+            except np.linalg.LinAlgError:
+                continue
+        return np.linalg.cholesky(G)  # pragma: no cover (G itself is positive definite: it holds the prior)
+
     for _ in range(4):
-        rows, rhs = [], []
-        for (A, y, corr), s, keep in zip(blocks, sig, keeps, strict=True):
-            wgt = 1.0 / (s * math.sqrt(corr))
-            rows.append(A[keep] * sd * wgt)
-            rhs.append(y[keep] * wgt)
-        rows.append(np.eye(len(mean)))
-        rhs.append(mean / sd)
-        sol = lsq_linear(np.vstack(rows), np.concatenate(rhs), bounds=(lower / sd, np.full(len(mean), np.inf)))
+        G, h, E = normal(True)
+        L = corrected(G, E)
+        # min x^T G x - 2 h^T x = |L^T x - L^-1 h|^2 + const, over x = theta / sd >= lower / sd
+        sol = lsq_linear(L.T, np.linalg.solve(L, h), bounds=(lower / sd, np.full(len(mean), np.inf)))
         theta = sol.x * sd
-        for j, (A, y, _) in enumerate(blocks):
+        for j, (A, y, _, _) in enumerate(blocks):
             r = y - A @ theta
             s = max(1.4826 * float(np.median(np.abs(r[keeps[j]]))), 1e-12)
             sig[j] = s
             keeps[j] = np.abs(r) < 5 * s
-    info = np.diag(1.0 / sd**2)
-    for (A, _, corr), s, keep in zip(blocks, sig, keeps, strict=True):
-        Ak = A[keep]
-        info += Ak.T @ Ak / (s * s * corr)
+    G, _, E = normal(False)
+    L = corrected(G, E)
+    D_inv = np.diag(1.0 / sd)
+    info = D_inv @ (L @ L.T) @ D_inv
     return theta, np.linalg.inv(info)
 
 
@@ -1221,11 +1269,13 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         A_g = np.column_stack([m.ag[g1], z, m.wg[g1], z, np.sign(m.wg[g1]), z])
         z2 = np.zeros(int(g2.sum()))
         A_l = np.column_stack([z2, ld.ag[g2], z2, ld.wg[g2], z2, np.sign(ld.wg[g2])])
-        blocks = [(A_c, p.uf[both], float(p.W))]
+        e = np.eye(len(PARAMS))
+        blocks: list[Block] = [(A_c, p.uf[both], float(p.W), _contact_noise(m, N))]
         if g1.sum() >= 10:
-            blocks.append((A_g, p.ug[g1], float(p.Wg + 2)))
+            blocks.append((A_g, p.ug[g1], float(p.Wg + 2), _noise_cov(((e[0], m.noise_g[0]), (e[2], m.noise_g[1])))))
         if g2.sum() >= 10:
-            blocks.append((A_l, np.zeros(int(g2.sum())), float(p.Wg + 2)))
+            blocks.append((A_l, np.zeros(int(g2.sum())), float(p.Wg + 2),
+                           _noise_cov(((e[1], ld.noise_g[0]), (e[3], ld.noise_g[1])))))
         theta, cov = _regress(blocks, mean, sd, lower)
         b, ci, centre, est, times, _ = _plateau_backlash(p, theta, eps)
         wins = _gap_windows(p, eps, theta)
@@ -1272,7 +1322,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
             raise InputError(f"{lg.name}: column theta1: only {int(rows.sum())} samples of steady motion in "
                              f"contact; the friction cannot be estimated (record longer moves)", field="theta1")
         A_c = np.column_stack([m.a, m.a / N**2, m.w, m.w / N**2, sg1, sg1 / N])[rows]
-        theta, cov = _regress([(A_c, p.uf[rows], float(p.W))], mean, sd, lower)
+        theta, cov = _regress([(A_c, p.uf[rows], float(p.W), _contact_noise(m, N))], mean, sd, lower)
         # contact sees only the lumped values: the share of the Coulomb friction on each shaft comes from fits of
         # a few crossings that leave it free
         J_eq, d_eq, teq = _lumped(theta, N)
