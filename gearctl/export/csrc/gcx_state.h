@@ -35,6 +35,7 @@ typedef struct {
     gcx_obs_s obs;
     double backlash, offset, sigma, t, cross_end, free[2], lag[4];
     double y_hist[2], u_hist[2], rattle, reach;
+    double rdd_prev; /* |r''| of the last step (_one_way) */
     double crossing_time; /* set_crossing_time: the crossing time and ramp shape now (init: the parameters') */
     double jump_threshold; /* set_backlash: the rattle guard's motor speed jump, b / jump_den */
     int ramp_shape;
