@@ -24,6 +24,7 @@ The Notes of :func:`identify` give the method and the literature. :func:`identif
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import math
 from collections.abc import Mapping, Sequence
@@ -106,7 +107,8 @@ def read_log(path: str | Path) -> EncoderLog:
 
     The file may start with ``#`` comment lines; then a header row naming the columns; then one row per
     sample. Columns ``t`` [s], ``torque`` [N m], ``theta1`` [rad] are required, ``theta2`` [rad] is
-    optional, any other column is kept in :attr:`EncoderLog.extra` and ignored.
+    optional; any other column is ignored (kept in :attr:`EncoderLog.extra` if it holds numbers throughout).
+    Fields may be quoted; a header with semicolons or tabs and no comma sets that delimiter.
 
     Parameters
     ----------
@@ -161,12 +163,14 @@ def read_log(path: str | Path) -> EncoderLog:
         raise _fail(path, "", "has no header row: expected a line naming the columns t, torque, theta1[, theta2]",
                     "log")
     header_line = i + 1
-    names = [c.strip() for c in lines[i].split(",")]
-    seen: set[str] = set()
-    for c in names:
-        if c in seen:
-            raise _fail(path, f"line {header_line}", f"column {c!r} appears twice in the header", c or "log")
-        seen.add(c)
+    head = lines[i]
+    # a comma-separated log; a header without a comma but with semicolons or tabs sets that delimiter
+    delim = "," if "," in head else (";" if ";" in head else ("\t" if "\t" in head else ","))
+    names = [c.strip() for c in next(csv.reader([head], delimiter=delim))]
+    wanted = [c for c in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if c in names]
+    for c in wanted:
+        if names.count(c) > 1:
+            raise _fail(path, f"line {header_line}", f"column {c!r} appears twice in the header", c)
     for c in REQUIRED_COLUMNS:
         if c not in names:
             got = ", ".join(repr(x) for x in names[:8])
@@ -178,29 +182,45 @@ def read_log(path: str | Path) -> EncoderLog:
         raise _fail(path, "", f"{n:,} samples is more than a log may hold ({MAX_LOG_SAMPLES:,}): cut the log to the "
                     f"part with the reversals", "log")
     ncol = len(names)
-    data = np.empty((n, ncol))
+    # the columns gearctl reads must hold finite numbers on every line; any other column is ignored, and kept in
+    # ``extra`` only if it is numeric throughout (a drive's status text, an empty trailing column are dropped)
+    need = {names.index(c) for c in wanted}
+    others = [c for c in range(ncol) if c not in need and names[c] and names.count(names[c]) == 1]
+    data = np.full((n, ncol), np.nan)
+    numeric = dict.fromkeys(others, True)
     k = 0
-    for j, row in enumerate(rows, start=header_line + 1):
-        if not row.strip():
+    line_no = header_line
+    for fields in csv.reader(rows, delimiter=delim):
+        line_no += 1
+        if not fields or (len(fields) == 1 and not fields[0].strip()):
             continue
-        fields = row.split(",")
         if len(fields) != ncol:
-            raise _fail(path, f"line {j}", f"{len(fields)} fields, expected {ncol} (one per header column)", "log")
-        for c, f in enumerate(fields):
+            raise _fail(path, f"line {line_no}", f"{len(fields)} fields, expected {ncol} (one per header column)",
+                        "log")
+        for c in need:
+            f = fields[c]
             try:
                 v = float(f)
             except ValueError:
-                raise _fail(path, f"line {j}", f"column {names[c]} = {f.strip()!r} is not a number",
+                raise _fail(path, f"line {line_no}", f"column {names[c]} = {f.strip()!r} is not a number",
                             names[c]) from None
             if not math.isfinite(v):
-                raise _fail(path, f"line {j}", f"column {names[c]} = {f.strip()} is not a finite number", names[c])
+                raise _fail(path, f"line {line_no}", f"column {names[c]} = {f.strip()} is not a finite number",
+                            names[c])
             data[k, c] = v
+        for c in others:
+            if numeric[c]:
+                try:
+                    data[k, c] = float(fields[c])
+                except ValueError:
+                    numeric[c] = False
         k += 1
     del lines, rows
     if n < 2:
         raise _fail(path, "", f"{n} sample(s) is too short: expected at least {MIN_LOG_SAMPLES} (with at least two "
                     f"reversals of the motion)", "log")
-    col = {c: data[:, names.index(c)].copy() for c in names if c}
+    col = {names[c]: data[:, c].copy() for c in sorted(need)}
+    col.update({names[c]: data[:, c].copy() for c in others if numeric[c] and np.isfinite(data[:, c]).all()})
     t = col["t"]
     dt = np.diff(t)
     bad = np.flatnonzero(dt <= 0)
