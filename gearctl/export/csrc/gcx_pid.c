@@ -159,7 +159,7 @@ GCX_FN void gcx_ramp_move_to(gcx_ramp_s *R, int shape, double duration, double t
 /* has_yl: the Python y_load is not None */
 GCX_FN double gcx_offset_torque(const gcx_pid_p *P, gcx_pid_s *S, const gcx_plant_p *pl, double r, double rd,
                                 double a, const double off[3], double y_motor, double y_load, int has_yl, int free,
-                                double scale, double one_way, int rest) {
+                                double scale, double one_way) {
     double o = off[0], d_o = off[1], dd_o = off[2];
     double N = P->N;
     double v = rd + d_o, acc = a + dd_o;
@@ -170,7 +170,6 @@ GCX_FN double gcx_offset_torque(const gcx_pid_p *P, gcx_pid_s *S, const gcx_plan
     if (one_way * e_p > 0.0) { /* the flank would push a coasting load back: no correction that way */
         e_p = 0.0;
         if (one_way * e_i > 0.0) e_i = 0.0;
-        if (rest) S->integral = 0.0; /* nothing to hold at rest */
     }
     if (!free) return gcx_pid_torque(P, S, target, v, acc, e_p, ym, e_i, 0, 0.0, scale);
     double ff = 0.0;
@@ -211,7 +210,7 @@ GCX_FN double gcx_rev_step(const gcx_rev_p *P, gcx_rev_s *S, double t, const dou
     gcx_ramp_at(&S->ramp, P->ramp_shape, t, at);
     double off[3] = {at[0], at[1], 0.0};
     return gcx_offset_torque(&P->pid, &S->pid, &P->plant, r, rd, a, off, y[0], y[1], P->uses_load && !isnan(y[1]),
-                             0, 1.0, 0.0, 0);
+                             0, 1.0, 0.0);
 }
 
 /* ---- load-disturbance observer (deadzone.py: LoadObserver) -------------------------------------------- */
@@ -266,6 +265,7 @@ GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     S->was_free = 0;
     S->moving_ref = 0;
     S->rdd_prev = 0.0;
+    S->stopped = 0;
     S->has_lag = 0;
     S->lag[0] = S->lag[1] = S->lag[2] = S->lag[3] = 0.0;
     S->contacts = 0;
@@ -420,13 +420,18 @@ GCX_FN void gcx_inv_start_take_up(const gcx_inv_p *P, gcx_inv_s *S, double t, do
 }
 
 /* DeadzoneInverse._one_way: the flank whose push-back is withheld, or 0 */
-GCX_FN double gcx_inv_one_way(const gcx_inv_p *P, const gcx_inv_s *S, double t, double rd, double rdd,
-                              double rdd_prev) {
+GCX_FN double gcx_inv_one_way(const gcx_inv_p *P, gcx_inv_s *S, double t, double rd, double rdd, double rdd_prev,
+                              double error) {
     double sigma = S->sigma;
     double need = -(P->plant.load_torque + gcx_inv_disturbance(P, S));
     int coasts = P->plant.tc2 <= 0.0 && sigma * need <= P->disturbance_threshold;
     int stopping = sigma * rd <= 0.0 && fabs(rdd) <= rdd_prev;
-    return (coasts && stopping && !gcx_ramp_moving(&S->ramp, t)) ? sigma : 0.0;
+    int small = fabs(error) < S->offset;
+    double one_way = (coasts && stopping && small && !gcx_ramp_moving(&S->ramp, t)) ? sigma : 0.0;
+    int rest = one_way != 0.0 && rd == 0.0 && rdd == 0.0;
+    if (rest && !S->stopped) S->pid.integral = 0.0; /* arrived: nothing to hold */
+    S->stopped = rest;
+    return one_way;
 }
 
 /* DeadzoneInverse.step */
@@ -472,7 +477,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
         gcx_inv_free_load(P, S, c);
         S->was_free = 1;
         double a_c = (S->free[1] - c[1]) / P->pid.Ts; /* the free load's mean acceleration over the sample */
-        u = gcx_offset_torque(&P->pid, &S->pid, pl, c[0], c[1], a_c, off, y_motor, y_load, has_yl, 1, 1.0, 0.0, 0);
+        u = gcx_offset_torque(&P->pid, &S->pid, pl, c[0], c[1], a_c, off, y_motor, y_load, has_yl, 1, 1.0, 0.0);
         gcx_inv_check_contact(P, S, t, y_motor / P->pid.N - c[0], off[0]);
     } else {
         if (S->was_free) { /* landed: the load's lag behind the reference is taken up smoothly */
@@ -482,7 +487,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
         }
         double scale = S->rattling ? P->rattle_gain * pl->J1 / P->pid.J_eq : 1.0;
         u = gcx_offset_torque(&P->pid, &S->pid, pl, r - lag[0], rd - lag[1], a - lag[2], off, y_motor, y_load, has_yl,
-                              0, scale, gcx_inv_one_way(P, S, t, rd, rdd, rdd_prev), rd == 0.0 && rdd == 0.0);
+                              0, scale, gcx_inv_one_way(P, S, t, rd, rdd, rdd_prev, r - lag[0] + off[0] - y_motor / P->pid.N));
     }
     S->u_hist[0] = S->u_hist[1], S->u_hist[1] = u;
     if (P->has_observer) { /* the train model does not hold while the motor crosses, nor just after a landing */
