@@ -178,7 +178,7 @@ def _inv_values(inv: DeadzoneInverse) -> dict[str, Any]:
             "disturbance_threshold": inv.disturbance_threshold, "backlash": inv.backlash, "a_limit": inv._a_limit,
             "jump_den": inv._jump_den, "rattle_decay": deadzone.RATTLE_DECAY,
             "rattle_level": deadzone.RATTLE_LEVEL, "rattle_gain": deadzone.RATTLE_GAIN,
-            "contact_lag": deadzone.CONTACT_LAG, "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION}
+            "contact_lag": inv._contact_lag, "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION}
 
 
 def kind_spec(controller: Controller) -> KindSpec:
