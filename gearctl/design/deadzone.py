@@ -681,16 +681,21 @@ class DeadzoneInverse(Controller):
         A flank pushes the load one way only. When the load comes to a stop on the braking flank and nothing
         else can stop it (no Coulomb friction, no load torque or disturbance that the flank carries), a
         correction that pushes it back would launch it backwards: the motor stops, the load floats off. That
-        is the case while the reference brakes on the held flank (``sigma r' <= 0``) with a deceleration
-        that fades (``|r''|`` not above the last sample's: an S-curve's end or rest; towards a sine's top it
-        grows, and the flank then drives the return), no crossing is under way and the motor's error
-        ``error`` [rad, load angle] is under half the lost motion (a larger one, the end of a ramp that stops
-        dead, a load disturbance, is corrected as in motion).
+        is the case when four things hold:
+
+        - the reference brakes on the held flank (``sigma r' <= 0``) with a deceleration that fades
+          (``|r''|`` below the last sample's: an S-curve's end), or it rests. Towards a sine's top the
+          deceleration grows, and the flank then drives the return. Through a trapezoid's constant
+          deceleration the load still moves at speed;
+        - no crossing is under way;
+        - the motor's error ``error`` [rad, load angle] is under half the lost motion. A larger one (the end
+          of a ramp that stops dead, a load disturbance) is corrected as in motion;
+        - nothing else stops the load (see above).
         """
         sigma = self._sigma
         need = -(self._tl + self.disturbance)
         coasts = self._tc2 <= 0.0 and sigma * need <= self.disturbance_threshold
-        stopping = sigma * rd <= 0.0 and abs(rdd) <= rdd_prev
+        stopping = sigma * rd <= 0.0 and (abs(rdd) < rdd_prev or (rd == 0.0 and rdd == 0.0))
         small = abs(error) < self._offset
         one_way = sigma if (coasts and stopping and small and not self._ramp.moving(t)) else 0.0
         rest = one_way != 0.0 and rd == 0.0 and rdd == 0.0

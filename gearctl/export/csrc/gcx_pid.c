@@ -425,7 +425,7 @@ GCX_FN double gcx_inv_one_way(const gcx_inv_p *P, gcx_inv_s *S, double t, double
     double sigma = S->sigma;
     double need = -(P->plant.load_torque + gcx_inv_disturbance(P, S));
     int coasts = P->plant.tc2 <= 0.0 && sigma * need <= P->disturbance_threshold;
-    int stopping = sigma * rd <= 0.0 && fabs(rdd) <= rdd_prev;
+    int stopping = sigma * rd <= 0.0 && (fabs(rdd) < rdd_prev || (rd == 0.0 && rdd == 0.0));
     int small = fabs(error) < S->offset;
     double one_way = (coasts && stopping && small && !gcx_ramp_moving(&S->ramp, t)) ? sigma : 0.0;
     int rest = one_way != 0.0 && rd == 0.0 && rdd == 0.0;
