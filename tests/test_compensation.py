@@ -505,6 +505,33 @@ def test_pid_feedforward_tracks_the_backlash_free_plant() -> None:
     assert rms[False] >= 100.0 * rms[True]
 
 
+@pytest.mark.parametrize(("model", "profile", "acts"), [
+    (SERVO, "s-curve", True),        # a jerk-limited stop on a coasting load: the push-back is withheld
+    (SERVO, "trapezoid", False),     # a dead stop launches the load: corrected as in motion
+    (FRICTION, "s-curve", False),    # friction stops the load
+])
+def test_inverse_withholds_the_push_back_only_at_a_fading_stop(monkeypatch: pytest.MonkeyPatch, model: str,
+                                                                 profile: str, acts: bool) -> None:
+    """A flank pushes one way only (deadzone.py, *The stop*). The guard acts where a stop fades on a load that
+    nothing else stops; elsewhere the inverse is, to the last bit, the one without it. Where it acts, the S-curve
+    move on shing1993_servo ends at 2.5 urad from the target against 4.9 urad without it."""
+    m = load_model(model)
+    plant = build_plant(m)
+    ref = reference("move", profile=profile)
+    runs = {}
+    for guard in (True, False):
+        inv = load_controller("deadzone_inverse", plant)
+        if not guard:
+            monkeypatch.setattr(inv, "_one_way", lambda *a: 0.0)
+        runs[guard] = simulate_closed_loop(plant, inv, ref, 1.5, sensors=m.sensors)
+    same = np.array_equal(runs[True].torque, runs[False].torque)
+    assert same is not acts
+    if acts:
+        final = {g: abs(float(r.error[-1])) for g, r in runs.items()}
+        print(f"\nfinal error {final[True] * 1e6:.2f} urad with the guard, {final[False] * 1e6:.2f} without")
+        assert final[True] < final[False]
+
+
 def test_inverse_crossing_stops_where_the_motor_meets_the_load(monkeypatch: pytest.MonkeyPatch) -> None:
     # ISO 230-2 on shing1993_servo_friction with a 1.2 b estimate: the motor meets the load 17 % before its ramp
     # ends and lags the ramp; the crossing then ends there. Measured: B = 56 urad with 5 crossings ended early,

@@ -49,14 +49,15 @@ How a flank change is made, and how a move is finished
   nothing else to stop it (no Coulomb friction, no load torque the flank carries) must not be pushed back:
   the motor would stop and the load float off at the speed it was given (1e-3 rad/s after a 0.02 rad
   move of the frictionless ``shing1993_servo``: 300 urad over a 0.3 s dwell). So while the reference
-  brakes on the held flank with a fading deceleration (an S-curve's end, or rest; not a sine's top, after
-  which the same flank drives the return), an error under half the lost motion that asks for that push
-  gets no proportional or integral action, and the integrator is emptied once on arrival at rest: the
-  load stops where it is, a few tens of urad past the target at worst, instead of drifting
-  (:meth:`DeadzoneInverse._one_way`; a larger error, such as the overshoot of a ramp that stops dead, is
-  corrected as in motion). On that servo's ISO 230-2 test this took A / B / R from 2125 / 712 / 1562 to
-  210 / 47 / 139 urad (the shifted 17-tooth pinion's from 3952 / 960 / 2754 to 227 / 43 / 143); the sine
-  and the step are unchanged, the move and the ramp a little better, and every figure on a load with
+  brakes on the held flank with a fading deceleration (an S-curve's end, and the rest after it; not a
+  sine's top, after which the same flank drives the return), an error under half the lost motion that asks
+  for that push gets no proportional or integral action, and the integrator is emptied once on arrival at
+  rest: the load stops where it is, a few tens of urad past the target at worst, instead of drifting
+  (:meth:`DeadzoneInverse._one_way`). A dead stop (a ramp's or a trapezoid's end, which launches the load)
+  and a larger error are corrected as in motion. On that servo's ISO
+  230-2 test this took A / B / R from 2125 / 712 / 1562 to 210 / 47 / 139 urad (the shifted 17-tooth
+  pinion's from 3952 / 960 / 2754 to 227 / 43 / 143); the sine, the step, the ramp and trapezoidal moves
+  are unchanged to the last bit, the S-curve move is a little better, and every figure on a load with
   friction is unchanged.
 - *Rattle guard.* A motor whose speed jumps by more than the torque explains (more than
   :attr:`DeadzoneInverse.jump_threshold`, half the speed at which it crosses the whole gap in two samples)
@@ -502,6 +503,7 @@ class DeadzoneInverse(Controller):
         self._moving_ref = False
         self._rdd_prev = 0.0
         self._stopped = False
+        self._one_way_prev = False
         self._lag: tuple[float, float, float, float] | None = None
         self.contacts = 0
         self._y_hist: tuple[float | None, float | None] = (None, None)
@@ -684,9 +686,9 @@ class DeadzoneInverse(Controller):
         is the case when four things hold:
 
         - the reference brakes on the held flank (``sigma r' <= 0``) with a deceleration that fades
-          (``|r''|`` below the last sample's: an S-curve's end), or it rests. Towards a sine's top the
-          deceleration grows, and the flank then drives the return. Through a trapezoid's constant
-          deceleration the load still moves at speed;
+          (``|r''|`` below the last sample's: an S-curve's end), or it rests after one. Towards a sine's top
+          the deceleration grows, and the flank then drives the return. Through a trapezoid's constant
+          deceleration the load still moves at speed, and its dead stop launches the load;
         - no crossing is under way;
         - the motor's error ``error`` [rad, load angle] is under half the lost motion. A larger one (the end
           of a ramp that stops dead, a load disturbance) is corrected as in motion;
@@ -695,13 +697,17 @@ class DeadzoneInverse(Controller):
         sigma = self._sigma
         need = -(self._tl + self.disturbance)
         coasts = self._tc2 <= 0.0 and sigma * need <= self.disturbance_threshold
-        stopping = sigma * rd <= 0.0 and (abs(rdd) < rdd_prev or (rd == 0.0 and rdd == 0.0))
+        at_rest = rd == 0.0 and rdd == 0.0
+        # at rest only when reached through a fading deceleration (a trapezoid's dead stop launches the load: its
+        # error is corrected as in motion)
+        stopping = sigma * rd <= 0.0 and (self._one_way_prev if at_rest else abs(rdd) < rdd_prev)
         small = abs(error) < self._offset
         one_way = sigma if (coasts and stopping and small and not self._ramp.moving(t)) else 0.0
-        rest = one_way != 0.0 and rd == 0.0 and rdd == 0.0
+        rest = one_way != 0.0 and at_rest
         if rest and not self._stopped:  # arrived: nothing to hold, what the integrator holds would push the train
             self.pid.integral = 0.0
         self._stopped = rest
+        self._one_way_prev = one_way != 0.0
         return one_way
 
     def _check_contact(self, t: float, rel: float, o: float) -> None:

@@ -266,6 +266,7 @@ GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     S->moving_ref = 0;
     S->rdd_prev = 0.0;
     S->stopped = 0;
+    S->one_way_prev = 0;
     S->has_lag = 0;
     S->lag[0] = S->lag[1] = S->lag[2] = S->lag[3] = 0.0;
     S->contacts = 0;
@@ -425,12 +426,15 @@ GCX_FN double gcx_inv_one_way(const gcx_inv_p *P, gcx_inv_s *S, double t, double
     double sigma = S->sigma;
     double need = -(P->plant.load_torque + gcx_inv_disturbance(P, S));
     int coasts = P->plant.tc2 <= 0.0 && sigma * need <= P->disturbance_threshold;
-    int stopping = sigma * rd <= 0.0 && (fabs(rdd) < rdd_prev || (rd == 0.0 && rdd == 0.0));
+    int at_rest = rd == 0.0 && rdd == 0.0;
+    /* at rest only when reached through a fading deceleration */
+    int stopping = sigma * rd <= 0.0 && (at_rest ? S->one_way_prev : fabs(rdd) < rdd_prev);
     int small = fabs(error) < S->offset;
     double one_way = (coasts && stopping && small && !gcx_ramp_moving(&S->ramp, t)) ? sigma : 0.0;
-    int rest = one_way != 0.0 && rd == 0.0 && rdd == 0.0;
+    int rest = one_way != 0.0 && at_rest;
     if (rest && !S->stopped) S->pid.integral = 0.0; /* arrived: nothing to hold */
     S->stopped = rest;
+    S->one_way_prev = one_way != 0.0;
     return one_way;
 }
 

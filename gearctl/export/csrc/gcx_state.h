@@ -40,7 +40,7 @@ typedef struct {
     double jump_threshold; /* set_backlash: the rattle guard's motor speed jump, b / jump_den */
     int ramp_shape;
     int was_free, moving_ref, has_lag, contacts, y_hist_n, rattling, trusted;
-    int stopped; /* at rest with the push-back withheld (_one_way) */
+    int stopped, one_way_prev; /* at rest with the push-back withheld; withheld at the last step (_one_way) */
 } gcx_inv_s;
 
 #ifdef GCX_ADA_WINDOW
