@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import json
 import math
 import tomllib
 from collections.abc import Callable, Iterable, Mapping
@@ -19,7 +20,8 @@ from typing import Any
 from .errors import InputError
 from .units import describe_range
 
-__all__ = ["catalog_dirs", "catalog_names", "resolve", "read_toml", "build_dataclass", "check_source",
+__all__ = ["catalog_dirs", "catalog_names", "resolve", "read_toml", "toml_value", "toml_dumps", "build_dataclass",
+           "check_source",
            "Binding", "MAX_FILE_BYTES", "spec_values", "table_values", "Layout"]
 
 _PKG = Path(__file__).resolve().parent
@@ -74,6 +76,34 @@ def resolve(name_or_path: str | Path, kind: str) -> Path:
         f"to a .toml file{hint}",
         field=kind[:-1],
     )
+
+
+def toml_value(v: Any) -> str:
+    """``v`` (bool, int, float including inf and nan, str, list or tuple of those) as a TOML value."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):  # a JSON string is a TOML basic string: the same escapes
+        return json.dumps(v)
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {v!r} as TOML")
+
+
+def toml_dumps(doc: Mapping[str, Mapping[str, Any]], header: Iterable[str] = ()) -> str:
+    """A document of tables of values (:func:`toml_value`) as TOML text, with ``header`` as comment lines."""
+    out = [f"# {h}" for h in header]
+    for table, keys in doc.items():
+        out.append(f"\n[{table}]")
+        out.extend(f"{k} = {toml_value(v)}" for k, v in keys.items())
+    return "\n".join(out) + "\n"
 
 
 def read_toml(path: Path) -> dict[str, Any]:

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import InputError
+from .files import toml_dumps
 from .units import SAMPLE_TIME
 
 __all__ = ["EncoderLog", "read_log", "write_log", "Identification", "ReversalWindow", "identify", "identified_model",
@@ -1439,31 +1440,6 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
 # --- the identified model as a model file ------------------------------------------------------------------------
 
 
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", " ") + '"'
-    if isinstance(v, list | tuple):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"cannot write {v!r} as TOML")
-
-
-def _toml_dumps(doc: Mapping[str, Mapping[str, Any]], header: Sequence[str] = ()) -> str:
-    """A model document (tables of scalars and lists) as TOML text."""
-    out = [f"# {h}" for h in header]
-    for table, keys in doc.items():
-        out.append(f"\n[{table}]")
-        out.extend(f"{k} = {_toml_value(v)}" for k, v in keys.items())
-    return "\n".join(out) + "\n"
-
-
 def identified_model(result: Identification, model: Any) -> dict[str, dict[str, Any]]:
     """A complete model document (the tables of a model file): ``model`` with the identified values.
 
@@ -1544,7 +1520,7 @@ def write_identified_model(path: str | Path, result: Identification, model: Any)
 
     path = Path(path)
     doc = identified_model(result, model)
-    text = _toml_dumps(doc, header=(f"{path.stem}: written by gearctl identify from {result.log}.",
+    text = toml_dumps(doc, header=(f"{path.stem}: written by gearctl identify from {result.log}.",
                                     "SI units, radians inside; degrees only in keys ending _deg."))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -59,6 +59,7 @@ from hypothesis import strategies as st
 
 from gearctl import GearPair, MeshDynamics, Sensors, Servo
 from gearctl.catalog import controller_names, resolve
+from gearctl.files import toml_dumps
 from gearctl.model import MAX_BACKLASH_PER_MODULE, MAX_FRICTION_RATE, MAX_INERTIA_RATIO, STIFFNESS_FACTOR
 
 DATA = Path(__file__).parent / "data"
@@ -173,30 +174,7 @@ class FuzzModel:
 
     def toml(self) -> str:
         """The model file."""
-        lines = ["# drawn by tests/test_fuzz.py"]
-        for table, keys in self.tables.items():
-            lines.append(f"[{table}]")
-            lines += [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
-            lines.append("")
-        return "\n".join(lines)
-
-
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(type(v))
+        return toml_dumps(self.tables, header=["drawn by tests/test_fuzz.py"])
 
 
 def _disk_inertias(g: dict[str, Any]) -> tuple[float, float]:

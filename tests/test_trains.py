@@ -35,6 +35,7 @@ from gearctl import InputError, Plant, build_plant, load_model
 from gearctl.catalog import load_controller, read_toml, resolve
 from gearctl.cli import main
 from gearctl.closedloop import simulate_closed_loop
+from gearctl.files import toml_value
 from gearctl.geometry import involute, pair_geometry
 from gearctl.oracle import reference_solution
 from gearctl.references import reference
@@ -115,10 +116,6 @@ def test_phm09_motor_is_about_the_reflected_load(two: Plant) -> None:
 # --- 1. a one-stage train is the pair, to the last bit ----------------------------------------------------
 
 
-def _toml_value(v: object) -> str:
-    return json.dumps(v) if isinstance(v, str) else repr(v)
-
-
 @pytest.fixture(scope="module")
 def one_stage_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """``shing1993_servo.toml`` rewritten as one ``[[stage]]`` (teeth, pair keys; material and dynamics as
@@ -128,9 +125,9 @@ def one_stage_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     lines = []
     for table in ("source", "material", "dynamics", "servo", "sensors"):
         lines.append(f"[{table}]")
-        lines += [f"{k} = {_toml_value(v)}" for k, v in data[table].items()]
+        lines += [f"{k} = {toml_value(v)}" for k, v in data[table].items()]
     lines.append("[[stage]]")
-    lines += [f"{k} = {_toml_value(v)}" for k, v in stage.items()]
+    lines += [f"{k} = {toml_value(v)}" for k, v in stage.items()]
     path = tmp_path_factory.mktemp("train") / "shing1993_servo_one_stage.toml"
     path.write_text("\n".join(lines) + "\n")
     return path
