@@ -32,6 +32,9 @@ __all__ = ["PIDGains", "PIDDesign", "LoopSettings", "PID", "design_pid", "KIND",
 
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "pid"
+#: The integral action's bound, in torque limits: it can hold any torque the motor gives against a feedforward
+#: of up to the limit the other way, and a single wild reading (an encoder glitch) cannot wind it up beyond.
+INTEGRAL_BOUND = 2.0
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -359,7 +362,8 @@ class PID(Controller):
         u_ff = self.feedforward_torque(v, a) if ff is None else ff
         u = u_ff + scale * u_fb
         u_sat = min(max(u, -self.limit), self.limit)
-        self.integral += self.Ts * (g.ki * e_i + (u_sat - u) / self._Tt)
+        bound = INTEGRAL_BOUND * self.limit
+        self.integral = min(max(self.integral + self.Ts * (g.ki * e_i + (u_sat - u) / self._Tt), -bound), bound)
         return u_sat
 
     def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:

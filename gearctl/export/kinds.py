@@ -15,6 +15,7 @@ from typing import Any
 
 from ..controller import Controller
 from ..design import deadzone
+from ..design import pid as pid_module
 from ..design.adaptive import CONVERGED_MEASUREMENTS, AdaptiveInverse
 from ..design.deadzone import DeadzoneInverse
 from ..design.mpc import MPC
@@ -46,7 +47,7 @@ def _struct(name: str, fields: list[tuple[str, str]]) -> CStruct:
 
 
 _struct("gcx_pid_p", [(f, "double") for f in ("kp", "ki", "kd", "a", "Tt", "Ts", "N", "limit", "J_eq",
-                                              "d_eq", "load_torque", "friction")]
+                                              "d_eq", "load_torque", "friction", "integral_bound")]
         + [("feedforward", "int"), ("feedback_load", "int")])
 _struct("gcx_plant_p", [(f, "double") for f in ("J1", "d1", "tc1", "J2", "d2", "load_torque", "tc2", "rb2")])
 _struct("gcx_obs_p", [("A", "double[9]"), ("B", "double[3]"), ("L", "double[3]"), ("N", "double"), ("tl", "double")])
@@ -114,6 +115,11 @@ class KindSpec:
     describe : dict
         The Python object's settings (``Controller.describe()``).
     name : str
+    ratio : float
+        Motor angle per load angle in contact (the gear ratio, > 0: the load angle's positive sense is the
+        one the motor's positive torque drives it in).
+    torque_limit : float
+        The torque the step clips its command to [N m].
     """
 
     kind: str
@@ -125,6 +131,8 @@ class KindSpec:
     uses_load_encoder: bool
     describe: dict[str, Any]
     name: str
+    ratio: float
+    torque_limit: float
 
     @property
     def struct(self) -> CStruct:
@@ -156,7 +164,8 @@ def _pid_values(pid: PID) -> dict[str, Any]:
     g, info = pid.gains, pid.info
     return {"kp": g.kp, "ki": g.ki, "kd": g.kd, "a": pid._a, "Tt": pid._Tt,
             "Ts": pid.Ts, "N": pid.N, "limit": pid.limit, "J_eq": info.J_eq, "d_eq": info.d_eq,
-            "load_torque": info.plant.load_torque, "friction": pid.friction, "feedforward": int(bool(pid.feedforward)),
+            "load_torque": info.plant.load_torque, "friction": pid.friction,
+            "integral_bound": pid_module.INTEGRAL_BOUND, "feedforward": int(bool(pid.feedforward)),
             "feedback_load": int(pid.feedback == "load")}
 
 
@@ -193,6 +202,10 @@ def kind_spec(controller: Controller) -> KindSpec:
     common = {"Ts": float(c.Ts), "preview": int(c.preview), "uses_load_encoder": bool(c.uses_load_encoder),
               "describe": c.describe(), "name": str(c.name)}
     # exact types: a subclass may change what a method does, which the C would not know
+    pid = {PID: lambda: c, ReversalOffset: lambda: c.pid, DeadzoneInverse: lambda: c.pid,
+           AdaptiveInverse: lambda: c.inner.pid}.get(type(c))
+    if pid is not None:
+        common.update(ratio=float(pid().N), torque_limit=float(pid().limit))
     if type(c) is PID:
         return KindSpec(kind="pid", prefix="pid", values=_pid_values(c), dims={}, **common)
     if type(c) is ReversalOffset:
@@ -221,7 +234,8 @@ def kind_spec(controller: Controller) -> KindSpec:
         from .mpc_tables import mpc_values
 
         vals, dims = mpc_values(c)
-        return KindSpec(kind="mpc", prefix="mpc", values=vals, dims=dims, **common)
+        return KindSpec(kind="mpc", prefix="mpc", values=vals, dims=dims, ratio=float(vals["ratio"]),
+                        torque_limit=float(vals["umax"]), **common)
     raise InputError(f"controller {getattr(c, 'name', c)!r} ({type(c).__name__}) cannot be exported: expected one of "
                      f"gearctl's controller kinds ({', '.join(KINDS)})", field="controller")
 

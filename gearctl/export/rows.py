@@ -93,6 +93,7 @@ class Case:
     first: np.ndarray  # (steps,) int
     y: np.ndarray  # (steps, 2)
     u: np.ndarray  # (steps,)
+    warnings: tuple[str, ...] = ()  # what was wrong with the recorded loop (gearctl.metrics.loop_health)
 
     @property
     def steps(self) -> int:
@@ -194,16 +195,18 @@ def record_cases(controller: Controller, plant: Any, *, sensors: Any = None,
         A run that fails part-way (divergence, an event cascade) is recorded up to where it stopped.
     """
     from ..closedloop import simulate_closed_loop
+    from ..metrics import loop_health
     from ..references import reference
 
     rec = _Recorder(controller)
     out = []
     for kind, duration in cases:
         try:
-            simulate_closed_loop(plant, rec, reference(kind), duration, sensors=sensors, seed=seed)
-        except SimulationError:
-            pass  # the steps taken are recorded: they are what the C must reproduce
-        out.append(rec.case(kind))
+            res = simulate_closed_loop(plant, rec, reference(kind), duration, sensors=sensors, seed=seed)
+            warnings = loop_health(res).warnings if res.success else (res.message,)
+        except SimulationError as exc:  # the steps taken are recorded: they are what the C must reproduce
+            warnings = (str(exc),)
+        out.append(dataclasses.replace(rec.case(kind), warnings=tuple(warnings)))
     controller.reset()
     return out
 

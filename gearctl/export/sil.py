@@ -22,13 +22,14 @@ import numpy as np
 from ..build import CompileError, shared_library
 from ..controller import Controller, ReferenceLike
 from ..errors import InputError
-from .emit import CFLAGS, FORMAT
+from .emit import CFLAGS, DEFAULT_PREFIX, FORMAT, prefixed, prefixed_name
 from .rows import PreviewRows
 
 __all__ = ["ExportedController", "load_exported", "compile_exported", "execute_exported", "exported_name"]
 
-_SHIM = b'#include "gearctl_ctrl.h"\nlong gearctl_sil_state_size(void) { return (long)sizeof(gearctl_ctrl_t); }\n'
+_SHIM = '#include "gearctl_ctrl.h"\nlong gearctl_sil_state_size(void) { return (long)sizeof(gearctl_ctrl_t); }\n'
 _SOURCES = ("gearctl_ctrl.h", "gearctl_ctrl.c", "gearctl_ctrl_params.h", "gearctl_qp.h", "gearctl_qp.c")
+_STATUS = {1: "fallback", 2: "bad input (a non-finite reading or reference: zero torque)"}
 
 
 def _manifest(folder: Path) -> dict[str, Any]:
@@ -56,21 +57,22 @@ def compile_exported(folder: str | Path) -> tuple[ctypes.CDLL, dict[str, Any]]:
     """
     folder = Path(folder)
     man = _manifest(folder)
-    sources = {name: (folder / name).read_bytes() for name in _SOURCES if (folder / name).is_file()}
-    if "gearctl_ctrl.c" not in sources or "gearctl_ctrl.h" not in sources:
-        raise InputError(f"{folder}: gearctl_ctrl.c or gearctl_ctrl.h is missing", field="exported")
-    sources["gearctl_sil_shim.c"] = _SHIM
+    prefix = str(man.get("prefix", DEFAULT_PREFIX))
+    names = [prefixed_name(n, prefix) for n in _SOURCES]
+    sources = {name: (folder / name).read_bytes() for name in names if (folder / name).is_file()}
+    if names[0] not in sources or names[1] not in sources:
+        raise InputError(f"{folder}: {names[1]} or {names[0]} is missing", field="exported")
+    sources[prefixed_name("gearctl_sil_shim.c", prefix)] = prefixed(_SHIM, prefix).encode()
     try:
         lib = shared_library(f"export_{man['kind']}", sources, flags=(*CFLAGS.split(), "-Wall"), required=True)
     except CompileError as exc:
         raise InputError(f"cannot build the exported controller in {folder}: {exc}", field="exported") from None
     assert lib is not None
-    lib.gearctl_ctrl_init.restype = None
-    lib.gearctl_ctrl_init.argtypes = [ctypes.c_void_p]
-    lib.gearctl_ctrl_step.restype = ctypes.c_int
-    lib.gearctl_ctrl_step.argtypes = [ctypes.c_void_p] * 4
-    lib.gearctl_sil_state_size.restype = ctypes.c_long
-    lib.gearctl_sil_state_size.argtypes = []
+    init, step = getattr(lib, f"{prefix}_ctrl_init"), getattr(lib, f"{prefix}_ctrl_step")
+    size = getattr(lib, f"{prefix}_sil_state_size")
+    init.restype, init.argtypes = None, [ctypes.c_void_p]
+    step.restype, step.argtypes = ctypes.c_int, [ctypes.c_void_p] * 4
+    size.restype, size.argtypes = ctypes.c_long, []
     return lib, man
 
 
@@ -109,21 +111,22 @@ class ExportedController(Controller):
         self.preview = int(manifest["preview"])
         self.uses_load_encoder = bool(manifest["uses_load_encoder"])
         self._timed = self.kind == "mpc"
-        size = int(lib.gearctl_sil_state_size())
+        prefix = str(manifest.get("prefix", DEFAULT_PREFIX))
+        self._init, self._fn = getattr(lib, f"{prefix}_ctrl_init"), getattr(lib, f"{prefix}_ctrl_step")
+        size = int(getattr(lib, f"{prefix}_sil_state_size")())
         self._state = np.zeros((size + 7) // 8 + 1)  # 8-byte aligned
         self._y = (ctypes.c_double * 2)()
         self._u = ctypes.c_double()
         self._c = self._state.ctypes.data
         self._y_ref, self._u_ref = ctypes.addressof(self._y), ctypes.addressof(self._u)
         self._rows = PreviewRows(self.Ts, self.preview)
-        self._fn = lib.gearctl_ctrl_step
         self.step_flags = 0
         self.state_bytes = size
         self.reset()
 
     def reset(self) -> None:
         """``gearctl_ctrl_init``; forget the reference block and the records."""
-        self._lib.gearctl_ctrl_init(self._c)
+        self._init(self._c)
         self._rows.reset()
         self._arr: np.ndarray | None = None
         self._base = 0
@@ -146,7 +149,8 @@ class ExportedController(Controller):
             flag = self._fn(self._c, self._y_ref, self._base + 24 * k, self._u_ref)
         if flag > 0:
             self.step_flags += 1
-            self.fallbacks.append({"t": float(t), "reason": f"exported controller: fallback (flag {flag})"})
+            self.fallbacks.append({"t": float(t), "reason": f"exported controller: {_STATUS.get(flag, 'fallback')} "
+                                                            f"(status {flag})"})
         return self._u.value
 
     def describe(self) -> dict[str, Any]:

@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT -- part of gearctl, written for it. */
 /* Helpers shared by the exported controllers (gcx_pid.c, gcx_mpc.c). Every function is static: an exported
- * controller is one translation unit with two external symbols, gearctl_ctrl_init and gearctl_ctrl_step. */
+ * controller's translation unit has two external symbols, gearctl_ctrl_init and gearctl_ctrl_step (the MPC's
+ * QP solver, gearctl_qp.c, adds its gearctl_qp_* functions). */
 
 #if defined(__GNUC__) || defined(__clang__)
 #define GCX_FN static __attribute__((unused)) /* a kind uses only part of its family's functions */

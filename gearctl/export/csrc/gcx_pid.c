@@ -81,7 +81,8 @@ GCX_FN double gcx_pid_torque(const gcx_pid_p *P, gcx_pid_s *S, double r, double 
     double u_ff = !has_ff ? gcx_pid_feedforward_torque(P, v, a) : ff;
     double u = u_ff + scale * u_fb;
     double u_sat = gcx_min(gcx_max(u, -P->limit), P->limit);
-    S->integral += P->Ts * (P->ki * e_i + (u_sat - u) / P->Tt);
+    double bound = P->integral_bound * P->limit;
+    S->integral = gcx_min(gcx_max(S->integral + P->Ts * (P->ki * e_i + (u_sat - u) / P->Tt), -bound), bound);
     return u_sat;
 }
 
