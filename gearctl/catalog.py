@@ -41,6 +41,7 @@ from .geometry import GearPair
 from .model import GearModel, StageModel, check_model
 from .params import MeshDynamics, Sensors, Servo
 from .plant import MAX_STAGES
+from .units import describe_rule
 
 __all__ = [
     "GearModel",
@@ -127,7 +128,9 @@ def _apply_overrides(path: Path, per_class: dict[type, Values], overrides: Mappi
 def _missing(path: Path, cls: type, values: Values, where: Mapping[str, str]) -> None:
     for fname in sorted(required_fields(cls) - set(values)):
         label = where.get(fname, fname)
-        raise InputError(f"{path}: missing key {label}", field=label.split()[-1])
+        meta = next(f.metadata for f in dataclasses.fields(cls) if f.name == fname)
+        what = f": {meta['doc']}, {describe_rule(dict(meta))}" if "doc" in meta and "low" in meta else ""
+        raise InputError(f"{path}: missing key {label}{what}", field=label.split()[-1])
 
 
 def _pair_model(path: Path, data: dict[str, Any], overrides: Mapping[str, Any]) -> tuple[StageModel, ...]:

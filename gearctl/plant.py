@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from .errors import InputError
 from .geometry import pair_geometry
+from .model import MAX_BACKLASH_PER_MODULE
 from .params import ContactLaw, FrictionLaw
 from .stiffness import (
     damping_coefficient,
@@ -674,7 +675,16 @@ def build_plant(
     d = [servo.viscous_friction1, *(servo.intermediate_viscous_friction or (0.0,) * (n - 1)), servo.viscous_friction2]
     tc = [servo.coulomb_friction1, *(servo.intermediate_coulomb_friction or (0.0,) * (n - 1)),
           servo.coulomb_friction2]
-    bs = _per_stage(backlash, n) if backlash is not None else tuple(sm.pair.backlash for sm in model.stages)
+    if backlash is not None:
+        bs = _per_stage(backlash, n)
+        for i, (b, sm) in enumerate(zip(bs, model.stages, strict=True)):  # the file's bound on a stage's backlash
+            top = MAX_BACKLASH_PER_MODULE * sm.pair.module
+            if b > top:
+                where = f" on stage {i + 1}" if n > 1 else ""
+                raise InputError(f"backlash = {b!r} is out of range{where}: expected at most "
+                                 f"{MAX_BACKLASH_PER_MODULE:g} x module = {top:g} [m]", field="backlash")
+    else:
+        bs = tuple(sm.pair.backlash for sm in model.stages)
     stages = []
     for i, (sm, geo) in enumerate(zip(model.stages, geos, strict=True)):
         pair, dyn = sm.pair, sm.dynamics

@@ -23,6 +23,7 @@ from .errors import InputError
 from .params import Sensors
 from .plant import Plant
 from .references import move_point, move_times
+from .units import DURATION
 
 __all__ = ["MotionProgram", "PrecisionResult", "iso230_statistics", "precision_test"]
 
@@ -215,6 +216,10 @@ def precision_test(
             measure.append((t - 0.5 * controller.Ts, idx, direction))
         pos = target
     program = MotionProgram(tuple(starts), tuple(origins), tuple(ends), velocity, accel)
+    if t > DURATION.high:
+        raise InputError(f"the test program lasts {t:.6g} s ({targets} targets, {cycles} cycles over travel = "
+                         f"{travel:g} rad at velocity = {velocity:g} rad/s, dwell = {dwell:g} s): expected at most "
+                         f"{DURATION.high:g} s; lower travel, dwell, cycles or targets", field="travel")
     run = simulate_closed_loop(plant, controller, program, t + controller.Ts, sensors=sensors, seed=seed,
                                progress=progress)
     up = np.zeros((targets, cycles))

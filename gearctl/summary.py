@@ -46,6 +46,9 @@ def _stage_summary(pair: GearPair, dynamics: MeshDynamics, plant: Plant, i: int)
         "mesh_stiffness": {"mean": ms.mean, "c1": ms.c1, "c2": ms.c2, "min": ms.min, "max": ms.max},
         "mesh_stiffness_per_width": ms.mean / pair.face_width * 1e-9,
         "damping_coefficient": st.c,
+        "damping_coefficient_given": dynamics.damping_coefficient is not None,
+        "plant_stiffness": st.k,
+        "mesh_stiffness_given": dynamics.mesh_stiffness is not None,
         "damping_coefficient_eq38": damping_coefficient(ms.mean, dynamics.damping_ratio, m_eq),
         "yang_sun_stiffness": yang_sun_stiffness(pair),
         "backlash": pair.backlash,
@@ -69,7 +72,9 @@ def model_summary(model: GearModel) -> dict[str, Any]:
         ``tooth_thickness`` {pitch, base, addendum} [m], ``inertia`` [I1, I2] [kg m^2],
         ``equivalent_mass`` [kg], ``mesh_stiffness`` {mean, c1, c2, min, max} [N/m] (eq 21 over the
         mesh cycle), ``mesh_stiffness_per_width`` [N/(mm um)], ``damping_coefficient`` [N s/m] (the
-        plant's c: the file's value or eq 38 from the plant's k), ``damping_coefficient_eq38``
+        plant's c: the file's value or eq 38 from the plant's k; ``damping_coefficient_given`` says which),
+        ``plant_stiffness`` [N/m] (the plant's k: the file's ``mesh_stiffness`` if given, which
+        ``mesh_stiffness_given`` says, else the computed mean), ``damping_coefficient_eq38``
         [N s/m] (eq 38 from the computed mean), ``yang_sun_stiffness`` [N/m], ``backlash`` [m],
         ``profile_shift``, ``operating_pressure_angle_deg``, ``centre_distance`` [m], and ``plant``
         {k, c, J1, J2, natural_frequency_hz} for the improved plant. For a train: ``stages`` (a list of

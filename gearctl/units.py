@@ -167,7 +167,9 @@ def check_number(name: str, value: Any, meta: dict[str, Any]) -> float:
     """
     allowed = describe_rule(meta)
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        rule = f"is out of range (not a number): expected {allowed}"
+        kind = ("true/false" if isinstance(value, bool) else "a string: write the number without quotes"
+                if isinstance(value, str) else f"a {type(value).__name__}")
+        rule = f"is not a number ({kind}): expected {allowed}"
         raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
     v = float(value)
     if meta["integer"] and (not math.isfinite(v) or v != int(v)):

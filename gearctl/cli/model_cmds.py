@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..catalog import load_model, model_names
-from ..errors import InputError
+from ..errors import InputError, SimulationError
 from ..geometry import pair_geometry
 from ..limits import check_output_size
 from ..units import DURATION
@@ -25,6 +25,7 @@ from .common import (
     save_figure,
     say_written,
     spec_arg,
+    warn,
     write_csv_stream,
 )
 
@@ -78,7 +79,11 @@ def _print_stage(s: dict[str, Any], indent: str = "  ") -> None:
     print(f"{indent}equivalent mass        {s['equivalent_mass']:.5g} kg (along the line of action)")
     print(f"{indent}mesh stiffness         mean {ms['mean']:.5g} N/m ({s['mesh_stiffness_per_width']:.3g} N/(mm um)), "
           f"C1 {ms['c1']:.4g}, C2 {ms['c2']:.4g}, min {ms['min']:.4g}, max {ms['max']:.4g}")
-    print(f"{indent}damping coefficient    {s['damping_coefficient']:.5g} N s/m (eq 38, consistent form)")
+    if s.get("mesh_stiffness_given"):
+        print(f"{indent}plant stiffness        {s['plant_stiffness']:.5g} N/m (given in the file; the computed mean "
+              "above is not used)")
+    how = "given in the file" if s.get("damping_coefficient_given") else "eq 38, consistent form"
+    print(f"{indent}damping coefficient    {s['damping_coefficient']:.5g} N s/m ({how})")
     print(f"{indent}Yang-Sun stiffness     {s['yang_sun_stiffness']:.5g} N/m (eq 39)")
     print(f"{indent}backlash                {s['backlash'] * 1e6:.4g} um along the line of action")
 
@@ -195,6 +200,10 @@ def _write_simulation_csv(path: str, plant: Any, res: Any) -> None:
     write_csv_stream(path, header, cols, res.t.size)
 
 
+#: Penetration of the teeth (|s| - b) beyond which ``simulate`` warns, in modules (the smallest stage's).
+PENETRATION_WARNING = 0.05
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from ..plant import build_plant
     from ..simulate import default_output_interval, report_case
@@ -207,9 +216,26 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     # a rough figure for the progress bar: ~2 us per output row, 2 us per 10 us of simulated time
     expected = rows * 2e-6 + args.duration * 0.2
     with progress_bar("gearctl simulate", expected_s=expected) as bar:
-        res = report_case(plant, args.case, args.duration, omega1=args.omega1, omega2=args.omega2,
-                          torque1=args.torque1, torque2=args.torque2, dt=dt, progress=bar if bar.bar else None)
+        try:
+            res = report_case(plant, args.case, args.duration, omega1=args.omega1, omega2=args.omega2,
+                              torque1=args.torque1, torque2=args.torque2, dt=dt, progress=bar if bar.bar else None)
+        except SimulationError as exc:
+            if "diverged" not in str(exc):
+                raise
+            from ..simulate import CASES
+
+            c = {**CASES[args.case], **{k: v for k in CASES[args.case] if (v := getattr(args, k, None)) is not None}}
+            j = plant.shafts[0].J, plant.shafts[-1].J
+            raise SimulationError(f"{exc}: the {args.case} case starts the motor at omega1 = {c['omega1']:g} rad/s "
+                                  f"with torque1 = {c['torque1']:g}, torque2 = {c['torque2']:g} N m on shafts of "
+                                  f"{j[0]:.3g} and {j[1]:.3g} kg m^2; for this model choose smaller --omega1, "
+                                  "--torque1, --torque2", result=exc.result) from None
     summary = _simulate_summary(model, plant, args, res)
+    module = min(sm.pair.module for sm in model.stages)
+    if res.max_penetration > PENETRATION_WARNING * module:  # a tooth deflects a few um at its rated load
+        warn("simulate", [f"the teeth interpenetrate by up to {res.max_penetration * 1e6:.4g} um, "
+                          f"{res.max_penetration / module:.0%} of the module: far beyond a tooth's elastic deflection, "
+                          "so the contact law is extrapolated; choose a smaller --omega1, --torque1, --torque2"])
     if args.csv:
         _write_simulation_csv(args.csv, plant, res)
     if args.plot:

@@ -1,0 +1,125 @@
+"""What the CLI says on input an external review found unclear: every refusal names the field and the allowed range,
+exit code 2, and the figures a command prints say where they come from."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from gearctl.cli import main
+from gearctl.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _refusal(capsys, argv: list[str]) -> str:  # noqa: ANN001
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize("command", ["track", "precision"])
+def test_backlash_override_beyond_half_a_module_is_refused(capsys, command: str) -> None:  # noqa: ANN001
+    # the file and --set refuse b > 0.5 module (2 mm module: 1 mm); the --backlash override did not
+    err = _refusal(capsys, [command, "shing1993_servo", "pid", "--backlash", "5e-3"])
+    assert "backlash = 0.005" in err and "0.5 x module = 0.001" in err
+
+
+def test_backlash_override_names_the_stage_of_a_train(capsys) -> None:  # noqa: ANN001
+    err = _refusal(capsys, ["track", "servo_3stage_quanser_srv02", "pid", "--backlash", "2e-4"])
+    assert "on stage 1" in err and "0.5 x module = 0.00015" in err
+
+
+def test_a_precision_program_too_long_names_what_to_lower(capsys) -> None:  # noqa: ANN001
+    err = _refusal(capsys, ["precision", "shing1993_servo", "pid", "--travel", "1e4"])
+    assert "travel = 10000" in err and "lasts 100029 s" in err and "np.float64" not in err
+
+
+def _model_with(tmp_path: Path, old: str, new: str | None) -> Path:
+    text = (ROOT / "models" / "shing1993.toml").read_text()
+    lines = [ln for ln in text.splitlines() if not ln.startswith(old)] if new is None else None
+    out = "\n".join(lines) if lines is not None else text.replace(old, new, 1)
+    assert out != text
+    p = tmp_path / "m.toml"
+    p.write_text(out)
+    return p
+
+
+def test_a_missing_key_states_its_range(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    err = _refusal(capsys, ["info", str(_model_with(tmp_path, "module", None))])
+    assert "missing key [pair] module" in err and "1e-05 <= value <= 0.1 [m]" in err
+
+
+@pytest.mark.parametrize("old, new, said", [("teeth = 20", 'teeth = "20"', "a string"),
+                                            ("backlash = ", "backlash = true #", "true/false")])
+def test_a_value_of_the_wrong_type_is_called_so(tmp_path: Path, capsys, old: str, new: str,  # noqa: ANN001
+                                                said: str) -> None:
+    text = (ROOT / "models" / "shing1993.toml").read_text()
+    assert old in text
+    err = _refusal(capsys, ["info", str(_model_with(tmp_path, old, new))])
+    assert "is not a number" in err and said in err and "expected" in err
+
+
+def test_info_says_which_stiffness_and_damping_are_given(capsys) -> None:  # noqa: ANN001
+    # shing1993_report gives the report's k and c: info must not label the given c as eq 38's
+    assert main(["info", "shing1993_report"]) == 0
+    out = capsys.readouterr().out
+    assert "(given in the file)" in out and "eq 38, consistent form" not in out
+    assert main(["info", "shing1993", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["damping_coefficient_given"] is False and d["mesh_stiffness_given"] is False
+    assert d["plant_stiffness"] == pytest.approx(d["mesh_stiffness"]["mean"], rel=1e-12)
+
+
+WATCH = """
+[source]
+citation = "a watch-size pair (synthetic)"
+[gear1]
+teeth = 18
+[gear2]
+teeth = 72
+[pair]
+module = 0.0002
+pressure_angle_deg = 20.0
+face_width = 0.0005
+backlash = 5e-6
+[material]
+young_modulus = 1.9e11
+poisson_ratio = 0.3
+density = 8000.0
+[dynamics]
+damping_ratio = 0.05
+[servo]
+motor_inertia = 1e-11
+load_inertia = 5e-10
+torque_limit = 1e-5
+"""
+
+
+def test_a_diverging_simulation_says_which_inputs_to_lower(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    # a watch-size pair (shafts of 8e-11 and 2e-8 kg m^2) under the load case's 1 N m
+    p = tmp_path / "watch.toml"
+    p.write_text(WATCH)
+    err = _refusal(capsys, ["simulate", str(p), "--case", "load"])
+    assert "diverged" in err and "--torque1" in err and "kg m^2" in err
+
+
+def test_penetration_far_beyond_elastic_is_warned(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    # the free case's 50 rad/s on the catalog pair: 50 um, 2.5 % of the 2 mm module, no warning; at 500 rad/s the
+    # teeth would interpenetrate by 5 % of the module and more
+    assert main(["simulate", "shing1993_servo", "--json"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert main(["simulate", "shing1993_servo", "--omega1", "500", "--json"]) == 0
+    err = capsys.readouterr().err
+    assert "interpenetrate" in err and "of the module" in err
+
+
+def test_python_build_plant_refuses_the_same_override() -> None:
+    from gearctl.catalog import load_model
+    from gearctl.plant import build_plant
+
+    with pytest.raises(InputError, match="0.5 x module"):
+        build_plant(load_model("shing1993_servo"), backlash=2e-3)
