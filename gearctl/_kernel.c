@@ -265,7 +265,10 @@ static int collect_events(const gc_params *p, const gc_state *st, double u1, dou
     int n = 0;
     long i, e;
     for (i = 0; i < p->ns; i++) {
-        if (p->b[i] == 0.0 && p->law == 0) continue; /* no gap, linear law: one system on both flanks */
+        /* no gap and the linear law: the exact path has one system on both flanks (the mode is only a label,
+           set from the sign of s after each step); the ODE path's laws are not (Yang-Sun's damping term
+           follows the flank, d_ys comes from the speed at s = 0), so it locates s = 0 and changes flank there */
+        if (p->b[i] == 0.0 && p->law == 0 && !ode) continue;
         long slot = 5 * i + (st->mode[i] + 2);
         long cnt = p->ev_count[slot];
         for (e = 0; e < cnt; e++) {
@@ -419,6 +422,17 @@ static void taylor_eval(long nx, double D[NTAY][GC_NX_MAX], int nt, double tau, 
         double acc = D[nt - 1][i];
         for (int n = nt - 2; n >= 0; n--) acc = acc * tau + D[n][i];
         x[i] = acc;
+    }
+}
+
+/* Taylor polynomial q[n] = cg . D[n] of event function f (g0 left out: the callers set q[0]) */
+static void gap_poly(const gc_evfun *f, long nx, int sparse, double D[NTAY][GC_NX_MAX], int nt, double *q) {
+    for (int n = 0; n < nt; n++) {
+        q[n] = 0.0;
+        if (sparse)
+            for (int z = 0; z < f->nnz; z++) q[n] += f->cg[f->nzi[z]] * D[n][f->nzi[z]];
+        else
+            for (long i = 0; i < nx; i++) q[n] += f->cg[i] * D[n][i];
     }
 }
 
@@ -851,21 +865,28 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
                     } else {
                         for (i = 0; i < nx; i++) gscale += fabs(cg[i] * x0[i]);
                         double acc_tol = 1e-3 * p->zeno_v / h_pat;
-                        if (!(gb < -(0.5 * acc_tol * h * h + 4e-16 * gscale))) continue; /* stays */
-                        tau = 0.0;
+                        double thr0 = 4e-16 * gscale, thr2 = 0.5 * acc_tol;
+                        if (!(gb < -(thr2 * h * h + thr0))) continue; /* stays */
+                        /* It stays now, but is clearly past the boundary by the step's end: on a train the
+                           other stages' forces move this gap within the step. The event is the first time it is
+                           clearly past, g(tau) = -(thr0 + thr2 tau^2), not now: switching at once would leave the
+                           other side grazing with the same acceleration, which may send it straight back (an
+                           endless separation / plastic-impact chatter at one instant). After the switch the new
+                           side starts that far inside, so a way back needs a real motion of the gap. */
+                        if (nt == 0) nt = taylor(nx, A, rho, x0, a, h, D);
+                        double q[NTAY];
+                        gap_poly(fn + e, nx, sparse, D, nt, q);
+                        q[0] = thr0;
+                        if (nt > 2) q[2] += thr2;
+                        tau = first_root(q, nt, h, gb + thr2 * h * h + thr0, q[1], db + 2.0 * thr2 * h);
+                        if (tau < 0.0) tau = h;
                     }
                 } else if (ga == 0.0 && (da < 0.0 || (da == 0.0 && db < 0.0))) {
                     tau = 0.0; /* on the boundary and heading out */
                 } else {
                     if (nt == 0) nt = taylor(nx, A, rho, x0, a, h, D);
                     double q[NTAY];
-                    for (int n = 0; n < nt; n++) {
-                        q[n] = 0.0;
-                        if (sparse)
-                            for (int z = 0; z < fn[e].nnz; z++) q[n] += cg[fn[e].nzi[z]] * D[n][fn[e].nzi[z]];
-                        else
-                            for (i = 0; i < nx; i++) q[n] += cg[i] * D[n][i];
-                    }
+                    gap_poly(fn + e, nx, sparse, D, nt, q);
                     q[0] = ga;
                     tau = first_root(q, nt, h, gb, da, db);
                 }
@@ -997,7 +1018,7 @@ int gc_advance_ode(const gc_params *p, gc_state *st) {
         k7[GC_NX_MAX], y1[GC_NX_MAX], yt[GC_NX_MAX];
     double h = st->h_ode > 0.0 ? st->h_ode : p->h_max * 0.1;
     int have_k1 = 0;
-    long rejects = 0, i;
+    long rejects = 0, guard = 0, i;
     gc_evfun fn[NEV_MAX];
     while (st->t < t_end) {
         double *y = st->x;
@@ -1101,7 +1122,8 @@ int gc_advance_ode(const gc_params *p, gc_state *st) {
                 if (p->kind == 1 && st->mode[idx] != 0) yang_sun_factor(p, st, idx, st->x);
             }
             have_k1 = 0;
-            if (st->n_events > p->max_events) return ST_EVENTS;
+            /* a b = 0 flank change records no event: the guard bounds those too */
+            if (st->n_events > p->max_events || ++guard > 4 * p->max_events) return ST_EVENTS;
             if (st->n_events >= st->cap && st->t < t_end) return ST_BUFFER;
         } else {
             memcpy(st->x, y1, sizeof(double) * nx);

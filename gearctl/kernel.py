@@ -1160,7 +1160,7 @@ class _Mirror:
     def collect(self, ode: bool) -> list[_EvFun]:
         kn, out = self.kn, []
         for i in range(self.ns):
-            if self.b[i] == 0.0 and self.law == 0:
+            if self.b[i] == 0.0 and self.law == 0 and not ode:  # see collect_events in _kernel.c
                 continue
             slot = 5 * i + self.mode[i] + 2
             for e in range(int(kn._ev_count[slot])):
@@ -1503,9 +1503,20 @@ class _Mirror:
                         else:
                             gscale = sum(abs(cg[i] * x0[i]) for i in range(nx))
                             acc_tol = 1e-3 * self.zeno_v / h_pat
-                            if not (gb < -(0.5 * acc_tol * h * h + 4e-16 * gscale)):
+                            thr0, thr2 = 4e-16 * gscale, 0.5 * acc_tol
+                            if not (gb < -(thr2 * h * h + thr0)):
                                 continue
-                            tau = 0.0
+                            # it stays now, but is clearly past by the step's end (a train's other stages
+                            # moved it): the first time it is clearly past (see _kernel.c)
+                            if D is None:
+                                D = _taylor(A, rho, x0, a, h)
+                            qp = [sum(cg[i] * Dn[i] for i in range(nx)) for Dn in D]
+                            qp[0] = thr0
+                            if len(qp) > 2:
+                                qp[2] += thr2
+                            tau = _first_root(qp, h, gb + thr2 * h * h + thr0, qp[1], db + 2.0 * thr2 * h)
+                            if tau < 0.0:
+                                tau = h
                     elif ga == 0.0 and (da < 0.0 or (da == 0.0 and db < 0.0)):
                         tau = 0.0
                     else:
@@ -1606,7 +1617,7 @@ class _Mirror:
         st = kn._st
         h = st.h_ode if st.h_ode > 0.0 else prm.h_max * 0.1
         k1 = None
-        rejects = 0
+        rejects = guard = 0
         while self.t < self.t_end:
             y = self.x
             if k1 is None:
@@ -1714,7 +1725,8 @@ class _Mirror:
                     if self.p.kind is PlantKind.YANG_SUN and self.mode[i] != 0:
                         self.dys[i] = yang_sun_damping_factor(self.k[i], abs(self.v_of(i, self.x)))
                 k1 = None
-                if self.n_events > self.budget:
+                guard += 1
+                if self.n_events > self.budget or guard > 4 * max(self.budget, 1):
                     return _ST_EVENTS
             else:
                 self.x = y1
