@@ -113,7 +113,8 @@ def controller_names() -> list[str]:
 Values = dict[str, tuple[Binding, Any]]
 
 
-def _apply_overrides(path: Path, per_class: dict[type, Values], overrides: Mapping[str, Any]) -> None:
+def _apply_overrides(path: Path, per_class: dict[type, Values], overrides: Mapping[str, Any],
+                     stage: str | None = None) -> None:
     classes = (GearPair, MeshDynamics, Servo, Sensors)
     for fname, value in overrides.items():
         owners = [cls for cls in classes if fname in {f.name for f in dataclasses.fields(cls)}]
@@ -122,7 +123,8 @@ def _apply_overrides(path: Path, per_class: dict[type, Values], overrides: Mappi
             close = difflib.get_close_matches(fname, every, n=1)
             hint = f"; did you mean {close[0]!r}?" if close else ""
             raise InputError(f"unknown override {fname!r}: expected a field of the model{hint}", field=fname)
-        per_class.setdefault(owners[0], {})[fname] = (Binding("override", fname, value), value)
+        table = "override" if stage is None else f"override {stage}"
+        per_class.setdefault(owners[0], {})[fname] = (Binding(table, fname, value), value)
 
 
 def _missing(path: Path, cls: type, values: Values, where: Mapping[str, str]) -> None:
@@ -177,7 +179,7 @@ def _train_model(path: Path, data: dict[str, Any], overrides: Mapping[str, Any])
             if key.endswith("_deg"):
                 v = degrees_to_radians(path, label, key, value)
             per[cls][fname] = (Binding(label, key, value), v)
-        _apply_overrides(path, per, {k: v for k, v in overrides.items() if k not in _servo_sensor_fields()})
+        _apply_overrides(path, per, {k: v for k, v in overrides.items() if k not in _servo_sensor_fields()}, label)
         where = {f: f"[{label}] {k}" for k, (_, f) in STAGE_KEYS.items()}
         _missing(path, GearPair, per[GearPair], where)
         if "damping_ratio" not in per[MeshDynamics]:

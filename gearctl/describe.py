@@ -530,20 +530,28 @@ def _amplitude_for(eta: float, b: float) -> float:
     return scipy.optimize.brentq(lambda A: dead_zone_factor(A, b) - eta, b, hi, xtol=1e-15 * b, rtol=1e-13)
 
 
-def _spectral_abscissa(plant: Plant, gains: PIDGains, Ts: float, feedback: str, kappa: float, c_eff: float) -> float:
-    """Growth rate of the linear loop with the element replaced by a spring ``kappa`` and damper ``c_eff``.
-
-    ``max log|z| / Ts`` (sampled, exact ZOH discretisation) or ``max Re s`` (continuous) [1/s].
-    """
+def _dominant_pole(plant: Plant, gains: PIDGains, Ts: float, feedback: str, kappa: float,
+                   c_eff: float) -> tuple[float, float]:
+    """Growth rate [1/s] and frequency [Hz] of the least damped pole of the linear loop with the element
+    replaced by a spring ``kappa`` and damper ``c_eff`` (exact ZOH discretisation for ``Ts > 0``)."""
     sys = contact_mode_model(dataclasses.replace(plant, k=kappa, c=c_eff))
     G = sys[1, 0] if feedback == "load" else sys[0, 0] * (1.0 / plant.gear_ratio)
     G = ct.ss(G.A, G.B, G.C, G.D)
     if Ts > 0:
         L = sampled_pid(gains, Ts) * ct.c2d(G, Ts, "zoh")
-        poles = ct.feedback(ct.ss(L), 1).poles()
-        return float(np.max(np.log(np.abs(poles)))) / Ts
-    L = ct.ss(gains.tf()) * G
-    return float(np.max(ct.feedback(L, 1).poles().real))
+        poles = np.log(ct.feedback(ct.ss(L), 1).poles().astype(complex)) / Ts
+    else:
+        poles = ct.feedback(ct.ss(gains.tf()) * G, 1).poles().astype(complex)
+    i = int(np.argmax(poles.real))
+    return float(poles[i].real), float(abs(poles[i].imag) / (2 * math.pi))
+
+
+def _spectral_abscissa(plant: Plant, gains: PIDGains, Ts: float, feedback: str, kappa: float, c_eff: float) -> float:
+    """Growth rate of the linear loop with the element replaced by a spring ``kappa`` and damper ``c_eff``.
+
+    ``max log|z| / Ts`` (sampled, exact ZOH discretisation) or ``max Re s`` (continuous) [1/s].
+    """
+    return _dominant_pole(plant, gains, Ts, feedback, kappa, c_eff)[0]
 
 
 def _torque_amplitude(plant: Plant, gains: PIDGains, Ts: float, feedback: str, w: float, theta2: complex,
@@ -729,6 +737,34 @@ class _Oversampled(Controller):
         return self.inner.describe()
 
 
+#: Rows :func:`run_limit_cycle` may record (about 0.3 kB each while the loop runs): its default oversampling is
+#: lowered to stay within them, an explicit one beyond them is refused. :func:`simulate_limit_cycle` records
+#: at the controller's period only and finds the peaks by re-integrating the contact intervals, one at a time.
+MAX_RECORDED_ROWS = 200_000
+
+#: Fine samples per controller sample allowed (``oversample``).
+MAX_OVERSAMPLE = 10_000
+
+
+def _collision_oversample(plant: Plant, Ts: float) -> int:
+    """Plant samples per controller sample for eight samples per collision (half a mesh period)."""
+    contact = math.pi / plant.natural_frequency
+    return max(1, math.ceil(Ts / (contact / 8)))
+
+
+def _check_oversample(oversample: int) -> None:
+    if not (isinstance(oversample, int) and not isinstance(oversample, bool) and 1 <= oversample <= MAX_OVERSAMPLE):
+        raise InputError(f"oversample = {oversample!r} is out of range: expected an integer in 1..{MAX_OVERSAMPLE}",
+                         field="oversample")
+
+
+def _default_x0(plant: Plant, controller: Controller) -> NDArray[np.float64]:
+    """The measured shaft turned by half the gap (flanks apart, at rest): a disturbance the controller sees."""
+    if controller.uses_load_encoder:
+        return np.array([0.0, -0.5 * plant.backlash / plant.rb2, 0.0, 0.0])
+    return np.array([0.5 * plant.backlash / plant.rb1, 0.0, 0.0, 0.0])
+
+
 def run_limit_cycle(plant: Plant, controller: Controller, *, duration: float = 2.0, x0: ArrayLike | None = None,
                     sensors: Sensors | None = None, oversample: int | None = None) -> ClosedLoopResult:
     """Run the closed loop behind :func:`simulate_limit_cycle`, recorded finely enough to see the collisions.
@@ -742,13 +778,14 @@ def run_limit_cycle(plant: Plant, controller: Controller, *, duration: float = 2
     duration : float
         Simulated time [s].
     x0 : array_like, optional
-        Initial state ``[theta1, theta2, omega1, omega2]``. Default: the load turned by half the gap,
-        ``theta2 = -b / (2 r_b2)`` (flanks apart, at rest; the controller sees that error).
+        Initial state ``[theta1, theta2, omega1, omega2]``. Default: the shaft the controller measures turned
+        by half the gap (the load, ``theta2 = -b / (2 r_b2)``, for load feedback; the motor,
+        ``theta1 = b / (2 r_b1)``, for motor feedback), flanks apart, at rest: the controller sees that error.
     sensors : Sensors, optional
         Encoders (default: ideal, as the describing function assumes).
     oversample : int, optional
-        Plant samples per controller sample. Default: enough for eight samples per collision
-        (half a mesh period).
+        Plant samples per controller sample. Default: enough for eight samples per collision (half a mesh
+        period), lowered so that the run records at most :data:`MAX_RECORDED_ROWS` rows.
 
     Returns
     -------
@@ -759,21 +796,67 @@ def run_limit_cycle(plant: Plant, controller: Controller, *, duration: float = 2
     Raises
     ------
     InputError
-        For a bad ``oversample`` or ``duration``.
+        For a bad ``oversample`` or ``duration``, or an ``oversample`` that would record more than
+        :data:`MAX_RECORDED_ROWS` rows.
     SimulationError
         If the loop diverges.
+
+    Notes
+    -----
+    The recording, not the loop, is what costs: a stiff small pair (a 0.2 mm module watch gear, mesh mode
+    83 kHz, 1 ms PID) needs 1325 samples per controller sample to see its collisions, 2.65 million rows for
+    2 s. :func:`simulate_limit_cycle` does not record them (it re-integrates only the contact intervals).
     """
+    samples = max(1, math.ceil(duration / controller.Ts)) if math.isfinite(duration) and duration > 0 else 1
     if oversample is None:
-        contact = math.pi / plant.natural_frequency
-        oversample = max(1, math.ceil(controller.Ts / (contact / 8)))
-    if not (isinstance(oversample, int) and 1 <= oversample <= 10_000):
-        raise InputError(f"oversample = {oversample!r} is out of range: expected an integer in 1..10000",
-                         field="oversample")
-    if x0 is None:
-        x0 = np.array([0.0, -0.5 * plant.backlash / plant.rb2, 0.0, 0.0])
+        oversample = max(1, min(_collision_oversample(plant, controller.Ts), MAX_RECORDED_ROWS // samples))
+    _check_oversample(oversample)
+    if samples * oversample > MAX_RECORDED_ROWS:
+        raise InputError(f"oversample = {oversample} over {duration:g} s at Ts = {controller.Ts:g} s would record "
+                         f"{samples * oversample:,} rows (about {samples * oversample * 3e-4:.0f} MB): expected at "
+                         f"most {MAX_RECORDED_ROWS:,}; lower oversample or duration, or use simulate_limit_cycle, "
+                         f"which finds the peaks without recording them", field="oversample")
+    x0 = _default_x0(plant, controller) if x0 is None else np.asarray(x0, dtype=float)
     loop = _Oversampled(controller, oversample) if oversample > 1 else controller
     return simulate_closed_loop(plant, loop, Reference(kind="step", amplitude=0.0), duration, sensors=sensors,
                                 x0=np.asarray(x0, dtype=float))
+
+
+def _contact_extremes(res: ClosedLoopResult, first: int, factor: int) -> tuple[float, float, int]:
+    """Largest and smallest ``s`` inside the intervals from sample ``first`` on that touch a flank.
+
+    Each interval ``[t_i, t_i+1]`` that starts or ends in contact, or holds a located event, is integrated
+    again from the recorded state with the recorded (held) torque, at ``Ts / factor``; the rest stay in the
+    gap and their extremes are at the samples. Memory: one interval at a time. Returns ``(max, min, n)``
+    with ``n`` the intervals re-integrated.
+    """
+    from .kernel import Kernel
+
+    plant = res.plant
+    t = res.t
+    n = t.size - 1
+    mode = np.asarray(res.mode).reshape(-1, t.size)
+    touch = np.any(mode[:, first:n] != 0, axis=0) | np.any(mode[:, first + 1:n + 1] != 0, axis=0)
+    ev = res.event_log["t"]
+    if ev.size:
+        k = np.searchsorted(t, ev, side="left") - 1  # the interval holding each event (t_k, t_k+1]
+        k = k[(k >= first) & (k < n)] - first
+        touch[k] = True
+    idx = np.nonzero(touch)[0] + first
+    s = np.atleast_2d(res.s)[0]
+    hi, lo = float(np.max(s[first:])), float(np.min(s[first:]))
+    if factor <= 1 or idx.size == 0:
+        return hi, lo, 0
+    h = (t[1] - t[0]) / factor
+    kn = Kernel(plant, res.x[:, idx[0]], dt=h)
+    u2 = plant.load_torque
+    for i in idx.tolist():
+        kn.set_state(res.x[:, i])
+        status, xs, _, _ = kn.run(float(res.torque[i]), u2, h, factor)
+        if xs.shape[1]:
+            si = np.atleast_2d(plant.relative_displacement(xs))[0]
+            hi, lo = max(hi, float(si.max())), min(lo, float(si.min()))
+    return hi, lo, int(idx.size)
 
 
 def simulate_limit_cycle(plant: Plant, controller: Controller, *, duration: float = 2.0,
@@ -790,22 +873,26 @@ def simulate_limit_cycle(plant: Plant, controller: Controller, *, duration: floa
     duration : float
         Simulated time [s].
     x0 : array_like, optional
-        Initial state; default as :func:`run_limit_cycle` (the load turned by half the gap).
+        Initial state; default as :func:`run_limit_cycle` (the measured shaft turned by half the gap).
     window : float
         Fraction of the run, at its end, over which the cycle is measured (0 < window <= 1).
     sensors : Sensors, optional
         Encoders (default: ideal, as the describing function assumes).
     oversample : int, optional
-        Plant samples per controller sample (see :func:`run_limit_cycle`).
+        Fine samples per controller sample used to find the peaks of ``s`` inside the window's contact
+        intervals (1..10000; 1: the controller's samples only). Default: eight per collision (half a mesh
+        period).
 
     Returns
     -------
     dict
         ``amplitude``: half peak-to-peak of ``s`` [m]; ``frequency_hz``: from the upward zero crossings
-        of ``s`` minus its mean (linearly interpolated), None without at least three crossings;
+        of ``s`` minus its mean at the controller's samples (linearly interpolated; valid below the Nyquist
+        frequency ``1 / (2 Ts)``), None without at least three crossings;
         ``load_amplitude``: half peak-to-peak of ``theta2`` [rad]; ``impacts_per_second`` [1/s];
-        ``torque_amplitude``: half peak-to-peak of the motor torque [N m]; ``limit_cycle``: whether the
-        flanks are still being hit at the end (impacts in the window and ``amplitude > b``);
+        ``torque_amplitude``: half peak-to-peak of the motor torque [N m]; ``saturated_fraction``: share
+        of the window's samples with the torque at its limit [1]; ``limit_cycle``: whether the flanks are
+        still being hit at the end (impacts in the window and ``amplitude > b``);
         ``window`` [s, s]: the interval measured.
 
     Raises
@@ -814,24 +901,39 @@ def simulate_limit_cycle(plant: Plant, controller: Controller, *, duration: floa
         For a ``duration``, ``window`` or ``oversample`` out of range.
     SimulationError
         If the loop diverges (from :func:`~gearctl.closedloop.simulate_closed_loop`).
+
+    Notes
+    -----
+    The run is recorded at the controller's period (``duration / Ts`` rows, what was asked); the peaks of
+    ``s``, which last half a mesh period, are found by integrating each interval of the window that touches
+    a flank again, from its recorded state with its held torque, on the fine grid (the same exact solver,
+    so the same trajectory), one interval at a time. Memory follows from ``duration / Ts``, time from the
+    contact intervals times ``oversample``, not from the mesh stiffness.
     """
     if not (0.0 < window <= 1.0):
         raise InputError(f"window = {window!r} is out of range: expected 0 < window <= 1", field="window")
-    res = run_limit_cycle(plant, controller, duration=duration, x0=x0, sensors=sensors, oversample=oversample)
+    factor = _collision_oversample(plant, controller.Ts) if oversample is None else oversample
+    _check_oversample(min(factor, MAX_OVERSAMPLE) if oversample is None else factor)
+    factor = min(factor, MAX_OVERSAMPLE)
+    res = run_limit_cycle(plant, controller, duration=duration, x0=x0, sensors=sensors, oversample=1)
     t0 = res.t[-1] * (1.0 - window)
     m = res.t >= t0
-    t, s, th2, u = res.t[m], res.s[m], res.x[1, m], res.torque[m]
+    first = int(np.argmax(m))
+    t, s, th2, u = res.t[m], np.atleast_2d(res.s)[0][m], res.x[1, m], res.torque[m]
     sc = s - s.mean()
     up = np.nonzero((sc[:-1] < 0) & (sc[1:] >= 0))[0]
     tz = t[up] - sc[up] * (t[up + 1] - t[up]) / (sc[up + 1] - sc[up])
     freq = (tz.size - 1) / (tz[-1] - tz[0]) if tz.size >= 3 else None
     span = t[-1] - t[0]
     n_imp = sum(1 for ev in res.impacts if ev.t >= t0)
-    amp = float((s.max() - s.min()) / 2)
+    s_hi, s_lo, _ = _contact_extremes(res, first, factor)
+    amp = float((s_hi - s_lo) / 2)
+    lim = plant.torque_limit
+    sat = float(np.mean(np.abs(u[:-1]) >= lim * (1 - 1e-12))) if math.isfinite(lim) and u.size > 1 else 0.0
     return {
         "amplitude": amp, "frequency_hz": None if freq is None else float(freq),
         "load_amplitude": float((th2.max() - th2.min()) / 2), "impacts_per_second": float(n_imp / span),
-        "torque_amplitude": float((u.max() - u.min()) / 2),
+        "torque_amplitude": float((u.max() - u.min()) / 2), "saturated_fraction": sat,
         "limit_cycle": bool(n_imp > 0 and amp > plant.backlash and freq is not None),
         "window": [float(t[0]), float(t[-1])],
     }
@@ -871,7 +973,12 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
           ``amplitude_ratio``, ``frequency_ratio``, ``load_amplitude_ratio``, ``penetration_ratio``
           (``A/b - 1``), and ``impact_amplitude_ratio``, ``impact_frequency_ratio`` (None where
           either side has no cycle);
-        - ``method_notes``: one paragraph on the method and how far to trust it here.
+        - ``verdict``: one or two sentences on what prediction and simulation say together (why they cannot
+          be compared when they cannot: saturation, a cycle at the Nyquist frequency, a motor loop unstable
+          once the load lets go);
+        - ``gap_loop``: for a motor-side PID, ``growth_rate`` [1/s] and ``frequency_hz`` of the least damped
+          pole of the motor alone under the PID (the load let go), None for load feedback;
+        - ``method_notes``: one paragraph on the method and how far to trust it here, ending with the verdict.
 
     Raises
     ------
@@ -899,16 +1006,59 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
         "impact_amplitude_ratio": _ratio(imp[0]["amplitude"], sim["amplitude"]) if have and imp else None,
         "impact_frequency_ratio": _ratio(imp[0]["frequency_hz"], sim["frequency_hz"]) if have and imp else None,
     }
+    gains, Ts, feedback = _pid_parts(ctrl, None, None)
+    # the motor alone under a motor-side PID, the load let go (a spring 1e-12 k): a loop of its own in the gap
+    gap = _dominant_pole(plant, gains, Ts, feedback, plant.k * 1e-12, 0.0) if feedback == "motor" else None
     notes = _notes(plant, ctrl, pred, imp, sim)
+    verdict = _verdict(plant, ctrl, pred, sim, gap)
+    notes += " " + verdict
     if train.n_stages > 1:
         notes = (f"The {train.n_stages}-stage train is analysed as its equivalent one-gap pair (the whole lost "
                  f"motion in one gap at the output, the stages' series stiffness; Plant.equivalent_pair). " + notes)
     return {
         "model": gm.name, "controller": ctrl.name, "feedback": ctrl.feedback, "sample_time": ctrl.Ts,
         "backlash": plant.backlash, "stages": train.n_stages, "prediction": pred, "impact_prediction": imp,
-        "simulation": sim, "agreement": agreement,
+        "simulation": sim, "agreement": agreement, "verdict": verdict,
+        "gap_loop": None if gap is None else {"growth_rate": gap[0], "frequency_hz": gap[1]},
         "method_notes": notes,
     }
+
+
+def _verdict(plant: Plant, ctrl: PID, pred: list[dict[str, Any]], sim: dict[str, Any],
+             gap: tuple[float, float] | None) -> str:
+    """One or two sentences on what the prediction and the simulation say together, true in every case."""
+    b = plant.backlash
+    stable = next((c for c in pred if c["stable"]), None)
+    nyquist = 0.5 / ctrl.Ts
+    why = []
+    if sim["saturated_fraction"] > 0.2:
+        why.append(f"the torque sits on its {plant.torque_limit:g} N m limit {sim['saturated_fraction']:.0%} of the "
+                   f"window, which the describing function (no saturation) ignores")
+    if sim["frequency_hz"] is not None and sim["frequency_hz"] >= 0.95 * nyquist:
+        why.append(f"the cycle is at {sim['frequency_hz'] / nyquist:.0%} of the Nyquist frequency {nyquist:g} Hz (the "
+                   f"command changes sign about every sample), which the balance, solved below it, cannot reach")
+    if gap is not None and gap[0] > 0:
+        why.append(f"with the load let go the motor alone under this PID is unstable (grows at {gap[0]:.3g} /s at "
+                   f"{gap[1]:.4g} Hz): the gap does not calm the loop, it destabilises it, so the balance's "
+                   f"stability test, which sees that mode on both sides of every solution, calls none stable")
+    reason = ("; ".join(why) + ".") if why else ""
+    if sim["limit_cycle"] and stable is not None:
+        return (f"Verdict: a limit cycle, predicted at {stable['frequency_hz']:.4g} Hz, A = "
+                f"{stable['amplitude'] / b:.4f} b and simulated at {sim['frequency_hz']:.4g} Hz, A = "
+                f"{sim['amplitude'] / b:.4f} b (ratios in 'agreement'). "
+                + (f"Caution: {reason}" if reason else "")).strip()
+    if sim["limit_cycle"]:
+        what = ("unstable solutions only" if pred else "no solution")
+        return (f"Verdict: the simulation settles to a limit cycle ({sim['frequency_hz']:.4g} Hz, A = "
+                f"{sim['amplitude'] / b:.4f} b, {sim['impacts_per_second']:.4g} impacts/s) that the describing "
+                f"function does not predict ({what}), so there is nothing to compare" +
+                (f": {reason}" if reason else "."))
+    if stable is not None:
+        return (f"Verdict: a stable cycle is predicted at {stable['frequency_hz']:.4g} Hz, A = "
+                f"{stable['amplitude'] / b:.4f} b, but the simulation from a half-gap disturbance does not sustain "
+                f"one: a cycle that needs a hard excitation, or a false positive of the describing function"
+                + (f" ({reason})" if reason else "."))
+    return "Verdict: no limit cycle, predicted or simulated" + (f" ({reason})" if reason else ".")
 
 
 def _notes(plant: Plant, ctrl: PID, pred: list[dict[str, Any]], imp: list[dict[str, Any]],

@@ -137,9 +137,12 @@ class Binding:
     raw: Any
 
     def label(self) -> str:
-        """``[table] key`` (or ``--key`` for a command-line override, ``key`` for a top-level key)."""
+        """``[table] key`` (``--set key`` for an override, ``--set key [stage i]`` for a train's stage, ``key`` for a
+        top-level key)."""
         if self.table == "override":
-            return f"--{self.key.replace('_', '-')}"
+            return f"--set {self.key}"
+        if self.table.startswith("override "):  # an override every stage of a train takes: name the stage refused
+            return f"--set {self.key} (every stage; here [{self.table[9:]}])"
         return f"[{self.table}] {self.key}" if self.table else self.key
 
 

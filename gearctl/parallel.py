@@ -40,14 +40,18 @@ def local_cluster(workers: int) -> Any:
     """A ``distributed.LocalCluster`` of ``workers`` single-threaded processes, for gearctl's runs.
 
     No dashboard, and the workers' statistical profiler off (it samples every thread's stack every 10 ms, a
-    cost of its own in runs of a few milliseconds). Dask's nanny starts each worker with one BLAS thread.
+    cost of its own in runs of a few milliseconds). Dask's nanny starts each worker with one BLAS thread. The
+    scheduler's HTTP server (its health routes, which run even without a dashboard) listens on a free local port:
+    on the default 8787, which another cluster or notebook often holds, it warns (an error under pytest's
+    warnings-as-errors).
     """
     import dask
     import distributed
 
     with dask.config.set({"distributed.worker.profile.enabled": False}):
         return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=logging.ERROR)
+                                        dashboard_address=None, silence_logs=logging.ERROR,
+                                        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"})
 
 
 class Engine:

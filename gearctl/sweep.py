@@ -92,7 +92,7 @@ ROW_BYTES = 4096
 METRICS = ("rms_error", "max_error", "final_error", "impacts", "max_impact_velocity", "torque_rms",
            "saturated_fraction", "fallbacks")
 #: Health flags of each run (:class:`~gearctl.metrics.LoopHealth`).
-FLAGS = ("limit_cycle", "saturated", "impact_rate_high", "growing")
+FLAGS = ("limit_cycle", "saturated", "impact_rate_high", "growing", "not_following", "falling_back")
 #: Seconds to wait for a scheduler to answer, then for its first worker.
 #: ISO 230-2 figures of each run with ``precision=True``.
 ISO_FIGURES = ("reversal_value", "repeatability", "accuracy")

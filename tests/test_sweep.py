@@ -497,3 +497,20 @@ def test_batches_in_threads_of_one_worker_give_the_serial_results(controller: st
         for _ in range(2):  # twice: the second time both threads reuse their own cached designs
             parts = list(pool.map(lambda jobs: sweep_task(plan.context, jobs), halves))
             assert parts[0] + parts[1] == serial
+
+
+def test_a_local_cluster_starts_while_port_8787_is_taken() -> None:
+    # Dask's default dashboard/HTTP port is often held by another cluster or a notebook: the scheduler then warned
+    # (an error under this suite's warnings-as-errors) and the local cluster failed to start
+    import socket
+
+    from gearctl.parallel import local_cluster
+
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", 8787))
+        except OSError:
+            pytest.skip("port 8787 is already held on this machine, which is the case tested anyway")
+        s.listen()
+        cluster = local_cluster(1)
+        cluster.close()

@@ -369,9 +369,10 @@ def _cmd_describe(args: argparse.Namespace) -> int:
     print(f"  {'simulation':28s} {fmt(sim.get('frequency_hz')):>9s} {fmt(a / b if a and b else None):>8s} "
           f"{fmt(sim.get('load_amplitude'), 1e6):>12s} {fmt(sim.get('torque_amplitude')):>13s}  "
           f"{'limit cycle' if sim.get('limit_cycle') else 'none'} ({fmt(sim.get('impacts_per_second'))} impacts/s)")
-    ag = d["agreement"]
-    print("  prediction / simulation    " + ", ".join(f"{k.replace('_ratio', '')} {v:.3g}" for k, v in ag.items()
-                                                        if v is not None))
+    ratios = ", ".join(f"{k.replace('_ratio', '')} {v:.3g}" for k, v in d["agreement"].items() if v is not None)
+    if ratios:
+        print("  prediction / simulation    " + ratios)
+    print("  " + d["verdict"])
     return 0
 
 
