@@ -40,7 +40,7 @@ from .units import SAMPLE_TIME
 
 __all__ = ["EncoderLog", "read_log", "write_log", "Identification", "ReversalWindow", "identify", "identified_model",
            "write_identified_model", "ENCODERS", "MAX_LOG_BYTES", "MAX_LOG_SAMPLES", "MIN_LOG_SAMPLES",
-           "PERIOD_TOLERANCE", "MIN_SWITCHES", "MAX_WINDOWS"]
+           "PERIOD_TOLERANCE", "MIN_SWITCHES", "MAX_WINDOWS", "sample_period"]
 
 #: Largest log file read [bytes] (a 1 kHz log of 17 min with five columns is about 60 MB).
 MAX_LOG_BYTES = 100_000_000
@@ -106,8 +106,10 @@ def _fail(path: Path, where: str, what: str, field: str | None = None) -> InputE
 def read_log(path: str | Path) -> EncoderLog:
     """Read a servo log (CSV, see :class:`EncoderLog`), checking every line.
 
-    The file may start with ``#`` comment lines; then a header row naming the columns; then one row per
-    sample. Columns ``t`` [s], ``torque`` [N m], ``theta1`` [rad] are required, ``theta2`` [rad] is
+    The file may start with a UTF-8 byte-order mark and ``#`` comment lines; then a header row naming the
+    columns; then one row per sample. A ``#`` line or a blank line among the samples is skipped (a logger's
+    note); error messages give the file's own line numbers. The period is fitted over the whole log
+    (:func:`sample_period`). Columns ``t`` [s], ``torque`` [N m], ``theta1`` [rad] are required, ``theta2`` [rad] is
     optional; any other column is ignored (kept in :attr:`EncoderLog.extra` if it holds numbers throughout).
     Fields may be quoted; a header with semicolons or tabs and no comma sets that delimiter.
 
@@ -152,6 +154,8 @@ def read_log(path: str | Path) -> EncoderLog:
         line = raw[: exc.start].count(b"\n") + 1
         raise _fail(path, f"line {line}", f"is not UTF-8 text (byte {exc.start}): expected a CSV log", "log") from None
     del raw
+    if text.startswith("\ufeff"):  # a byte-order mark (a spreadsheet's "CSV UTF-8")
+        text = text[1:]
     lines = text.splitlines()
     del text
     comments: list[str] = []
@@ -177,8 +181,12 @@ def read_log(path: str | Path) -> EncoderLog:
             got = ", ".join(repr(x) for x in names[:8])
             raise _fail(path, f"line {header_line}", f"missing column {c!r} (the header has {got}): expected t [s], "
                         f"torque [N m], theta1 [rad] and optionally theta2 [rad]", c)
-    rows = lines[i + 1:]
-    n = sum(1 for r in rows if r.strip())
+    # '#' comment lines are skipped anywhere (a logger's note in the middle of the data); line numbers stay the file's
+    numbered = [(j, r) for j, r in enumerate(lines[i + 1:], start=header_line + 1)
+                if r.strip() and not r.lstrip().startswith("#")]
+    rows = [r for _, r in numbered]
+    line_of = [j for j, _ in numbered]
+    n = len(rows)
     if n > MAX_LOG_SAMPLES:
         raise _fail(path, "", f"{n:,} samples is more than a log may hold ({MAX_LOG_SAMPLES:,}): cut the log to the "
                     f"part with the reversals", "log")
@@ -190,11 +198,7 @@ def read_log(path: str | Path) -> EncoderLog:
     data = np.full((n, ncol), np.nan)
     numeric = dict.fromkeys(others, True)
     k = 0
-    line_no = header_line
-    for fields in csv.reader(rows, delimiter=delim):
-        line_no += 1
-        if not fields or (len(fields) == 1 and not fields[0].strip()):
-            continue
+    for line_no, fields in zip(line_of, csv.reader(rows, delimiter=delim), strict=True):
         if len(fields) != ncol:
             raise _fail(path, f"line {line_no}", f"{len(fields)} fields, expected {ncol} (one per header column)",
                         "log")
@@ -217,6 +221,8 @@ def read_log(path: str | Path) -> EncoderLog:
                     numeric[c] = False
         k += 1
     del lines, rows
+    data = data[:k]
+    n = k
     if n < 2:
         raise _fail(path, "", f"{n} sample(s) is too short: expected at least {MIN_LOG_SAMPLES} (with at least two "
                     f"reversals of the motion)", "log")
@@ -227,9 +233,10 @@ def read_log(path: str | Path) -> EncoderLog:
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         j = int(bad[0])
-        raise _fail(path, f"line {header_line + 2 + j}", f"t = {float(t[j + 1]):.10g} does not increase (previous "
-                    f"sample t = {float(t[j]):.10g}): expected time in increasing order", "t")
-    Ts = float(np.median(dt))
+        raise _fail(path, f"line {line_of[j + 1]}", f"t = {float(t[j + 1]):.10g} does not increase (previous "
+                    f"sample t = {float(t[j]):.10g}): expected time in increasing order (a clock printed with too few "
+                    f"digits repeats values)", "t")
+    Ts = float(np.median(dt))  # robust to a gap; refined by the fit over the whole log once the spacing is checked
     try:
         SAMPLE_TIME.check("sample period", Ts)
     except InputError as exc:
@@ -237,9 +244,10 @@ def read_log(path: str | Path) -> EncoderLog:
     off = np.flatnonzero(np.abs(dt - Ts) > PERIOD_TOLERANCE * Ts)
     if off.size:
         j = int(off[0])
-        raise _fail(path, f"line {header_line + 2 + j}", f"t = {float(t[j + 1]):.10g} is {dt[j]:.6g} s after the "
+        raise _fail(path, f"line {line_of[j + 1]}", f"t = {float(t[j + 1]):.10g} is {dt[j]:.6g} s after the "
                     f"previous sample; the log's period is {Ts:.6g} s: expected evenly spaced samples (within "
                     f"{PERIOD_TOLERANCE:.0%}); resample the log or cut it at the gap", "t")
+    Ts = sample_period(t)
     if n < MIN_LOG_SAMPLES:
         raise _fail(path, "", f"{n} samples ({n * Ts:.3g} s) is too short: expected at least {MIN_LOG_SAMPLES} (with "
                     f"at least two reversals of the motion)", "log")
@@ -248,8 +256,27 @@ def read_log(path: str | Path) -> EncoderLog:
                       sample_time=Ts, comments=tuple(comments), path=path)
 
 
+def sample_period(t: NDArray[np.float64]) -> float:
+    """The period of evenly spaced sample times [s]: the least-squares slope of ``t - t[0]`` on the sample index.
+
+    The clock's origin is subtracted first (a Unix-epoch clock of 1.7e9 s keeps its microseconds), and the fit uses
+    every sample, so neither the origin nor the rounding of the printed times moves the period (the median of
+    the differences of rounded times is off by the rounding: 72 ppm at 1.7e9 s printed to 10 digits). The
+    period is given to 9 significant digits.
+    """
+    tt = np.asarray(t, dtype=float) - float(t[0])
+    n = tt.size
+    if n < 2:
+        return math.nan
+    k = np.arange(n, dtype=float) - 0.5 * (n - 1)
+    # to 9 digits (1e-9, far below any clock's accuracy): the rounding of the times (2.4e-7 s at 1.7e9 s) would
+    # otherwise move the period's last digits with the origin, and the fits downstream follow them
+    return float(f"{float(np.dot(k, tt - tt.mean()) / np.dot(k, k)):.9g}")
+
+
 def write_log(path: str | Path, log: EncoderLog, *, comments: Sequence[str] = ()) -> None:
-    """Write a log in the format :func:`read_log` reads (``#`` comments, header, 10 significant digits).
+    """Write a log in the format :func:`read_log` reads (``#`` comments, header, 10 significant digits; the
+    time 15, so that a clock far from zero keeps its resolution).
 
     Raises
     ------
@@ -270,7 +297,8 @@ def write_log(path: str | Path, log: EncoderLog, *, comments: Sequence[str] = ()
             chunk = 50_000
             for i0 in range(0, log.n, chunk):
                 block = np.column_stack([np.asarray(c[i0:i0 + chunk], dtype=float) for c in cols])
-                np.savetxt(fh, block, fmt="%.10g", delimiter=",")
+                # time to 15 digits: a clock of 1.7e9 s (Unix time) keeps its 10 us
+                np.savetxt(fh, block, fmt=["%.15g"] + ["%.10g"] * (len(cols) - 1), delimiter=",")
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror}") from None
 
@@ -295,8 +323,21 @@ WINDOW_BEFORE, WINDOW_AFTER = 0.03, 0.06
 #: the drawing), used when only the motor encoder is read: the log gives the lumped inertia, not which part
 #: of it turns with the motor (the motor's free flights in the gap are short and cut by impacts).
 MOTOR_INERTIA_TOLERANCE = 0.1
-#: A re-simulation whose RMS residual exceeds this many times the encoders' noise is reported as not fitting.
-RESIDUAL_WARNING = 20.0
+#: The re-simulated crossings may miss the log by this share of b (RMS along the line of action) before the
+#: motor-only b, or with both encoders the friction and inertias, count as not identified.
+MISFIT_SHARE = 0.25
+#: A motor-only b whose 95 % half-width is above this share of it is not identified.
+MAX_RELATIVE_HALF_WIDTH = 1 / 3
+#: Relative floor of the 95 % half-width of each friction and inertia (what the idealised laws cannot represent;
+#: on an independent simulator's logs, tanh or Karnopp friction and RK4: inertias off by up to 0.7 %, Coulomb
+#: friction by up to 5 %, viscous friction by up to 28 %).
+SYSTEMATIC_FLOOR = {"J1": 0.02, "J2": 0.02, "d1": 0.3, "d2": 0.3, "tc1": 0.05, "tc2": 0.05}
+#: A parameter whose variance after the fit is above this share of its prior's is not identified by the log.
+PRIOR_SHARE = 0.25
+#: The plateaus' b must be at least this share of the half-span of ``s`` (else the flanks never rest in contact).
+SPAN_SHARE = 0.8
+#: Runs of plateaus (in time order) whose means bound the backlash interval from below (batch means).
+BATCHES = 5
 #: Order of the friction and inertia parameters.
 PARAMS = ("J1", "J2", "d1", "d2", "tc1", "tc2")
 
@@ -388,7 +429,11 @@ class Identification:
     base_radius : tuple of float
         ``r_b1, r_b2`` [m].
     warnings : tuple of str
-        What the figures should be read with (a re-simulation that does not fit the log).
+        What the figures should be read with (a re-simulation that does not fit the log, what is not identified).
+    not_identified : dict
+        Quantities (``backlash``, ``J1``, ``J2``, ``viscous1`` ...) the log does not identify, with the reason.
+        Their value is the fit's or the model's, and their interval is wide on purpose: the model's 95 % range, every
+        split between the shafts, or for ``backlash`` anything a model allows (0 to 0.5 module).
     """
 
     backlash: float
@@ -417,6 +462,7 @@ class Identification:
     gear_ratio: float
     base_radius: tuple[float, float]
     warnings: tuple[str, ...] = ()
+    not_identified: dict[str, str] = dataclasses.field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         """The figures as plain data (JSON; the windows' arrays are left out)."""
@@ -432,6 +478,7 @@ class Identification:
             "estimate_times": self.estimate_times.tolist(), "offset": self.offset,
             "sample_time": self.sample_time, "samples": self.samples, "method": self.method,
             "gear_ratio": self.gear_ratio, "base_radius": list(self.base_radius), "warnings": list(self.warnings),
+            "not_identified": dict(self.not_identified),
         }
 
 
@@ -462,6 +509,35 @@ def _smooth(x: NDArray[np.float64], h: NDArray[np.float64]) -> NDArray[np.float6
     return convolve1d(x, h, mode="nearest")
 
 
+#: Samples per block of the noise estimate (:func:`_noise_level`).
+NOISE_BLOCK = 64
+
+
+def _noise_level(theta: NDArray[np.float64], *, quietest: bool = False) -> float:
+    """White-noise level [rad] of a reading, from its third differences, robust to the motion.
+
+    The third difference of white noise of level ``sigma`` has the spread ``sqrt(20) sigma``; smooth motion
+    adds ``jerk Ts^3``, which at a slow sampling (500 Hz) or in a loop that slams across the gap outweighs the
+    noise wherever the shaft moves. The noise is stationary and the motion is not: the robust spread (MAD) is
+    taken over the whole log (MAD) and in blocks of :data:`NOISE_BLOCK` samples (RMS: a block's median of
+    quantised readings is itself quantised), and the level is the lower of the whole log's and the quietest
+    blocks': the 5th percentile of the blocks' RMS divided by 0.79, where it lies for stationary noise
+    (measured on white noise with and without 2^20-count quantisation: 0.78-0.80, 1.04 for quantisation alone).
+    A loop that hunts all the time at 500 Hz still rests in a few blocks (its start); a log with fewer than 20
+    blocks keeps the whole log's level. ``quietest``: the quietest block's RMS (a lower bound, for a test
+    whether a signal stands out of the noise at all).
+    """
+    d3 = np.diff(theta, 3)
+    if d3.size == 0:
+        return 0.0
+    whole = 1.4826 * float(np.median(np.abs(d3 - np.median(d3))))
+    nb = d3.size // NOISE_BLOCK
+    if nb >= 20:
+        rms = np.sqrt(np.mean(d3[:nb * NOISE_BLOCK].reshape(nb, NOISE_BLOCK) ** 2, axis=1))
+        whole = min(whole, float(rms.min()) if quietest else float(np.percentile(rms, 5)) / 0.79)
+    return whole / math.sqrt(20.0)
+
+
 class _Encoder:
     """One encoder's reading, smoothed, with its velocity and acceleration.
 
@@ -490,9 +566,7 @@ class _Encoder:
         steps = steps[steps > 0]
         self.q = float(steps.min()) if steps.size else 0.0
         # white noise from the third difference (which smooth motion leaves at jerk Ts^3); robust to impacts
-        d3 = np.diff(theta, 3)
-        mad = float(np.median(np.abs(d3 - np.median(d3)))) if d3.size else 0.0
-        self.sigma = max(1.4826 * mad / math.sqrt(20.0), self.q / math.sqrt(12.0), 1e-12)
+        self.sigma = max(_noise_level(theta), self.q / math.sqrt(12.0), 1e-12)
         hv = float(np.linalg.norm(np.convolve(h, [0.5, 0.0, -0.5]))) / Ts
         hvg = float(np.linalg.norm(np.convolve(hg, [0.5, 0.0, -0.5]))) / Ts
         ha = float(np.linalg.norm(np.convolve(h, [1.0, -2.0, 1.0]))) / Ts**2
@@ -514,7 +588,7 @@ class _Encoder:
 # --- the friction and inertia regression ---------------------------------------------------------------
 
 
-Block = tuple[NDArray[np.float64], NDArray[np.float64], float, NDArray[np.float64] | None]
+Block = tuple[NDArray[np.float64], NDArray[np.float64], float, NDArray[np.float64] | None, NDArray[np.int64]]
 
 
 def _noise_cov(columns: tuple[tuple[NDArray[np.float64], float], ...]) -> NDArray[np.float64]:
@@ -547,6 +621,14 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
     log, whose raw second differences are 4x noisier than at 1 kHz). It is subtracted from the normal
     matrix (the errors-in-variables correction of Fuller, *Measurement Error Models*, 1987, ch. 2), halved
     until the matrix stays positive definite.
+
+    The covariance is the larger, parameter by parameter, of the model's (rows independent beyond
+    ``correlation`` samples) and a cluster-robust sandwich (Liang & Zeger 1986; White 1980): the last
+    element of a block holds each row's sample index, a run of consecutive samples (one steady motion in
+    contact, one free flight in the gap) is one cluster, and the scores of a cluster are summed before their
+    spread is taken, with the small-sample factor ``G / (G - 1)`` for ``G`` clusters. A residual that drifts
+    over a plateau or along a closed-loop log (a friction law unlike the model's, a loop that hunts) widens
+    the interval; white residuals leave it as it was. The correlations are the sandwich's.
     """
     from scipy.optimize import lsq_linear
 
@@ -554,7 +636,7 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
     theta = mean.copy()
     keeps = [np.ones(len(blk[1]), bool) for blk in blocks]
     sig = []
-    for A, y, _, _ in blocks:
+    for A, y, _, _, _ in blocks:
         r = y - A @ mean
         sig.append(max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-12))
     D = np.diag(sd)
@@ -563,7 +645,7 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
         G = np.eye(len(mean))
         h = mean / sd
         E = np.zeros_like(G)
-        for (A, y, corr, noise), s, keep in zip(blocks, sig, keeps, strict=True):
+        for (A, y, corr, noise, _), s, keep in zip(blocks, sig, keeps, strict=True):
             wgt2 = 1.0 / (s * s * corr)
             As = A[keep] @ D
             G = G + wgt2 * (As.T @ As)
@@ -587,7 +669,7 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
         # min x^T G x - 2 h^T x = |L^T x - L^-1 h|^2 + const, over x = theta / sd >= lower / sd
         sol = lsq_linear(L.T, np.linalg.solve(L, h), bounds=(lower / sd, np.full(len(mean), np.inf)))
         theta = sol.x * sd
-        for j, (A, y, _, _) in enumerate(blocks):
+        for j, (A, y, _, _, _) in enumerate(blocks):
             r = y - A @ theta
             s = max(1.4826 * float(np.median(np.abs(r[keeps[j]]))), 1e-12)
             sig[j] = s
@@ -596,7 +678,38 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
     L = corrected(G, E)
     D_inv = np.diag(1.0 / sd)
     info = D_inv @ (L @ L.T) @ D_inv
-    return theta, np.linalg.inv(info)
+    cov = np.linalg.inv(info)
+    # the cluster-robust sandwich, in the scaled coordinates x = theta / sd
+    x = theta / sd
+    meat = np.zeros_like(G)
+    n_cl = 0
+    for (A, y, corr, _, idx), s, keep in zip(blocks, sig, keeps, strict=True):
+        if not keep.any():
+            continue
+        As = A[keep] @ D
+        r = y[keep] - As @ x
+        score = As * (r / (s * s * corr))[:, None]
+        ik = idx[keep]
+        label = np.concatenate(([0], np.cumsum(np.diff(ik) > 1)))
+        sums = np.zeros((int(label[-1]) + 1, len(mean)))
+        np.add.at(sums, label, score)
+        meat += sums.T @ sums
+        n_cl += sums.shape[0]
+    if n_cl > 1:
+        Binv = np.linalg.inv(L @ L.T)
+        robust = D @ (Binv @ (meat * n_cl / (n_cl - 1)) @ Binv) @ D
+        # the data's share of the model covariance: the prior's part (which the sandwich leaves out) is added back
+        prior_part = D @ (Binv @ Binv) @ D
+        robust = robust + prior_part
+        sd_m, sd_r = np.sqrt(np.diag(cov)), np.sqrt(np.maximum(np.diag(robust), 0.0))
+        sd_f = np.maximum(sd_m, sd_r)
+        # the sandwich's correlations with the larger standard deviations
+        scale = np.divide(sd_f, sd_r, out=np.zeros_like(sd_f), where=sd_r > 0)
+        cov = robust * np.outer(scale, scale)
+        cov[np.diag_indices_from(cov)] = sd_f**2
+        w, V = np.linalg.eigh(0.5 * (cov + cov.T))  # positive semi-definite whatever the rounding
+        cov = (V * np.maximum(w, 0.0)) @ V.T
+    return theta, cov
 
 
 def _prior(plant: Any, ubar: NDArray[np.float64], w1: NDArray[np.float64], N: float) -> tuple[NDArray, NDArray]:
@@ -750,22 +863,120 @@ def _check_motion(p: _Problem) -> None:
                          f"the log", field="theta1")
 
 
+#: Longest sample period identify accepts [s]: a gap crossing lasts milliseconds; a log at 20 Hz or slower cannot
+#: show one (and a period of 1 s is a clock in ms).
+MAX_IDENTIFY_PERIOD = 0.02
+#: A torque beyond the model's torque_limit by more than this factor is not the motor's torque in N m.
+TORQUE_MARGIN = 1.5
+#: The lumped inertia the log's torque balance gives may be this factor from the model's, either way (a data
+#: sheet's and a drawing's figures are not that far off; angles in degrees are 57x, a torque in mN m 1000x).
+INERTIA_FACTOR = 3.0
+#: The load encoder must move at the model's ratio within this factor while both shafts move.
+RATIO_FACTOR = 1.25
+#: The backlash a model file allows, in modules (gearctl.units.BACKLASH).
+MAX_BACKLASH_MODULES = 0.5
+
+
+def _unit_hint(ratio: float, hints: tuple[tuple[float, str], ...]) -> str:
+    """`` (cause?)`` for the first of ``hints`` (factor, cause) within 1.5x of ``ratio``, or ''."""
+    for f, what in hints:
+        if ratio > 0 and abs(math.log(ratio / f)) < math.log(1.5):
+            return f" ({what}?)"
+    return ""
+
+
+#: Likely causes of a lumped inertia this factor from the model's.
+INERTIA_HINTS = ((math.pi / 180, "theta1 in degrees"), (2 * math.pi, "theta1 in revolutions"), (1e3, "torque in mN m"),
+                 (1e6, "t in ms"), (1e-6, "t in us"), (2 * math.pi / 2**20, "theta1 in counts of a 2^20 encoder"),
+                 (2 * math.pi / 2**16, "theta1 in counts of a 2^16 encoder"))
+#: Likely causes of a load encoder moving this factor from theta1 / N.
+RATIO_HINTS = ((1 / (2 * math.pi), "theta2 in revolutions"), (180 / math.pi, "theta2 in degrees"))
+
+
+def _check_signals(p: _Problem, torque_limit: float) -> None:
+    """Refuse a log whose columns cannot be what they say (units, swapped or dead columns), naming the column.
+
+    - ``t``: a period longer than :data:`MAX_IDENTIFY_PERIOD`;
+    - ``torque``: all zero; beyond the model's ``torque_limit`` by more than :data:`TORQUE_MARGIN`; not driving
+      the motion (the torque balance ``u = J a + d w + T sgn w`` over the samples where the motor moves, fitted
+      by least squares without a prior, gives a lumped inertia ``J <= 0``: a torque negated or unrelated);
+    - ``t``, ``torque`` or ``theta1`` in other units: that lumped inertia more than :data:`INERTIA_FACTOR` from
+      the model's (the message guesses degrees, revolutions, counts, mN m or ms from the factor; a factor it
+      does not know names ``theta1``);
+    - ``theta2`` (with both encoders): the median of ``N theta2' / theta1'`` over the samples where the motor
+      moves (mostly in contact) outside ``1 / RATIO_FACTOR .. RATIO_FACTOR`` (swapped columns give ``N^2``,
+      a dead encoder 0, revolutions ``1 / 2 pi``).
+    """
+    lg, name = p.log, p.log.name
+    if p.Ts > MAX_IDENTIFY_PERIOD:
+        hint = " (t in ms?)" if p.Ts >= 0.1 else ""
+        raise InputError(f"{name}: column t: sample period {p.Ts:g} s is too long for identification (expected at "
+                         f"most {MAX_IDENTIFY_PERIOD:g} s: a gap crossing lasts milliseconds){hint}", field="t")
+    u_max = float(np.max(np.abs(lg.torque)))
+    if u_max == 0.0:
+        raise InputError(f"{name}: column torque: all zero: expected the motor torque command [N m] that drives the "
+                         f"motion", field="torque")
+    if math.isfinite(torque_limit) and u_max > TORQUE_MARGIN * torque_limit:
+        hint = " (torque in mN m?)" if u_max > 100 * torque_limit else ""
+        raise InputError(f"{name}: column torque: |torque| reaches {u_max:.4g} N m, beyond the model's torque_limit "
+                         f"{torque_limit:g} N m (allowed up to {TORQUE_MARGIN:g}x, "
+                         f"{TORQUE_MARGIN * torque_limit:g} N m){hint}", field="torque")
+    m = p.m
+    mv = _Encoder.moving(m.w, m.v_thr, p.W)
+    pl = p.nominal
+    J_model = pl.J1 + pl.J2 / p.N**2
+    if p.l is not None and mv.sum() >= 20:
+        sel = mv & (np.abs(m.w) > 0)
+        ratio = float(np.median(p.N * p.l.w[sel] / m.w[sel]))
+        if not 1 / RATIO_FACTOR <= ratio <= RATIO_FACTOR:
+            hint = (" (theta1 and theta2 swapped?)" if abs(math.log(max(ratio, 1e-300) / p.N**2)) < math.log(1.5) else
+                    " (a dead load encoder?)" if abs(ratio) < 0.05 else _unit_hint(ratio, RATIO_HINTS))
+            raise InputError(f"{name}: column theta2: moves {ratio:.3g} times as far as theta1 / N while the motor "
+                             f"moves (median of N theta2' / theta1'; expected 1 at the model's ratio N = {p.N:.4g}, "
+                             f"allowed {1 / RATIO_FACTOR:.3g}-{RATIO_FACTOR:g}){hint}", field="theta2")
+    if mv.sum() >= 20:
+        A = np.column_stack([m.a, m.w, np.sign(m.w)])[mv]
+        y = p.uf[mv]
+        keep = np.ones(y.size, bool)
+        for _ in range(3):  # drop the gap crossings' outliers
+            sol = np.linalg.lstsq(A[keep], y[keep], rcond=None)[0]
+            r = y - A @ sol
+            s = 1.4826 * float(np.median(np.abs(r[keep]))) + 1e-300
+            keep = np.abs(r) < 5 * s
+        J = float(sol[0])
+        if J <= 0.0:
+            raise InputError(f"{name}: column torque: does not drive the motion (the torque balance u = J theta1'' + "
+                             f"d theta1' + T sgn theta1' gives J = {J:.3g} kg m^2; expected about the model's "
+                             f"{J_model:.3g}): a negated torque, or not the motor's", field="torque")
+        ratio = J / J_model
+        if not 1 / INERTIA_FACTOR <= ratio <= INERTIA_FACTOR:
+            hint = _unit_hint(ratio, INERTIA_HINTS)
+            field = "t" if "t in" in hint else "torque" if "torque" in hint else "theta1"
+            raise InputError(f"{name}: column {field}: the torque balance gives a lumped inertia {J:.3g} kg m^2, "
+                             f"{ratio:.3g} times the model's {J_model:.3g} (allowed {1 / INERTIA_FACTOR:.3g}-"
+                             f"{INERTIA_FACTOR:g}x){hint}: expected t [s], torque [N m], theta1 [rad]", field=field)
+
+
 def _episodes(p: _Problem) -> tuple[float, float, list[tuple[int, int, int]]]:
     """Contact plateaus of the measured ``s = r_b1 theta1 - r_b2 theta2``: centre, half-gap, episodes.
 
     An episode is a run of samples near one extreme of ``s`` (beyond 60 % of the half-range from the
-    middle, after a 5-sample median filter removes impact spikes); neighbouring runs on one flank are one
-    episode (a bounce that dipped), so episodes alternate between the flanks.
+    middle, after a 5-sample median filter removes impact spikes, 3 samples below 1 kHz); neighbouring runs
+    on one flank are one episode (a bounce that dipped), so episodes alternate between the flanks.
     """
     from scipy.ndimage import median_filter
 
     pl = p.nominal
     assert p.l is not None
     s = pl.rb1 * p.log.theta1 - pl.rb2 * p.log.theta2  # type: ignore[operator]
-    sm = median_filter(s, size=5, mode="nearest")
+    # a 5-sample median removes an impact's spike at 1 kHz and faster; at slower sampling a loop's contacts may last
+    # 3-4 samples (500 Hz, a loop that floats in the gap between brief contacts): 3 samples there
+    sm = median_filter(s, size=5 if p.Ts <= 1.001e-3 else 3, mode="nearest")
     hi, lo = float(sm.max()), float(sm.min())
     c0, b0 = 0.5 * (hi + lo), 0.5 * (hi - lo)
-    noise = math.hypot(pl.rb1 * p.m.sigma, pl.rb2 * p.l.sigma)
+    # the noise of s in its quietest block (a loop that hunts at 500 Hz moves in nearly every block and its
+    # encoders' levels count that motion as noise), at least the quantisation's
+    noise = max(_noise_level(s, quietest=True), math.hypot(pl.rb1 * p.m.q, pl.rb2 * p.l.q) / math.sqrt(12.0))
     if b0 <= 10 * noise:
         raise _no_switch(p, 0, f"r_b1 theta1 - r_b2 theta2 spans {2 * b0:.3g} m, within the encoders' noise")
     eps = [(i0, i1, 1) for i0, i1 in _runs(sm - c0 > 0.6 * b0)] + \
@@ -851,15 +1062,23 @@ def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[i
         var += float(arr.var(ddof=1)) / arr.size if arr.size > 1 else 0.0
     se = 0.5 * math.sqrt(var)
     dof = min(front.size, back.size) - 1
-    # quantisation of a plateau at rest does not average out: one reading's error per plateau, both flanks
-    q_s = math.hypot(pl.rb1 * p.m.q, pl.rb2 * p.l.q) / math.sqrt(12.0)  # type: ignore[union-attr]
+    # quantisation of a flank at rest does not average out: a flank resting between two counts reads the same
+    # count at every visit (without noise to dither it), so one count of s is a systematic error of b
+    q_s = math.hypot(pl.rb1 * p.m.q, pl.rb2 * p.l.q)  # type: ignore[union-attr]
     defl = float(np.mean(corr)) if corr else 0.0
-    half = math.sqrt((_t95(dof) * se) ** 2 + (1.96 * q_s / math.sqrt(2.0)) ** 2 + (0.3 * defl) ** 2)
+    half = math.sqrt((_t95(dof) * se) ** 2 + q_s**2 + (0.3 * defl) ** 2)
     est, times = [], []
     for (s1, v1, t1), (s2, v2, t2) in zip(vals[:-1], vals[1:], strict=True):
         if s1 != s2 and math.isfinite(v1) and math.isfinite(v2):
             est.append(0.5 * s1 * (v1 - v2))
             times.append(0.5 * (t1 + t2))
+    # lack of fit: plateaus that drift along the log (contacts that never settle as a chirp speeds up, the
+    # deflection F/k misjudged at high acceleration) are not scatter about b. Batch means (the estimates of
+    # neighbouring pairs of plateaus in BATCHES runs, in time order): the interval is at least the Student t
+    # interval of the batches' means, which a drift widens and independent scatter leaves about as it was
+    if len(est) >= 2 * BATCHES:
+        means = np.array([float(np.mean(c)) for c in np.array_split(np.array(est), BATCHES)])
+        half = max(half, _t95(BATCHES - 1) * float(means.std(ddof=1)) / math.sqrt(BATCHES))
     return b, (b - half, b + half), centre, np.array(est), np.array(times), defl
 
 
@@ -1193,7 +1412,10 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
     ------
     InputError
         A train instead of a pair, ``encoders`` not allowed or asking for a column the log lacks, a log
-        whose motor does not move or turn back, or fewer than :data:`MIN_SWITCHES` gap crossings.
+        whose motor does not move or turn back, fewer than :data:`MIN_SWITCHES` gap crossings, flanks that
+        never rest in contact (a loop that hunts), columns that cannot be what they say
+        (:func:`_check_signals`: period, torque, angle units, load-encoder ratio), or a backlash beyond
+        0.5 module (angles not in rad); each one line naming the column.
 
     Notes
     -----
@@ -1223,6 +1445,26 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
     values on the motor shaft; how the Coulomb friction splits between the shafts (whether the load sticks
     or coasts while the motor crosses) comes from fits of :data:`SPLIT_WINDOWS` re-simulated crossings that
     leave the split free. With the motor encoder alone the motor's own inertia stays the model's.
+
+    *Intervals, and what the log does not identify* (``not_identified``, one warning naming each quantity
+    and why). Residuals of a closed-loop log are correlated (a plateau that drifts, a loop that hunts), so no
+    interval assumes independent samples: b's interval with both encoders is at least the Student t interval
+    of batch means of the plateau pairs (:data:`BATCHES` runs in time order), plus one count of ``s`` (a flank
+    resting between two counts reads the same one at every visit); the friction and inertias take the larger
+    of the model-based and a cluster-robust sandwich covariance (clusters: runs of consecutive samples, i.e.
+    one motion in contact, one free flight), and a floor for what the idealised laws cannot represent
+    (:data:`SYSTEMATIC_FLOOR`). The re-simulated crossings' RMS misfit, as a displacement along the line of
+    action, is the gate (calibrated against b, not against the noise: what matters is whether the misfit
+    could move b): with the motor encoder alone it is added to b's interval as a systematic error, and
+    beyond :data:`MISFIT_SHARE` of b, or with a 95 % half-width beyond :data:`MAX_RELATIVE_HALF_WIDTH` of b,
+    b is *not identified* (its interval 0 to 0.5 module, and ``--write-model`` refuses); with both encoders
+    b does not depend on it, and beyond :data:`MISFIT_SHARE` of b the friction and inertias are not
+    identified. A parameter at its bound (an inertia at the model's / 1000) is the model's value with the
+    model's range; one whose variance stays above :data:`PRIOR_SHARE` of the prior's is the prior's; with
+    the motor encoder alone ``J1`` and the viscous and Coulomb split are named not identified (their
+    intervals span every split). The log is checked first (:func:`_check_signals`): a period, torque, angle
+    scale or load-encoder ratio that cannot be the motor's and the load's in SI units is refused, naming the
+    column.
 
     This follows the two routes the literature gives: the gap read off motor and load encoders around
     reversals (Nordin & Gutman's survey, Automatica 38, 2002; the ISO 230-2 reversal value), and an
@@ -1259,6 +1501,9 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
                          "where r_b1 theta1 - r_b2 theta2 is the gap): read as -theta2")
     p = _Problem(lg, nominal, encoders, mdl.pair.module)
     _check_motion(p)
+    # a load encoder that never leaves the motor's line (s within the noise: no gap crossing) is said first
+    episodes = _episodes(p) if encoders == "motor+load" else None
+    _check_signals(p, mdl.servo.torque_limit)
     N = p.N
     m = p.m
     mean, sd = _prior(nominal, p.ubar, m.w, N)
@@ -1270,7 +1515,8 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
     if encoders == "motor+load":
         ld = p.l
         assert ld is not None
-        c0, b0, eps = _episodes(p)
+        assert episodes is not None
+        c0, b0, eps = episodes
         if len(eps) - 1 < MIN_SWITCHES:
             raise _no_switch(p, max(len(eps) - 1, 0), "changes of the flank in contact")
         mv2 = _Encoder.moving(ld.w, ld.v_thr, p.W)
@@ -1291,14 +1537,21 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         z2 = np.zeros(int(g2.sum()))
         A_l = np.column_stack([z2, ld.ag[g2], z2, ld.wg[g2], z2, np.sign(ld.wg[g2])])
         e = np.eye(len(PARAMS))
-        blocks: list[Block] = [(A_c, p.uf[both], float(p.W), _contact_noise(m, N))]
+        blocks: list[Block] = [(A_c, p.uf[both], float(p.W), _contact_noise(m, N), np.flatnonzero(both))]
         if g1.sum() >= 10:
-            blocks.append((A_g, p.ug[g1], float(p.Wg + 2), _noise_cov(((e[0], m.noise_g[0]), (e[2], m.noise_g[1])))))
+            blocks.append((A_g, p.ug[g1], float(p.Wg + 2), _noise_cov(((e[0], m.noise_g[0]), (e[2], m.noise_g[1]))),
+                           np.flatnonzero(g1)))
         if g2.sum() >= 10:
             blocks.append((A_l, np.zeros(int(g2.sum())), float(p.Wg + 2),
-                           _noise_cov(((e[1], ld.noise_g[0]), (e[3], ld.noise_g[1])))))
+                           _noise_cov(((e[1], ld.noise_g[0]), (e[3], ld.noise_g[1]))), np.flatnonzero(g2)))
         theta, cov = _regress(blocks, mean, sd, lower)
         b, ci, centre, est, times, _ = _plateau_backlash(p, theta, eps)
+        if b < SPAN_SHARE * b0:
+            # s reaches +-b0 (a median removes the impacts' spikes): plateaus well inside are not resting contact
+            raise InputError(f"{lg.name}: column theta2: {len(eps) - 1} gap crossings, but the flanks never rest "
+                             f"in contact (the plateaus of r_b1 theta1 - r_b2 theta2 give b = {b * 1e6:.3g} um, its "
+                             f"half-span is {b0 * 1e6:.3g} um): the loop rattles in the gap or hunts; record moves "
+                             f"with dwells in contact", field="theta2")
         wins = _gap_windows(p, eps, theta)
         # the share of the Coulomb friction on each shaft: the free flights may be too short to tell (a loop
         # that crosses fast and bounces); whether the load sticks or coasts in the re-simulated crossings does
@@ -1320,7 +1573,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         fit_wins = _spread_evenly(wins, MAX_PLOT_WINDOWS)
         fits = [_fit_window(p, w, theta, b, offset=centre) for w in fit_wins]
         switches = len(eps) - 1
-        ci_fr = {k: 1.96 * math.sqrt(cov[i, i]) for i, k in enumerate(PARAMS)}
+        ci_fr = {k: 1.96 * math.sqrt(max(cov[i, i], 0.0)) for i, k in enumerate(PARAMS)}
         method = (f"gap-crossing geometry: b is half the distance between the plateaus of r_b1 theta1 - r_b2 theta2 "
                   f"on the front and the back flank ({sum(1 for e in eps if e[2] > 0)} and "
                   f"{sum(1 for e in eps if e[2] < 0)} plateaus), each corrected for the mesh deflection F/k; "
@@ -1343,7 +1596,8 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
             raise InputError(f"{lg.name}: column theta1: only {int(rows.sum())} samples of steady motion in "
                              f"contact; the friction cannot be estimated (record longer moves)", field="theta1")
         A_c = np.column_stack([m.a, m.a / N**2, m.w, m.w / N**2, sg1, sg1 / N])[rows]
-        theta, cov = _regress([(A_c, p.uf[rows], float(p.W), _contact_noise(m, N))], mean, sd, lower)
+        theta, cov = _regress([(A_c, p.uf[rows], float(p.W), _contact_noise(m, N), np.flatnonzero(rows))], mean, sd,
+                              lower)
         # contact sees only the lumped values: the share of the Coulomb friction on each shaft comes from fits of
         # a few crossings that leave it free
         J_eq, d_eq, teq = _lumped(theta, N)
@@ -1381,7 +1635,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         stat = _t95(est.size - 1) * float(est.std(ddof=1)) / math.sqrt(est.size)
         # crossings at the same positions share one quantisation error of the motor reading: a floor
         q_b = nominal.rb1 * m.q / math.sqrt(12.0)
-        spreads = {k: 1.96 * math.sqrt(v) for k, v in var.items()}
+        spreads = {k: 1.96 * math.sqrt(max(v, 0.0)) for k, v in var.items()}
         spreads.update(kappa=1.96 * sd_kappa, phi=1.96 * sd_phi)
         probe = _spread_evenly(list(range(len(fits))), 3)
         sys_half, shifts = _systematic(p, [fit_wins[i] for i in probe], [fits[i] for i in probe], theta, spreads)
@@ -1410,18 +1664,83 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         offset = 0.0
     rms, rm, rl = _residuals(p, fits)
     warnings = list(notes)
-    noise = math.hypot(m.sigma / N, p.l.sigma if p.l is not None else 0.0)
-    if math.isfinite(rms) and rms > RESIDUAL_WARNING * noise:
-        what = ("b, read off the plateaus, does not depend on it; the friction and inertias may be off"
-                if encoders == "motor+load" else "the motor-only b and its interval rest on it: the plant may not "
-                "be the model's (another contact law, a compliant shaft), record with the load encoder")
-        warnings.append(f"the re-simulation does not fit the log: RMS residual {rms:.3g} rad, {rms / noise:.0f} times "
-                        f"the encoders' noise; {what}")
     rb2 = nominal.rb2
+    b_max = min(MAX_BACKLASH_MODULES * p.module, 0.0099)
+    if b > b_max:
+        col = "theta1 or theta2" if encoders == "motor+load" else "theta1"
+        raise InputError(f"{lg.name}: column {col}: the log gives a backlash of {b:.4g} m, more than a model allows "
+                         f"({MAX_BACKLASH_MODULES:g} module = {b_max:.4g} m): expected angles in rad", field="theta1")
     lo, hi = max(ci[0], 0.0), ci[1]
     names = {"J1": "J1", "J2": "J2", "d1": "viscous1", "d2": "viscous2", "tc1": "coulomb1", "tc2": "coulomb2"}
     val = {names[k]: float(theta[i]) for i, k in enumerate(PARAMS)}
     cis = {names[k]: (max(float(theta[i]) - ci_fr[k], 0.0), float(theta[i]) + ci_fr[k]) for i, k in enumerate(PARAMS)}
+    # what the idealised friction and contact laws cannot represent (another friction law, a compliant shaft):
+    # a floor under each interval, relative, and for the Coulomb friction the level below which it is not seen
+    for i, k in enumerate(PARAMS):
+        key = names[k]
+        floor = SYSTEMATIC_FLOOR[k] * abs(val[key]) + (p.tc_floor[i - 4] if k in ("tc1", "tc2") else 0.0)
+        cis[key] = (max(min(cis[key][0], val[key] - floor), 0.0), max(cis[key][1], val[key] + floor))
+    # what the log does not identify: named, with the reason, and an interval that says so (not a tight one)
+    ni: dict[str, str] = {}
+    prior = {names[k]: (max(float(mean[i] - 1.96 * sd[i]), 0.0), float(mean[i] + 1.96 * sd[i]))
+             for i, k in enumerate(PARAMS)}
+
+    def widen(key: str, why: str, *, to_model: bool = False) -> None:
+        ni.setdefault(key, why)
+        if to_model:
+            val[key] = float(mean[PARAMS.index([k for k, v in names.items() if v == key][0])])
+            cis[key] = prior[key]
+        else:
+            cis[key] = (min(cis[key][0], prior[key][0], val[key]), max(cis[key][1], prior[key][1], val[key]))
+
+    for i, k in enumerate(PARAMS):
+        key = names[k]
+        if i < 2 and theta[i] <= 1.01 * lower[i]:
+            widen(key, "at the fit's bound (the model's / 1000): the model's value and 95 % range reported",
+                  to_model=True)
+        elif cov[i, i] > PRIOR_SHARE * sd[i] ** 2 and not (encoders == "motor" and k in ("d1", "d2", "tc1", "tc2")):
+            widen(key, f"the log hardly constrains it: variance {cov[i, i] / sd[i] ** 2:.0%} of the prior's")
+    if encoders == "motor":
+        ni.setdefault("J1", f"the model's within {MOTOR_INERTIA_TOLERANCE:.0%}: the motor encoder sees J1 + J2/N^2")
+        for key in ("viscous1", "viscous2"):
+            ni.setdefault(key, "the motor encoder sees d1 + d2/N^2: the interval spans every split")
+        teq_hi = teq + spreads["T_eq"]
+        cis["coulomb1"] = (0.0, max(teq_hi, val["coulomb1"]))
+        cis["coulomb2"] = (0.0, max(N * teq_hi, val["coulomb2"]))
+        for key in ("coulomb1", "coulomb2"):
+            ni.setdefault(key, "the motor encoder sees tc1 + tc2/N: the interval spans every split")
+    # lack of fit of the re-simulated crossings, as a displacement along the line of action [m]
+    misfit = rms * rb2 if math.isfinite(rms) else 0.0
+    if encoders == "motor":
+        # the motor-only b rests on the re-simulation: its misfit enters the interval as a systematic error, and a
+        # misfit beyond MISFIT_SHARE of b leaves b not identified (its interval: anything a model allows)
+        half = math.sqrt(max(b - lo, hi - b) ** 2 + misfit**2)
+        lo, hi = max(b - half, 0.0), b + half
+        if misfit > MISFIT_SHARE * b:
+            ni["backlash"] = (f"the re-simulated crossings miss the motor encoder by {misfit * 1e6:.3g} um RMS along "
+                              f"the line of action, more than {MISFIT_SHARE:.0%} of b = {b * 1e6:.3g} um: the motion "
+                              f"does not show the free travel as the model would (record with the load encoder)")
+            for key in ("J2", "viscous1", "viscous2", "coulomb1", "coulomb2"):
+                widen(key, "the re-simulation does not fit the log")
+        elif half > MAX_RELATIVE_HALF_WIDTH * b:
+            ni["backlash"] = (f"its 95 % half-width {half * 1e6:.3g} um is more than {MAX_RELATIVE_HALF_WIDTH:.2g} of "
+                              f"b = {b * 1e6:.3g} um: the crossings' fits disagree or move with the friction, beyond "
+                              f"where the interval's linearisation holds (record with the load encoder)")
+        if "backlash" in ni:
+            lo, hi = 0.0, b_max
+    elif misfit > MISFIT_SHARE * b:
+        warnings.append(f"the re-simulation does not fit the log: the crossings re-simulated with the identified "
+                        f"friction and inertias miss it by {misfit * 1e6:.3g} um RMS along the line of action, more "
+                        f"than {MISFIT_SHARE:.0%} of b; b, read off the plateaus, does not depend on it; the friction "
+                        f"and inertias are not identified (intervals widened to the model's range)")
+        for key in ("J1", "J2", "viscous1", "viscous2", "coulomb1", "coulomb2"):
+            widen(key, "the re-simulation does not fit the log")
+    if ni:
+        order = sorted(ni, key=lambda k: k != "backlash")  # the backlash first
+        warnings.append("not identified from this log: " + "; ".join(f"{k} ({ni[k]})" for k in order
+                                                                      if not ni[k].startswith("the re-simulation")))
+        if warnings[-1] == "not identified from this log: ":
+            warnings.pop()
     nom = {"backlash": nominal.backlash, "J1": nominal.J1, "J2": nominal.J2, "viscous1": nominal.d1,
            "viscous2": nominal.d2, "coulomb1": nominal.tc1, "coulomb2": nominal.tc2}
     geo = pair_geometry(mdl.pair)
@@ -1434,6 +1753,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         estimate_times=times, switches=switches, offset=offset, sample_time=lg.sample_time, samples=lg.n,
         method=method, model=mdl.name, log=lg.name, windows=_windows_out(p, fit_wins, fits, offset),
         gear_ratio=N, base_radius=tuple(geo.base_radius), warnings=tuple(warnings),  # type: ignore[arg-type]
+        not_identified=ni,
     )
 
 
@@ -1497,9 +1817,10 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
             servo[add] = 0.0
     servo["viscous_friction1"] = float(result.friction["viscous1"])
     servo["viscous_friction2"] = float(result.friction["viscous2"])
-    for j in (1, 2):  # a Coulomb friction whose interval reaches zero is none (and costs a simulator stick events)
-        key = f"coulomb{j}"
-        servo[f"coulomb_friction{j}"] = float(result.friction[key]) if result.friction_ci[key][0] > 0.0 else 0.0
+    for j in (1, 2):  # a Coulomb friction whose interval reaches zero is none (and costs a simulator stick events);
+        key = f"coulomb{j}"  # one not identified (its interval spans every split) keeps the fit's best value
+        keep = result.friction_ci[key][0] > 0.0 or key in result.not_identified
+        servo[f"coulomb_friction{j}"] = float(result.friction[key]) if keep else 0.0
     doc["servo"] = {k: (v.value if hasattr(v, "value") else (list(v) if isinstance(v, tuple) else v))
                     for k, v in servo.items() if not (isinstance(v, tuple) and not v)}
     sensors = {f.name: getattr(mdl.sensors, f.name) for f in dataclasses.fields(Sensors)}
@@ -1510,22 +1831,47 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
 def write_identified_model(path: str | Path, result: Identification, model: Any) -> Path:
     """Write :func:`identified_model` as a model file and check that it loads.
 
+    The document is checked before anything is written (loaded from a temporary file next to ``path``, then
+    renamed into place), so a refused model leaves no file; the folder must exist (it is not created).
+
     Raises
     ------
     InputError
-        If the file cannot be written, or an identified value lies outside what a model file allows
-        (the message names the key).
+        If the folder does not exist or the file cannot be written; if the backlash is not identified
+        (:attr:`Identification.not_identified`); or if an identified value lies outside what a model file
+        allows (the message names the log the value came from and the key).
     """
+    import os
+    import tempfile
+
     from .catalog import load_model
 
     path = Path(path)
+    if not path.parent.is_dir():
+        raise InputError(f"cannot write {path}: the folder {path.parent} does not exist (create it first)",
+                         field="write_model")
+    if "backlash" in result.not_identified:
+        raise InputError(f"{result.log}: not writing {path}: the backlash is not identified from this log "
+                         f"({result.not_identified['backlash']})", field="backlash")
     doc = identified_model(result, model)
     text = toml_dumps(doc, header=(f"{path.stem}: written by gearctl identify from {result.log}.",
                                     "SI units, radians inside; degrees only in keys ending _deg."))
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".toml", dir=path.parent)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror}") from None
-    load_model(path)  # the identified model must be one gearctl reads (range errors name the key)
+    try:
+        load_model(tmp)  # the identified model must be one gearctl reads (range errors name the key)
+    except InputError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        rule = str(exc).split(": ", 1)[-1]
+        raise InputError(f"{result.log}: the identified model is not valid, not writing {path}: {rule}",
+                         field=exc.field) from None
+    try:
+        os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise InputError(f"cannot write {path}: {exc.strerror}") from None
     return path

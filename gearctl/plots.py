@@ -493,7 +493,7 @@ def plot_identification(result: Any, *, ax: Any = None) -> Figure:
         if w.theta2 is not None:
             main.plot(tt, (rb1 * w.theta1 - rb2 * w.theta2) * 1e6, ".", color=c, ms=3)
         if axs is not None:
-            axs[1].plot(tt, (w.theta1 - w.theta1_sim) * 1e6, "-", color=c, lw=0.8)
+            axs[1].plot(tt, (w.theta1 - w.theta1_sim) / result.gear_ratio * 1e6, "-", color=c, lw=0.8)
     for sgn in (-1, 1):
         main.axhline(sgn * b * 1e6, color="k", ls="--", lw=0.8)
         main.axhspan(sgn * result.backlash_ci[0] * 1e6, sgn * result.backlash_ci[1] * 1e6, color="k", alpha=0.08)
@@ -504,7 +504,8 @@ def plot_identification(result: Any, *, ax: Any = None) -> Figure:
     main.grid(True, alpha=0.3)
     if axs is None:
         return fig
-    axs[1].set(xlabel="time from the gap crossing [ms]", ylabel="motor angle, measured - re-simulated [urad]",
+    axs[1].set(xlabel="time from the gap crossing [ms]",
+               ylabel="motor angle / N, measured - re-simulated [urad]",
                title=f"residual (RMS {result.rms_residual:.3g} rad in load angle)")
     axs[1].grid(True, alpha=0.3)
     est = np.asarray(result.estimates)

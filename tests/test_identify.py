@@ -162,7 +162,9 @@ def test_residual_is_at_the_encoders_level(results: Callable) -> None:
     q = 2 * math.pi / 2**20  # one count
     # measured 4e-6 rad (load angle) over 12 crossings: a few counts, against a lost motion of 1.3e-3 rad
     assert res.rms_residual < 5 * q
-    assert res.warnings == ()
+    # no misfit warning; only the viscous split may be named not identified (the free flights barely show it)
+    assert not any("does not fit" in w for w in res.warnings)
+    assert set(res.not_identified) <= {"viscous1", "viscous2"}
     assert len(res.windows) == ident.MAX_PLOT_WINDOWS
     assert all(w.theta2 is not None and w.t.size == w.theta1_sim.size for w in res.windows)
 
@@ -451,4 +453,5 @@ def test_a_plant_unlike_the_model_is_flagged() -> None:
     ex = record_excitation(TRUE_MODEL, plant="yang-sun", duration=10.0, seed=2)
     res = identify(ex.log, TRUE_MODEL, encoders="motor+load")
     _check_backlash(res, ex.plant.backlash, 0.05)
-    assert len(res.warnings) == 1 and "does not fit the log" in res.warnings[0]
+    assert sum("does not fit the log" in w for w in res.warnings) == 1
+    assert {"J1", "J2", "coulomb1", "coulomb2"} <= set(res.not_identified)  # the friction and inertias are flagged

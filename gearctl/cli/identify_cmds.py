@@ -54,16 +54,24 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     log = read_log(args.log)
     with progress_bar("gearctl identify", expected_s=3.0 if args.encoders == "motor" else 0.5):
         res = identify(log, args.model, encoders=args.encoders)
-    if args.write_model:
-        write_identified_model(args.write_model, res, args.model)
+    warn("identify", res.warnings)
+    if args.json:
+        print(dump_json(res.as_dict()))
+    else:
+        _print_identification(res)
+    # the results are shown before the files are written: a model refused (b not identified) loses nothing shown
     if args.plot:
         from ..plots import plot_identification
 
         save_figure(plot_identification(res), args.plot)
-    warn("identify", res.warnings)
-    if args.json:
-        print(dump_json(res.as_dict()))
-        return 0
+    if args.write_model:
+        write_identified_model(args.write_model, res, args.model)
+    if not args.json:
+        say_written((args.write_model, "identified model"), (args.plot, "measured vs re-simulated motion"))
+    return 0
+
+
+def _print_identification(res: Any) -> None:
     b, (lo, hi) = res.backlash, res.backlash_ci
     f, J = res.friction, res.inertia
     nom = res.nominal
@@ -82,8 +90,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     print(f"  rms residual           {res.rms_residual:.3g} rad (load angle) around {len(res.windows)} re-simulated "
           f"crossings")
     print(f"  method                 {res.method}")
-    say_written((args.write_model, "identified model"), (args.plot, "measured vs re-simulated motion"))
-    return 0
+    if res.not_identified:
+        print(f"  not identified         {', '.join(res.not_identified)} (wide intervals; see the warning)")
 
 
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
