@@ -20,7 +20,8 @@ Per sample the controller
 4. checks every solution (solver status; for CasADi plugins the KKT residual and feasibility too) and
    the step's solve time; on a
    failure or an overrun of ``max_solve_time`` it applies the previous plan's next input, saturated,
-   and records the event in :attr:`~gearctl.design.base.Controller.fallbacks`.
+   and records the event in :attr:`~gearctl.design.base.Controller.fallbacks`; a reading the observer
+   rejected or missed is recorded there too (see *Readings*).
 
 The gap model
 -------------
@@ -134,15 +135,61 @@ pair's: the floating intermediate shafts alone leave it short by up to the toler
 taken there: it decides contact and where landings aim from then on. The furthest point only grows, so a
 flank taken short of the true one moves out when the gap goes further.
 
-*Standstill.* While the previewed reference rests (constant over the whole horizon) and the load is
-within ``standstill_deadband`` of it, the plan holds its flank: no crossing is planned in contact, a load
-that floats off its flank is not chased or flipped to (the plan waits, and lands on the flank the gap
-closes on by itself when it does, at 5 % of ``landing_velocity``, without the ``smoothing`` push); if the
-load comes to rest on the other flank, that flank holds it. A larger error is corrected as in motion.
-Without it the plan hunts across the gap after errors the encoders barely resolve: every crossing lands
-at up to ``landing_velocity`` and kicks the free load (measured on ``shing1993_servo``'s 5-cycle ISO
-230-2 test: 65 flank changes at rest over 3 cycles without the deadband, 10 over 5 cycles with it, for 10
-reversals of the reference).
+*Standstill.* While the previewed reference rests (constant over the whole horizon), the load is slow (its
+estimated speed would not carry it one ``standstill_deadband`` further within the horizon) and within the
+deadband of the reference, the plan *holds*; once holding, it holds while the load stays within three
+deadbands (:data:`_STANDSTILL_RELEASE`), so that a free load coasting a little past the deadband is not
+chased. Holding:
+
+- no flank change is planned: no crossing in contact, no flip when floating; a load that floats off its
+  flank is met on the flank the gap closes on by itself, when it does, at 5 % of ``landing_velocity`` and
+  without the ``smoothing`` push; if it comes to rest on the other flank, that flank holds it;
+- the flank in contact pushes the load towards the reference only if it can: when the load is past the
+  reference on the side this flank cannot bring it back from (it cannot pull), and no load torque presses
+  the load onto the flank (which could bring it back), the plan holds the load where it is instead of
+  asking for the reference;
+- with no load torque to hold against (the estimate below 1 % of the torque the motor can put on the load,
+  :data:`_HANDS_OFF_TORQUE`) and once the plan has let go (its last torque below 0.1 % of the limit), no
+  QP is solved and the torque is zero.
+
+A larger error, or a fast load, is corrected as in motion.
+
+Why (measured on ``gearctl track shing1993_servo mpc --reference move --duration 20``, 0.2 rad move, then
+rest): before these rules the plan hunted across the gap for as long as the reference rested, about 370
+flank changes and 500 impacts in the last 10 s (``shing1993_servo_friction``: 157 and 178; the pinion
+model: 388 and 540), a sustained limit cycle. Two mechanisms fed it. (1) At rest a gap drifting towards the
+other flank was met on that flank within the horizon: a full 2 b crossing in 20 ms that landed at 5e-4 to
+1e-3 m/s (the contact declared 2 % of b early, the contact plan pushing at once) and rebounded, which read
+as a drift towards the first flank again. What started the drift: on a friction-held load, the integral
+action unwinding the motor's push (the load did not move, so the disturbance estimate took the push over
+and the plan lowered its torque until the motor backed off the flank); on a free load, the rebound of the
+previous landing. (2) In contact, the plan compensated the disturbance estimate and braked the estimated
+speed, both of which jump by one encoder count's worth (1.5e-5 rad in the centre of inertia, 2.4e-4 rad/s
+at the load) whenever a count changes: each jump gave the free load a kick of a few 1e-4 rad/s, which its
+viscous friction (2.3 s time constant) let carry it out of the deadband, where the motion-grade correction
+kicked it harder. Now: 0 flank changes after the move on the three models over 5 to 30 s; a free load
+coasts to rest where the move's last few 1e-4 rad/s take it (measured 3.4e-4 to 4.9e-4 rad on
+``shing1993_servo``, within the three-deadband hold), a friction-held load is pushed to within a few urad.
+Holding a free load exactly needs a preloaded (anti-backlash) train.
+
+*Readings.* A finite encoder reading farther from the shaft angle the prediction puts it at than
+:attr:`MPC.reading_gate` (along the line of action, what the torque limit moves the motor in one sample,
+from full torque one way to full the other, plus twice the lost motion; 0.015 rad at the motor and
+3.8e-3 rad at the load on ``shing1993_servo``) is rejected: the estimate is the prediction alone on that
+sample, the plan runs on it and the step is reported in :attr:`~gearctl.design.base.Controller.fallbacks`
+(the exported C returns a fallback). A reading rejected on more than 4 samples in a row
+(:data:`_GATE_PERSIST`) is taken as the truth: the estimate restarts from it as on the first sample. A
+non-finite load reading is a missing one (the motor encoder alone, as with ``feedback = "motor"``), also
+reported; a non-finite motor reading is a missed sample, as in the exported API (zero torque, the estimate
+and plan unchanged, reported). Before, one reading of 1e300 rad drove the estimate off and the load 116 rad
+away within a second (the exported C: 455 rad in 2 s).
+
+*Angles.* The QP's parameters hold angles from an origin, the reference at ``t``: the estimate's motor-side
+angle ``phi - N r(t)`` and the previewed ``r_k - r(t)``. Fed absolute angles, the QP's gradient summed terms
+of the size of the angle times the tracking weight that cancelled: at 1e4 rad (a double's spacing there is
+1.8e-12 rad) the torques came out wrong by up to the torque limit. Now a controller fed the same readings
+and reference shifted by 1e4 rad gives the same torques to 1.5e-8 N m (the rounding of the offset). The gap
+model's dependence on ``phi`` is set to exactly none (the similarity transform left 1e-18 there).
 
 *Preview.* The MPC reads ``horizon + 1`` reference samples per step (``r(t)`` to ``r(t + N Ts)``, with the
 feedforward over the horizon): :attr:`MPC.preview` and ``describe()["preview"]`` say so, and the bench
@@ -466,6 +513,9 @@ def _gap_model(info: LoopInfo, Ts: float) -> _GapModel:
     a1, a2 = J1 / Jeq, J2 / (N * Jeq)
     T = np.array([[a1, a2, 0, 0], [0, 0, a1, a2], [p.rb1, -p.rb2, 0, 0], [0, 0, p.rb1, -p.rb2]])
     A_sep, B_sep = T @ Ad @ np.linalg.inv(T), T @ Bd
+    # translation invariance: phi enters as phi itself and nowhere else (the similarity transform leaves rounding
+    # residues of 1e-18 there, which an absolute angle of 1e4 rad would turn into 1e-14 m of gap per sample)
+    A_sep[:, 0] = (1.0, 0.0, 0.0, 0.0)
     Ac = np.array([[0.0, 1.0], [0.0, -info.d_eq / Jeq]])
     Bc = np.array([[0.0, 0.0], [1 / Jeq, 1 / (N * Jeq)]])
     Adc, Bdc = _zoh(Ac, Bc, Ts)  # rigid train: eqs 1-3 with k -> inf
@@ -735,6 +785,10 @@ _CROSS_MARGIN = 2e-3  # a crossing must lower the plan's cost by this fraction (
 _FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this much cheaper to land on
 _CROSS_SHARE = 0.25  # a planned crossing accelerates and decelerates the motor with this share of the torque limit
 _STANDSTILL_LANDING = 0.05  # at standstill, landings close at most this fraction of landing_velocity
+_STANDSTILL_RELEASE = 3.0  # a hold lasts while a slow load stays within this many standstill deadbands
+_HANDS_OFF_TORQUE = 0.01  # holding, no torque while the load torque estimate is below this share of N x limit
+_HANDS_OFF_LET_GO = 1e-3  # ... and once the plan's torque has come down to this share of the limit
+_GATE_PERSIST = 4  # a reading beyond the gate on more samples in a row than this is taken as the truth
 
 
 def _samples(steps: float, cap: int) -> int:
@@ -794,7 +848,12 @@ class MPC(Controller):
     statuses : list of str
         Solver status of each step (``"ok"`` or why the solution was rejected).
     fallbacks : list of dict
-        ``{"t", "reason"}`` for each step that applied the previous plan's next input.
+        ``{"t", "reason"}`` for each step that applied the previous plan's next input, ran without a reading
+        (rejected or missing: the plan ran on the prediction) or missed its sample (a non-finite motor
+        reading: zero torque).
+    reading_gate : tuple of float
+        The largest distance [rad] of a motor and of a load encoder reading from the shaft angle predicted
+        for it that the observer accepts (see *Readings* in the module docstring).
     n_cross : int
         Samples a planned crossing of the gap lasts (0 without backlash: nothing to cross).
 
@@ -844,6 +903,11 @@ class MPC(Controller):
         # (at most the horizon and one: a crossing the horizon cannot hold is planned as one that ends beyond it)
         self.n_cross = 0 if self._rigid else max(2, _samples(t_cross / Ts, n + 1))
         self.n_lead = self.n_cross // 2
+        # the readings' gate: along the line of action, what the torque limit can move the motor in one sample
+        # (from full torque one way to full the other) plus twice the lost motion (the gap prediction may be off
+        # by the whole gap, at an impact, and the backlash estimate by its size); on each shaft [rad]
+        gate = self._a_max * Ts * Ts + 4.0 * self._b
+        self.reading_gate = (gate / p.rb1, gate / p.rb2)
         # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
         self.n_p = 8 + 2 * n
@@ -1037,6 +1101,8 @@ class MPC(Controller):
         self._flank = 0  # target flank: +1 front, -1 back, 0 undecided
         self._gap_bounded = True  # whether the QP's upper row bounds hold a pattern's gap rows
         self._land: int | None = None
+        self._held = False  # holding at standstill (see _holding)
+        self._rejects = 0  # samples in a row whose readings the gate rejected
         self._k = 0
         self._p = np.zeros(self.n_p)
         self._ref: ReferenceLike | None = None
@@ -1067,22 +1133,57 @@ class MPC(Controller):
         self._win = win
         return 0
 
-    def _observe(self, y_motor: float, y_load: float | None) -> None:
-        """Update ``self._z = [phi, omega, s, v, d]`` from the encoders (scalar arithmetic: 5 states)."""
+    def _observe(self, y_motor: float, y_load: float | None) -> str | None:
+        """Update ``self._z = [phi, omega, s, v, d]`` from the encoders (scalar arithmetic: 5 states).
+
+        Returns why a reading was not used (a fallback to report), else None. A non-finite load reading is
+        a missing one: the motor encoder alone updates the estimate, as with ``feedback = "motor"``. A
+        finite reading whose innovation (the reading minus the predicted shaft angle) exceeds
+        :attr:`reading_gate` is rejected: the estimate is the prediction alone on that sample. A reading
+        rejected on more than :data:`_GATE_PERSIST` samples in a row is taken as the truth: the estimate
+        restarts from it, as on the first sample (speeds and disturbance zero).
+        """
         m, b, tol = self.model, self._b, self._tol
         load = y_load is not None and self.uses_load_encoder
+        note = None
+        if load and not math.isfinite(y_load):  # a missing load reading: the motor encoder alone
+            load, note = False, "load reading missing (non-finite): motor encoder alone"
         s_m = float(self._rb1 * y_motor - self._rb2 * y_load) if load else 0.0
         if self._z is None:  # first sample: at rest, the gap from the encoders (mid-gap without them)
             phi_m = y_motor - m.kappa1 * s_m
             self._z = np.array([phi_m, 0.0, 0.0 if self._rigid else s_m, 0.0, 0.0])
-            return
+            return note
         z, u = self._z, self._u
         phi, om, s, v, d = z.tolist()
         tau = self._tau_load + d
-        # gap, predicted with the separation model unless the encoders show contact now
+        # the prediction: the gap with the separation model, the centre of inertia as the rigid train (any mode)
         a0, a1, a2, a3, b0, b1, c0, c1, c2, c3, d0, d1 = self._gap_rows
         s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau
         v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau
+        k00, k01, k11, kb0, kb1, e0, e1 = self._centre_rows
+        phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau
+        om_p = k11 * om + kb1 * u + e1 * tau
+        # the gate: how far the readings are from the shaft angles the prediction puts them at
+        g1, g2 = self.reading_gate
+        bad = not abs(y_motor - (phi_p + m.kappa1 * s_p)) <= g1
+        if load and not abs(y_load - (phi_p / m.N - m.kappa2 * s_p)) <= g2:
+            bad = True
+        if bad:
+            self._rejects += 1
+            if self._rejects > _GATE_PERSIST:  # a reading that persists is the truth: start again from it
+                self._rejects = 0
+                self._z = None
+                self._observe(y_motor, y_load if load else None)
+                return "reading far from the prediction on more than 4 samples: estimate restarted from it"
+            if self._rigid:
+                s_n, v_n = 0.0, 0.0
+            else:  # the prediction alone, the gap pinned at the flank it reaches (as without a load encoder)
+                s_n, v_n = s_p, v_p
+                if abs(s_n) >= b - tol:
+                    s_n, v_n = math.copysign(b, s_n), 0.0
+            z[0], z[1], z[2], z[3], z[4] = phi_p, om_p, s_n, v_n, d
+            return "reading rejected (beyond reading_gate of the prediction): estimate predicted"
+        self._rejects = 0
         if self._rigid:  # no gap: the rigid train (the mesh deflection F / k is below the encoders' resolution)
             s_n, v_n = 0.0, 0.0
         elif load:
@@ -1112,31 +1213,37 @@ class MPC(Controller):
             s_n, v_n = s_p, v_p
             if abs(s_n) >= b - tol:
                 s_n, v_n = math.copysign(b, s_n), 0.0
-        # centre of inertia: rigid train, any mode
-        k00, k01, k11, b0, b1, e0, e1 = self._centre_rows
-        phi_p = k00 * phi + k01 * om + b0 * u + e0 * tau
-        om_p = k11 * om + b1 * u + e1 * tau
         phi_meas = (y_motor - m.kappa1 * s_n) if not load else (y_motor - m.kappa1 * s_m)
         inn = phi_meas - phi_p
         l0, l1, l2 = self._Lc
         z[0], z[1], z[2], z[3], z[4] = phi_p + l0 * inn, om_p + l1 * inn, s_n, v_n, d + l2 * inn
+        return note
 
     def _holding(self, i: int, z: NDArray[np.float64]) -> bool:
-        """Whether the plan holds its flank: the previewed reference rests and the load is within
-        ``standstill_deadband`` of it.
+        """Whether the plan holds at standstill (see *Standstill* in the module docstring).
 
-        At standstill a flank change is then never planned (no crossing decision in contact, no flip when
-        floating); a load that floats off its flank is met on the flank it drifts towards, which is the one
-        that can stop it. A larger error (a load disturbance, a move that ended badly) is corrected as in
-        motion, so the deadband bounds the hunting without bounding the correction.
+        True while the previewed reference rests, the load is slow (its speed would not take it a deadband
+        further within the horizon) and within ``standstill_deadband`` of the reference; once holding, within
+        :data:`_STANDSTILL_RELEASE` deadbands. A hold does not start during a landing planned in motion (its
+        landing-speed bound would shrink under it). Updates the hold flag.
         """
         win = self._win[i]
         n = self.N
         r = self._R[i]
         if win[n] != 0.0 or not (win[:n] == r).all():
+            self._held = False
             return False
-        theta2 = float(z[0]) / self.model.N - self.model.kappa2 * float(z[2])
-        return abs(r - theta2) <= self.settings.standstill_deadband
+        if not self._held and self._land is not None:  # a landing under way is finished first
+            return False
+        m = self.model
+        theta2 = float(z[0]) / m.N - m.kappa2 * float(z[2])
+        omega2 = float(z[1]) / m.N - m.kappa2 * float(z[3])
+        band = self.settings.standstill_deadband
+        slow = abs(omega2) * (n * self.Ts) <= band
+        if self._held:
+            band = _STANDSTILL_RELEASE * band
+        self._held = slow and abs(r - theta2) <= band
+        return self._held
 
     def _steps_to_land(self, s: float, flank: int, torque_share: float | None = None) -> int:
         """Samples to close the gap to ``flank`` from ``s``, accelerating then decelerating."""
@@ -1233,19 +1340,37 @@ class MPC(Controller):
         of a crossing centred there is solved too and the cheaper plan (full cost) is applied; a crossing
         that starts now is then committed. Floating (start-up, a bounce, a crossing) the QP of the
         landing pattern is solved, with a longer landing if that one is infeasible. Without backlash
-        (``backlash = 0``) only the rigid-train QP is solved, with the mesh torque unconstrained. The entry
-        in :attr:`solve_times` is the step's total QP time.
+        (``backlash = 0``) only the rigid-train QP is solved, with the mesh torque unconstrained. At standstill
+        the rules of *Standstill* in the module docstring apply (no flank change, one-sided targets, no torque
+        on a free load). The entry in :attr:`solve_times` is the step's total QP time.
+
+        A non-finite ``y_motor`` is a missed sample, as in the exported API: the torque is 0, the estimate and
+        the plan stay as they were, and the step is recorded in :attr:`fallbacks`. A missing (non-finite) or
+        wild load reading, or a wild motor reading, is handled by the observer (*Readings*).
         """
         t_step = time.perf_counter()
-        n, b = self.N, self._b
+        n = self.N
         i = self._preview(t, ref)
-        self._observe(y_motor, y_load)
+        if not math.isfinite(y_motor):  # a missed sample (as the exported API): zero torque, the state unchanged
+            self._k += 1
+            self.solve_times.append(0.0)
+            self.statuses.append("bad input")
+            self.fallbacks.append({"t": float(t), "reason": "non-finite motor reading: zero torque, state unchanged"})
+            self.step_times.append(time.perf_counter() - t_step)
+            return 0.0
+        note = self._observe(y_motor, y_load)
         z = self._z
         tau = self._tau_load + float(z[4])
+        # the QP sees angles from an origin, the reference at t: its data do not grow with the absolute angle
+        # (at 1e4 rad a double's spacing is 1.8e-12 rad; the QP's gradient would otherwise sum terms of the size of
+        # the angle times the tracking weight, which cancel), so a run at any offset equals the run at zero
+        origin = float(self._R[i])
         p = self._p
         p[:4] = z[:4]
+        p[0] = float(z[0]) - self._ratio * origin
         p[4] = tau
         p[6:7 + 2 * n] = self._win[i]  # r_1..r_N, r'_N, FF_0..FF_{N-1}
+        p[6:6 + n] -= origin
         p[self._ip_u] = self._u
         qp = self._qp
         qp.x0[:-1] = self._plan[1:]  # warm start: the previous plan, shifted
@@ -1262,7 +1387,20 @@ class MPC(Controller):
         self._v_land_now = _STANDSTILL_LANDING * self._v_land if hold else self._v_land
         if hold and self._land is None and side == -sig:  # at rest on the other flank: that flank now holds it
             self._flank = sig = side
-        if self._rigid:  # backlash-free: the rigid-train QP alone (no flank, no crossing, no landing)
+        if hold and sig * tau >= 0.0:  # no load torque presses the load onto this flank: hold the load where it
+            # is unless this flank can push it towards the reference (it cannot pull, nor let a load torque bring
+            # the load back)
+            theta2 = float(z[0]) / self.model.N - self.model.kappa2 * float(z[2])
+            if sig * (origin - theta2) < 0.0:
+                p[6:6 + n] = theta2 - origin
+        if (hold and abs(tau) < _HANDS_OFF_TORQUE * self._ratio * self._umax
+                and abs(self._u) <= _HANDS_OFF_LET_GO * self._umax):
+            # holding, no load torque to hold against and the plan has let go: no torque (see *Standstill*)
+            self._land = None
+            qp.x[:] = 0.0
+            qp.lam_x[:] = 0.0
+            status, solve_time = "ok", 0.0
+        elif self._rigid:  # backlash-free: the rigid-train QP alone (no flank, no crossing, no landing)
             key = self._all_contact
             status, solve_time, _ = self._solve(key, 0.0, 1)
         elif side != 0 and side == sig:  # in contact on the target flank: stay, or cross if that is cheaper
@@ -1293,12 +1431,7 @@ class MPC(Controller):
             # a quarter of the torque limit, and never in less than two samples (accelerate, then decelerate)
             if hold and side == 0 and self._land is None:  # at rest, floating (see _holding)
                 e, v = n + 1, float(z[3])
-                if v * sig < -_STANDSTILL_LANDING * self._v_land * b / self.Ts:
-                    # drifting off its flank towards the other: meet it there, slowly (the flank it approaches is
-                    # the one that can stop it), at the standstill landing speed
-                    self._flank = sig = -sig
-                    e = n  # the slowest landing the horizon holds
-                elif v != 0.0:  # the flank the gap closes on by itself, and when (else: wait)
+                if v != 0.0:  # the flank the gap closes on by itself, and when (else: wait)
                     fl = 1 if v > 0.0 else -1
                     e = max(1, _samples((fl * self._flanks[fl > 0] - s) / (v * self.Ts), n + 1))
                     if e <= n:
@@ -1334,9 +1467,11 @@ class MPC(Controller):
             self._plan[:] = qp.x
             self._lam[:] = qp.lam_x
             u = float(qp.x[0])
+            if note is not None:  # a reading missing or rejected: the plan ran on the prediction
+                self.fallbacks.append({"t": float(t), "reason": note})
         else:  # the previous plan's next input, saturated; a late plan still warm-starts the next one
             u = min(max(float(qp.x0[0]), -self._umax), self._umax)
-            self.fallbacks.append({"t": float(t), "reason": reason})
+            self.fallbacks.append({"t": float(t), "reason": reason if note is None else f"{reason}; {note}"})
             if status == "ok":
                 self._plan[:] = qp.x
                 self._lam[:] = qp.lam_x

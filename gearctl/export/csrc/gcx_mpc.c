@@ -1,8 +1,10 @@
 /* SPDX-License-Identifier: MIT -- part of gearctl, written for it. */
 /*
- * The backlash-aware MPC of gearctl/design/mpc.py in C99: the two steady-state observers, the mode-pattern
- * choice (stay on the flank, cross, land; the standstill hold), one dense QP per pattern solved by
- * gearctl_qp (the solver the Python MPC calls), the fallback. Each function mirrors the Python method of
+ * The backlash-aware MPC of gearctl/design/mpc.py in C99: the two steady-state observers (with the readings'
+ * gate), the mode-pattern choice (stay on the flank, cross, land; the standstill hold), one dense QP per
+ * pattern solved by gearctl_qp (the solver the Python MPC calls; its angles from the reference at t), the
+ * fallback. A non-finite y[0] never reaches this code (gearctl_ctrl_step's bad input, as MPC.step's missed
+ * sample); a non-finite y[1] is a missing load reading. Each function mirrors the Python method of
  * the same name (_observe, _holding, _steps_to_land, _solve, _land_on, step); the scalar arithmetic is the
  * Python's in the same order. The Python forms the QP gradient and bounds with gearctl_qp_matvec (each row
  * summed in index order), this file with loops over the nonzero entries in the same order (a zero term adds
@@ -24,6 +26,10 @@
 #define GCX_CROSS_MARGIN 2e-3 /* mpc.py: _CROSS_MARGIN */
 #define GCX_FLIP_MARGIN 0.1   /* mpc.py: _FLIP_MARGIN */
 #define GCX_STANDSTILL 0.05   /* mpc.py: _STANDSTILL_LANDING */
+#define GCX_RELEASE 3.0       /* mpc.py: _STANDSTILL_RELEASE */
+#define GCX_HANDS_OFF 0.01    /* mpc.py: _HANDS_OFF_TORQUE */
+#define GCX_LET_GO 1e-3       /* mpc.py: _HANDS_OFF_LET_GO */
+#define GCX_GATE_PERSIST 4    /* mpc.py: _GATE_PERSIST */
 
 /* MPC.reset */
 GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
@@ -44,27 +50,65 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
     }
     for (int i = 0; i < n + 2; i++) S->uba[i] = GCX_INF;
     S->factor_q = S->rows_q = -1;
+    S->held = 0;
+    S->rejects = 0;
+    /* the readings' gate (MPC.reading_gate): along the line of action, a sample of full torque and twice the
+     * lost motion, on each shaft [rad] */
+    double gate = P->a_max * P->Ts * P->Ts + 4.0 * P->b;
+    S->gate[0] = gate / P->rb1;
+    S->gate[1] = gate / P->rb2;
 }
 
-/* MPC._observe: z = [phi, omega, s, v, d] from the encoders (load: the load encoder is used) */
-GCX_FN void gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, double y_load, int load) {
+/* MPC._observe: z = [phi, omega, s, v, d] from the encoders. A non-finite load reading is a missing one (the
+ * motor encoder alone); a reading farther from its predicted shaft angle than the gate is rejected (the
+ * prediction alone), and one rejected on more than GCX_GATE_PERSIST samples in a row restarts the estimate.
+ * Returns 1 when a reading was missing or rejected (the step reports a fallback), else 0. */
+GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, double y_load) {
     double b = P->b, tol = P->tol;
+    int load = P->uses_load && isfinite(y_load);
+    int note = P->uses_load && !load;
     double s_m = load ? P->rb1 * y_motor - P->rb2 * y_load : 0.0;
     if (!S->z_set) { /* first sample: at rest, the gap from the encoders (mid-gap without them) */
         double phi_m = y_motor - P->kappa1 * s_m;
         S->z[0] = phi_m, S->z[1] = 0.0, S->z[2] = P->rigid ? 0.0 : s_m, S->z[3] = 0.0, S->z[4] = 0.0;
         S->z_set = 1;
-        return;
+        return note;
     }
     double u = S->u;
     double phi = S->z[0], om = S->z[1], s = S->z[2], v = S->z[3], d = S->z[4];
     double tau = P->tau_load + d;
+    /* the prediction: the gap with the separation model, the centre of inertia as the rigid train (any mode) */
     const double *gr = P->gap_rows;
     double a0 = gr[0], a1 = gr[1], a2 = gr[2], a3 = gr[3], b0 = gr[4], b1 = gr[5];
     double c0 = gr[6], c1 = gr[7], c2 = gr[8], c3 = gr[9], d0 = gr[10], d1 = gr[11];
     double s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau;
     double v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau;
+    const double *cr = P->centre_rows;
+    double k00 = cr[0], k01 = cr[1], k11 = cr[2], kb0 = cr[3], kb1 = cr[4], e0 = cr[5], e1 = cr[6];
+    double phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau;
+    double om_p = k11 * om + kb1 * u + e1 * tau;
+    /* the gate: how far the readings are from the shaft angles the prediction puts them at */
+    int bad = !(fabs(y_motor - (phi_p + P->kappa1 * s_p)) <= S->gate[0]);
+    if (load && !(fabs(y_load - (phi_p / P->ratio - P->kappa2 * s_p)) <= S->gate[1])) bad = 1;
     double s_n, v_n;
+    if (bad) {
+        S->rejects += 1;
+        if (S->rejects > GCX_GATE_PERSIST) { /* a reading that persists is the truth: start again from it */
+            S->rejects = 0;
+            S->z_set = 0;
+            gcx_mpc_observe(P, S, y_motor, load ? y_load : NAN);
+            return 1;
+        }
+        if (P->rigid) {
+            s_n = 0.0, v_n = 0.0;
+        } else { /* the prediction alone, the gap pinned at the flank it reaches */
+            s_n = s_p, v_n = v_p;
+            if (fabs(s_n) >= b - tol) s_n = copysign(b, s_n), v_n = 0.0;
+        }
+        S->z[0] = phi_p, S->z[1] = om_p, S->z[2] = s_n, S->z[3] = v_n, S->z[4] = d;
+        return 1;
+    }
+    S->rejects = 0;
     if (P->rigid) {
         s_n = 0.0, v_n = 0.0;
     } else if (load) {
@@ -79,8 +123,11 @@ GCX_FN void gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, do
         } else if (a_s >= S->reach[k] - tol) {
             S->revisits[k] += 1;
         }
-        if (S->revisits[k] >= 2 && 0.5 * b < S->reach[k] && S->reach[k] < P->learn_below)
+        if (S->reach[k] >= P->learn_below) { /* the gap reached the flank the estimate puts there */
+            fl = S->flanks[k] = b;
+        } else if (S->revisits[k] >= 2 && S->reach[k] > 0.5 * b) {
             fl = S->flanks[k] = S->reach[k];
+        }
         if (fabs(s_m) >= fl - tol) { /* contact: the reduced model's plastic impact */
             s_n = s_m, v_n = 0.0;
         } else {
@@ -92,26 +139,34 @@ GCX_FN void gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, do
         s_n = s_p, v_n = v_p;
         if (fabs(s_n) >= b - tol) s_n = copysign(b, s_n), v_n = 0.0;
     }
-    const double *cr = P->centre_rows; /* centre of inertia: rigid train, any mode */
-    double k00 = cr[0], k01 = cr[1], k11 = cr[2], bb0 = cr[3], bb1 = cr[4], e0 = cr[5], e1 = cr[6];
-    double phi_p = k00 * phi + k01 * om + bb0 * u + e0 * tau;
-    double om_p = k11 * om + bb1 * u + e1 * tau;
     double phi_meas = !load ? (y_motor - P->kappa1 * s_n) : (y_motor - P->kappa1 * s_m);
     double inn = phi_meas - phi_p;
     const double *L = P->Lc;
     S->z[0] = phi_p + L[0] * inn, S->z[1] = om_p + L[1] * inn, S->z[2] = s_n, S->z[3] = v_n;
     S->z[4] = d + L[2] * inn;
+    return note;
 }
 
-/* MPC._holding: the previewed reference rests and the load is within the deadband of it */
-GCX_FN int gcx_mpc_holding(const gcx_mpc_p *P, const gcx_mpc_s *S, const double *ref) {
+/* MPC._holding: the previewed reference rests, the load is slow and within the deadband of it (once holding:
+ * within GCX_RELEASE deadbands); updates the hold flag */
+GCX_FN int gcx_mpc_holding(const gcx_mpc_p *P, gcx_mpc_s *S, const double *ref) {
     const int n = GCX_MPC_N;
     double r = ref[0];
-    if (ref[3 * n + 1] != 0.0) return 0;
-    for (int k = 1; k <= n; k++)
-        if (!(ref[3 * k] == r)) return 0;
+    int rests = ref[3 * n + 1] == 0.0;
+    for (int k = 1; k <= n && rests; k++)
+        if (!(ref[3 * k] == r)) rests = 0;
+    if (!rests) {
+        S->held = 0;
+        return 0;
+    }
+    if (!S->held && S->has_land) return 0; /* a landing under way is finished first */
     double theta2 = S->z[0] / P->ratio - P->kappa2 * S->z[2];
-    return fabs(r - theta2) <= P->deadband;
+    double omega2 = S->z[1] / P->ratio - P->kappa2 * S->z[3];
+    double band = P->deadband;
+    int slow = fabs(omega2) * (n * P->Ts) <= band;
+    if (S->held) band = GCX_RELEASE * band;
+    S->held = slow && fabs(r - theta2) <= band;
+    return S->held;
 }
 
 /* MPC._steps_to_land */
@@ -228,19 +283,19 @@ GCX_FN int gcx_mpc_land_on(const gcx_mpc_p *P, gcx_mpc_s *S, int flank, int e, d
     return status;
 }
 
-/* MPC.step; returns 1 when the solve failed and the previous plan's next input was applied */
+/* MPC.step; returns 1 when the solve failed and the previous plan's next input was applied, or a reading
+ * was missing or rejected (the plan ran on the prediction) */
 GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double y[2], const double *ref,
                        double *u_out) {
     (void)k;
     const int n = GCX_MPC_N;
-    double b = P->b;
-    int load = P->uses_load && !isnan(y[1]);
-    gcx_mpc_observe(P, S, y[0], y[1], load);
+    int note = gcx_mpc_observe(P, S, y[0], y[1]);
     double *z = S->z, *p = S->p;
     double tau = P->tau_load + z[4];
-    p[0] = z[0], p[1] = z[1], p[2] = z[2], p[3] = z[3];
+    double origin = ref[0]; /* the QP's angles from the reference at t: the same data at any offset */
+    p[0] = z[0] - P->ratio * origin, p[1] = z[1], p[2] = z[2], p[3] = z[3];
     p[4] = tau;
-    for (int i = 0; i < n; i++) p[6 + i] = ref[3 * (i + 1)]; /* r_1 .. r_N */
+    for (int i = 0; i < n; i++) p[6 + i] = ref[3 * (i + 1)] - origin; /* r_1 .. r_N */
     p[6 + n] = ref[3 * n + 1];                                 /* r'_N */
     for (int i = 0; i < n; i++) p[7 + n + i] = P->ratio * (P->J_eq * ref[3 * i + 2] + P->d_eq * ref[3 * i + 1]);
     p[7 + 2 * n] = S->u;
@@ -254,8 +309,19 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
     int hold = !P->rigid && gcx_mpc_holding(P, S, ref);
     S->v_land_now = hold ? GCX_STANDSTILL * P->v_land : P->v_land;
     if (hold && !S->has_land && side == -sig) S->flank = sig = side; /* at rest on the other flank */
+    if (hold && sig * tau >= 0.0) { /* no load torque presses the load onto this flank: hold it where it is
+                                     * unless this flank can push it towards the reference */
+        double theta2 = z[0] / P->ratio - P->kappa2 * z[2];
+        if (sig * (origin - theta2) < 0.0)
+            for (int i = 0; i < n; i++) p[6 + i] = theta2 - origin;
+    }
     int status;
-    if (P->rigid) { /* backlash-free: the rigid-train QP alone */
+    if (hold && fabs(tau) < GCX_HANDS_OFF * P->ratio * P->umax && fabs(S->u) <= GCX_LET_GO * P->umax) {
+        /* no load torque to hold against and the plan has let go: no torque */
+        S->has_land = 0;
+        for (int i = 0; i < n; i++) S->x[i] = 0.0, S->lam_x[i] = 0.0;
+        status = 0;
+    } else if (P->rigid) { /* backlash-free: the rigid-train QP alone */
         status = gcx_mpc_solve(P, S, P->all_contact, 0.0, 1);
     } else if (side != 0 && side == sig) { /* in contact on the target flank: stay, or cross if cheaper */
         S->has_land = 0;
@@ -297,10 +363,7 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
         if (hold && side == 0 && !S->has_land) { /* at rest, floating */
             double v = z[3];
             e = n + 1;
-            if (v * sig < -GCX_STANDSTILL * P->v_land * b / P->Ts) { /* drifting off towards the other flank */
-                S->flank = sig = -sig;
-                e = n;
-            } else if (v != 0.0) { /* the flank the gap closes on by itself, and when */
+            if (v != 0.0) { /* the flank the gap closes on by itself, and when (else: wait) */
                 int fl = v > 0.0 ? 1 : -1;
                 double c = ceil((fl * S->flanks[fl > 0] - s) / (v * P->Ts));
                 e = (int)gcx_min((double)(n + 1), gcx_max(1.0, c));
@@ -347,5 +410,5 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
     S->u = u;
     if (S->has_land) S->land -= 1;
     *u_out = u;
-    return flag;
+    return flag || note; /* a missing or rejected reading is reported as a fallback too */
 }

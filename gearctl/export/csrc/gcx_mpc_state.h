@@ -11,6 +11,9 @@ typedef struct {
     double flanks[2], reach[2]; /* the flanks learned from the gap, the furthest it has been [m] */
     int revisits[2];
     int z_set, flank, land, has_land;
+    int held;               /* holding at standstill (MPC._held) */
+    int rejects;            /* samples in a row whose readings the gate rejected */
+    double gate[2];         /* the readings' gate on the motor and the load shaft [rad] */
     /* QP buffers */
     double g[GCX_MPC_N], lbx[GCX_MPC_N], ubx[GCX_MPC_N], lba[GCX_MPC_N + 2], uba[GCX_MPC_N + 2];
     double x[GCX_MPC_N], lam_x[GCX_MPC_N], lam_a[GCX_MPC_N + 2], cost;
