@@ -55,6 +55,18 @@ the encoders' resolution) and the gap filter is not designed; the centre-of-iner
 load-disturbance estimate, still gives the integral action. The landing settings are then unused.
 Solve-time recording, fallbacks, overrun handling and the solver path are those of ``b > 0``.
 
+The same rigid design is taken for a gap the plan cannot resolve (:attr:`MPC.rigid_reason`, ``describe()``'s
+``gap_model``): one the motor crosses within two samples at the crossing's quarter of the torque limit, or, with
+the load encoder, one whose contact tolerance (at least three times the measured gap's noise std, from
+``measurement_noise``) would exceed half of it. Why: on ``shing1993_servo`` the gap design with b = 1e-7 to 1e-5
+m landed every sample and flipped its flank every sample (sine RMS 2.7e-5, 0.012, 0.30, 0.88, 7.3e-5 rad for b =
+1e-7, 1e-6, 3e-6, 5e-6, 1e-5; ``precision`` with 3e-6: A = 2.3 rad); the rigid design gives 9.2e-7, 3.5e-6,
+1.0e-5, 1.7e-5, 3.3e-5 (A = 3.9e-5 rad), an error that falls smoothly with b to that of b = 0 (8.4e-7). From
+2e-5 m (2.6 samples) the gap design is the better one (8.3e-6 against 6.5e-5 rad). A watch pair (1e-5 N m, 5 um)
+is rigid by the same rule (0.85 samples). Where the gap design is kept, a ``smoothing`` above half the mesh torque
+the torque limit gives the load (``J2 N u_max / (N^2 J1 + J2)``) is an :class:`~gearctl.errors.InputError`: every
+landing plan would be infeasible (before: "gearctl QP: infeasible" on every step, the load never moved).
+
 Notes
 -----
 *Mode-switched model rather than a smooth contact law.* The mesh mode (2.8 kHz on the benchmark servo,
@@ -183,6 +195,22 @@ non-finite load reading is a missing one (the motor encoder alone, as with ``fee
 reported; a non-finite motor reading is a missed sample, as in the exported API (zero torque, the estimate
 and plan unchanged, reported). Before, one reading of 1e300 rad drove the estimate off and the load 116 rad
 away within a second (the exported C: 455 rad in 2 s).
+
+*A fault.* Three restarts of the estimate within 1000 samples (:data:`_FAULT_RESTARTS`, :data:`_FAULT_WINDOW`)
+mean that the readings follow no motion the model allows (encoders far too coarse for the torque limit, a broken
+one): :attr:`MPC.fault` latches until :meth:`MPC.reset`, every step is reported in ``fallbacks``, and the motor is
+braked to rest from its own reading's changes (the speed from two changes in the same direction, decaying as the
+braking takes it, time constant :data:`_BRAKE_TIME`), then the torque is zero. Why: with 16 and 4 counts per
+revolution the plan ran on predictions restarted at rest from the readings and drove the load 2.9 rad away (the
+review: 43 rad); zero torque at the fault let it coast 14.6 rad. Now it stops within 0.43 rad. A load torque still
+moves a faulted drive (the brake is a damper, not a position hold).
+
+*Crossings.* A crossing still on its old flank (the gap has not left it) is re-decided every sample: the plan that
+stays in contact there is solved too and taken if it is cheaper by :data:`_CROSS_MARGIN`. Why: on
+``servo_3stage_quanser_srv02``'s step the 0.5 N m load step (the drive holds 0.54 N m at the load) arrived just
+after the plan had committed to the back flank; the load torque held the gap shut on the front flank, the plan
+only counted down a landing that could not happen, and the load ran off to 31 rad. Now 7.9e-3 rad at most, back
+to 4.7e-7 rad.
 
 *Angles.* The QP's parameters hold angles from an origin, the reference at ``t``: the estimate's motor-side
 angle ``phi - N r(t)`` and the previewed ``r_k - r(t)``. Fed absolute angles, the QP's gradient summed terms
@@ -789,6 +817,12 @@ _STANDSTILL_RELEASE = 3.0  # a hold lasts while a slow load stays within this ma
 _HANDS_OFF_TORQUE = 0.01  # holding, no torque while the load torque estimate is below this share of N x limit
 _HANDS_OFF_LET_GO = 1e-3  # ... and once the plan's torque has come down to this share of the limit
 _GATE_PERSIST = 4  # a reading beyond the gate on more samples in a row than this is taken as the truth
+_FAULT_RESTARTS = 3  # this many restarts of the estimate within _FAULT_WINDOW samples latch a fault (zero torque)
+_FAULT_WINDOW = 1000
+_BRAKE_TIME = 0.02  # after a fault the motor is braked to rest with this time constant [s], then the torque is zero
+_RIGID_SAMPLES = 2.0  # a gap crossed within this many samples (at _CROSS_SHARE of the limit) is designed rigid
+_GAP_NOISE_TOL = 3.0  # the contact tolerance is at least this many times the measured gap's noise std
+_SMOOTHING_SHARE = 0.5  # smoothing may be at most this share of the mesh torque the torque limit gives the load
 
 
 def _samples(steps: float, cap: int) -> int:
@@ -856,6 +890,11 @@ class MPC(Controller):
         for it that the observer accepts (see *Readings* in the module docstring).
     n_cross : int
         Samples a planned crossing of the gap lasts (0 without backlash: nothing to cross).
+    rigid_reason : str
+        Why the plan is the rigid train's (backlash estimate 0, a gap crossed within two samples, or one below
+        the encoders' noise), ``""`` for the gap model.
+    fault : str
+        Why the controller stopped (see *A fault* in the module docstring), ``""`` while it runs.
 
     Raises
     ------
@@ -882,12 +921,6 @@ class MPC(Controller):
         self.N = n = st.horizon
         self.preview = n + 1  # reference samples a step reads: r(t) .. r(t + N Ts)
         self._b = st.backlash
-        self._rigid = st.backlash == 0.0  # backlash-free: one rigid train, the mesh pushes and pulls
-        self._tol = contact_tolerance(info) * st.backlash  # contact when |s| >= b - tol
-        # a flank is taken where the gap turns back only that far short of b: below the contact tolerance, and
-        # on a train also below what the floating intermediate shafts alone leave it short by (the tolerance's
-        # share beyond a pair's)
-        self._learn_below = st.backlash - self._tol - (self._tol - 0.02 * st.backlash)
         self._umax = min(info.torque_limit, 1e6)
         # torques are weighed, and the observer's process noise is stated, as shares of the torque limit
         lim = info.torque_limit
@@ -896,10 +929,32 @@ class MPC(Controller):
         self._ratio = info.N
         self._rb1, self._rb2 = p.rb1, p.rb2
         self.model = _gap_model(info, Ts)
-        # crossing: the lost motion 2b, a quarter of the torque limit accelerating then decelerating the
-        # motor alone (none without backlash)
+        # crossing: the lost motion 2b, a quarter of the torque limit accelerating then decelerating the motor alone
         self._a_max = p.rb1 * self._umax / p.J1  # relative acceleration at full torque [m/s^2]
         t_cross = 2.0 * math.sqrt(2 * self._b / (_CROSS_SHARE * self._a_max))
+        # contact when |s| >= b - tol; with the load encoder, tol is at least three times the noise of the measured
+        # gap (else, with a small b, the reading's noise alone makes contact come and go)
+        self._tol = contact_tolerance(info) * st.backlash
+        if st.feedback == "load":
+            self._tol = max(self._tol, _GAP_NOISE_TOL * st.measurement_noise * math.hypot(p.rb1, p.rb2))
+        # backlash-free (the rigid train, the mesh pushes and pulls): b = 0, or a gap the plan cannot resolve in time
+        # (crossed within _RIGID_SAMPLES samples) or the encoders in position (contact bands over half of it)
+        self.rigid_reason = ("backlash estimate 0" if st.backlash == 0.0 else
+                             f"the lost motion is crossed in {t_cross / Ts:.2g} samples at {_CROSS_SHARE:g} x the "
+                             f"torque limit (at most {_RIGID_SAMPLES})" if t_cross <= _RIGID_SAMPLES * Ts else
+                             f"the measured gap's noise ({self._tol / _GAP_NOISE_TOL:.2g} m std, from "
+                             f"measurement_noise) is over b / {2 * _GAP_NOISE_TOL:g}" if self._tol > 0.5 * st.backlash
+                             else "")
+        self._rigid = bool(self.rigid_reason)
+        # a flank is taken where the gap turns back only that far short of b: below the contact tolerance, and
+        # on a train also below what the floating intermediate shafts alone leave it short by (the tolerance's
+        # share beyond a pair's)
+        self._learn_below = st.backlash - self._tol - (self._tol - 0.02 * st.backlash)
+        if not self._rigid and st.smoothing > _SMOOTHING_SHARE * self._mesh_torque_max():
+            raise InputError(f"smoothing = {st.smoothing:.3g} N m is out of range for this plant: a landing must leave "
+                             f"it on the flank, and the torque limit gives the load at most "
+                             f"{self._mesh_torque_max():.3g} N m of mesh torque; expected <= "
+                             f"{_SMOOTHING_SHARE * self._mesh_torque_max():.3g} N m", field="smoothing")
         # (at most the horizon and one: a crossing the horizon cannot hold is planned as one that ends beyond it)
         self.n_cross = 0 if self._rigid else max(2, _samples(t_cross / Ts, n + 1))
         self.n_lead = self.n_cross // 2
@@ -927,6 +982,12 @@ class MPC(Controller):
         self.statuses: list[str] = []
         self.step_times: list[float] = []
         self.reset()
+
+    def _mesh_torque_max(self) -> float:
+        """Mesh torque on the load [N m] the torque limit gives the rigid train at rest, without load torque:
+        ``J2 N u_max / (N^2 J1 + J2)`` (the share of the motor's torque that accelerates the load)."""
+        p, N = self.info.plant, self._ratio
+        return p.J2 * N * self._umax / (N * N * p.J1 + p.J2)
 
     # -- offline: condensing ------------------------------------------------------------------------------
     def _condense(self, a: int, e: int) -> _Pattern:
@@ -1103,6 +1164,10 @@ class MPC(Controller):
         self._land: int | None = None
         self._held = False  # holding at standstill (see _holding)
         self._rejects = 0  # samples in a row whose readings the gate rejected
+        self._restarts = [-_FAULT_WINDOW] * _FAULT_RESTARTS  # the samples of the last restarts of the estimate
+        self._n_obs = 0  # samples observed (finite motor readings)
+        self.fault = ""  # why the controller stopped (braking, then zero torque, until reset), "" while it runs
+        self._brake = [0.0, 0, 0.0, 0.0]  # after a fault: last motor reading, its sample, its step, the speed [rad/s]
         self._k = 0
         self._p = np.zeros(self.n_p)
         self._ref: ReferenceLike | None = None
@@ -1174,6 +1239,14 @@ class MPC(Controller):
                 self._rejects = 0
                 self._z = None
                 self._observe(y_motor, y_load if load else None)
+                # restarting again and again: the readings do not follow any motion the model allows (an encoder
+                # too coarse for the torque limit, a broken one): stop, rather than drive on predictions
+                del self._restarts[0]
+                self._restarts.append(self._n_obs)
+                if self._n_obs - self._restarts[0] < _FAULT_WINDOW:
+                    self.fault = (f"fault: the estimate restarted {_FAULT_RESTARTS} times within "
+                                  f"{self._n_obs - self._restarts[0] + 1} samples (the readings follow no motion the "
+                                  f"model allows: encoders too coarse, or broken): zero torque from now on")
                 return "reading far from the prediction on more than 4 samples: estimate restarted from it"
             if self._rigid:
                 s_n, v_n = 0.0, 0.0
@@ -1218,6 +1291,26 @@ class MPC(Controller):
         l0, l1, l2 = self._Lc
         z[0], z[1], z[2], z[3], z[4] = phi_p + l0 * inn, om_p + l1 * inn, s_n, v_n, d + l2 * inn
         return note
+
+    def _brake_torque(self, y_motor: float) -> float:
+        """Torque after a fault [N m]: the motor's speed from the changes of its reading alone (the estimate is not
+        trusted), braked with the time constant :data:`_BRAKE_TIME`; zero once the reading stops changing.
+
+        The speed is the last change of the reading over the samples it took, if the change before was in the
+        same direction (else the shaft turned round at a count's edge: zero); while the reading stands still it
+        is at most that change over the samples since (so it decays to zero at rest).
+        """
+        y0, k0, dy, w = self._brake
+        n = self._n_obs
+        if n == self._restarts[-1]:  # the sample of the fault: the reading's origin
+            y0, k0, dy, w = y_motor, n, 0.0, 0.0
+        elif y_motor != y0:  # a change in the direction of the last one: a speed; else it turned at an edge
+            w = (y_motor - y0) / ((n - k0) * self.Ts) if (y_motor - y0) * dy > 0.0 else 0.0
+            dy, y0, k0 = y_motor - y0, y_motor, n
+        else:  # what the braking leaves of it, and at most the last change over the samples since
+            w = math.copysign(min(abs(w) * (1.0 - self.Ts / _BRAKE_TIME), abs(dy) / ((n - k0) * self.Ts)), w)
+        self._brake[:] = (y0, k0, dy, w)
+        return min(max(-self.info.J_eq * w / _BRAKE_TIME, -self._umax), self._umax)
 
     def _holding(self, i: int, z: NDArray[np.float64]) -> bool:
         """Whether the plan holds at standstill (see *Standstill* in the module docstring).
@@ -1358,7 +1451,18 @@ class MPC(Controller):
             self.fallbacks.append({"t": float(t), "reason": "non-finite motor reading: zero torque, state unchanged"})
             self.step_times.append(time.perf_counter() - t_step)
             return 0.0
-        note = self._observe(y_motor, y_load)
+        self._n_obs += 1
+        note = self._observe(y_motor, y_load) if not self.fault else None
+        if self.fault:  # latched (see *Readings*): the motor braked to rest, reported on every step
+            u = self._brake_torque(y_motor)
+            self._k += 1
+            self._u = u
+            self._plan[:] = 0.0
+            self.solve_times.append(0.0)
+            self.statuses.append("fault")
+            self.fallbacks.append({"t": float(t), "reason": self.fault})
+            self.step_times.append(time.perf_counter() - t_step)
+            return u
         z = self._z
         tau = self._tau_load + float(z[4])
         # the QP sees angles from an origin, the reference at t: its data do not grow with the absolute angle
@@ -1439,6 +1543,15 @@ class MPC(Controller):
             else:
                 e = max(self._land, 1) if self._land is not None else max(self._steps_to_land(s, sig), 2)
             status, solve_time, cost, key = self._land_on(sig, e, s)
+            if side == -sig and not hold:  # the crossing has not left the old flank: staying there may be cheaper
+                # now (a load torque pressing the load onto it: the crossing would never happen; see *Crossings*)
+                self._set_aside()
+                st2, dt, cost2 = self._solve(self._all_contact, side * self._flanks[side > 0], side, True)
+                solve_time += dt
+                if st2 == "ok" and (status != "ok" or cost2 < cost - _CROSS_MARGIN * abs(cost)):
+                    status, key, self._flank, sig = st2, self._all_contact, side, side
+                else:
+                    self._restore()
             if side == 0 and not hold:
                 self._set_aside()
                 e2 = max(self._steps_to_land(s, -sig), 2)
@@ -1449,7 +1562,9 @@ class MPC(Controller):
                     self._land = key2[1]
                 else:
                     self._restore()
-            if status == "ok":  # the landing actually planned (it may have been put off), counted down from now
+            if key == self._all_contact:  # the crossing given up: in contact on the old flank
+                self._land = None
+            elif status == "ok":  # the landing actually planned (it may have been put off), counted down from now
                 self._land = key[1] if key[1] <= n or not hold else None  # waiting at rest is not a landing
         self.solve_times.append(solve_time)
         if self._k in self.inject_failures:
@@ -1491,4 +1606,5 @@ class MPC(Controller):
         d = dataclasses.asdict(self.settings)
         return {"name": self.name, "kind": "mpc", "Ts": self.Ts, "preview": self.preview, **d,
                 "qp_solver": self._qp.plugin, "compiled": self._qp.compiled, "solver_note": self._qp.note,
-                "crossing_samples": self.n_cross, "patterns": len(self._patterns)}
+                "crossing_samples": self.n_cross, "patterns": len(self._patterns),
+                "gap_model": "rigid" if self._rigid else "gap", "rigid_reason": self.rigid_reason}

@@ -1,5 +1,6 @@
 
 #ifdef GCX_MPC_N
+#define GCX_FAULT_RESTARTS 3 /* mpc.py: _FAULT_RESTARTS */
 /* backlash-aware MPC (gearctl/design/mpc.py: MPC): observer, plan, flank schedule, the QP's buffers */
 typedef struct {
     double z[5];            /* observer [phi, omega, s, v, d] */
@@ -14,6 +15,11 @@ typedef struct {
     int held;               /* holding at standstill (MPC._held) */
     int rejects;            /* samples in a row whose readings the gate rejected */
     double gate[2];         /* the readings' gate on the motor and the load shaft [rad] */
+    int64_t n_obs;          /* samples observed (MPC._n_obs) */
+    int64_t restarts[GCX_FAULT_RESTARTS]; /* the samples of the last restarts of the estimate */
+    int fault;              /* latched: the motor braked, then zero torque (MPC.fault) */
+    double brake_y, brake_dy, brake_w; /* after a fault: last motor reading, its step, the speed (MPC._brake) */
+    int64_t brake_k;        /* the sample of the last motor reading's change */
     /* QP buffers */
     double g[GCX_MPC_N], lbx[GCX_MPC_N], ubx[GCX_MPC_N], lba[GCX_MPC_N + 2], uba[GCX_MPC_N + 2];
     double x[GCX_MPC_N], lam_x[GCX_MPC_N], lam_a[GCX_MPC_N + 2], cost;
