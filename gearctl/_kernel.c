@@ -61,6 +61,8 @@
  * rounding, and the shaft would chatter between sticking and slipping at one instant. */
 #define HOLD_ROUNDING 1e-10
 #define NEV_MAX (2 * GC_MAX_STAGES + 2 * (GC_MAX_STAGES + 1))
+/* the load angle's origin of a call is a whole multiple of this [rad] (see gc_step) */
+#define ORIGIN_QUANTUM 1.0
 
 /* counters per stage (st->counts[GC_NCOUNT * i + ...]) */
 #define CT_IMPACT_FRONT 0
@@ -159,7 +161,7 @@ static double table_k(const gc_params *p, long i, double theta) {
 /* Contact force of stage i along its line of action, signed like the front flank's (eq 3 / eq 10 /
  * Yang-Sun). The one C statement of the law; gearctl/plant.py: mesh_force is the Python one, and
  * tests/test_kernel.py checks that they agree (gc_force below). */
-static double force(const gc_params *p, long i, int mode, double d_ys, const double *x) {
+static double force(const gc_params *p, const double *org, long i, int mode, double d_ys, const double *x) {
     if (mode == 0) return 0.0;
     double s = s_of(p, i, x), v = v_of(p, i, x);
     double sigma = (double)sgn_mode(mode);
@@ -168,7 +170,8 @@ static double force(const gc_params *p, long i, int mode, double d_ys, const dou
     if (p->kind == 1) {
         F = (d_ys * ddelta + p->k[i]) * delta; /* Yang-Sun: F = (d x' + k) x */
     } else {
-        double kk = p->kind == 2 ? table_k(p, i, x[i]) : p->k[i];
+        /* the stiffness follows the absolute angle: the call's origin added back (gc_step) */
+        double kk = p->kind == 2 ? table_k(p, i, org ? x[i] + org[i] : x[i]) : p->k[i];
         F = kk * delta + p->c[i] * ddelta;
     }
     if (p->law == 1 && F < 0.0) F = 0.0;
@@ -177,7 +180,7 @@ static double force(const gc_params *p, long i, int mode, double d_ys, const dou
 
 /* exported for the test that the C and the Python force laws agree */
 double gc_force(const gc_params *p, long i, int mode, double d_ys, const double *x) {
-    return force(p, i, mode, d_ys, x);
+    return force(p, NULL, i, mode, d_ys, x);
 }
 
 /* Acceleration of the gap s_i with stage i's force left out (it vanishes at the boundary): the
@@ -197,8 +200,9 @@ static double free_gap_accel(const gc_params *p, const gc_state *st, long i, con
         if (j == p->ns) T += u2;
         if (p->friction == 1 && (st->slip[j] == 1 || st->slip[j] == -1)) T -= p->tc[j] * st->slip[j];
         /* the neighbouring stages' forces (not stage i's) */
-        if (j >= 1 && j - 1 != i) T += p->rb2[j - 1] * force(p, j - 1, st->mode[j - 1], st->d_ys[j - 1], x);
-        if (j < p->ns && j != i) T -= p->rb1[j] * force(p, j, st->mode[j], st->d_ys[j], x);
+        if (j >= 1 && j - 1 != i)
+            T += p->rb2[j - 1] * force(p, st->org, j - 1, st->mode[j - 1], st->d_ys[j - 1], x);
+        if (j < p->ns && j != i) T -= p->rb1[j] * force(p, st->org, j, st->mode[j], st->d_ys[j], x);
         acc[q] = T / p->J[j];
     }
     return p->rb1[i] * acc[0] - p->rb2[i] * acc[1];
@@ -234,12 +238,12 @@ static double held_torque(const gc_params *p, const gc_state *st, long j, const 
     if (j == p->ns) T += u2;
     *scale = fabs(T);
     if (j >= 1) {
-        double tq = p->rb2[j - 1] * force(p, j - 1, st->mode[j - 1], st->d_ys[j - 1], x);
+        double tq = p->rb2[j - 1] * force(p, st->org, j - 1, st->mode[j - 1], st->d_ys[j - 1], x);
         T += tq;
         *scale += fabs(tq);
     }
     if (j < p->ns) {
-        double tq = p->rb1[j] * force(p, j, st->mode[j], st->d_ys[j], x);
+        double tq = p->rb1[j] * force(p, st->org, j, st->mode[j], st->d_ys[j], x);
         T -= tq;
         *scale += fabs(tq);
     }
@@ -718,7 +722,7 @@ static double long_try(const gc_params *p, const gc_state *st, long slot, int l,
     return 1.0;
 }
 
-int gc_advance_pwl(const gc_params *p, gc_state *st) {
+static int gc_advance_pwl(const gc_params *p, gc_state *st) {
     double u1 = st->u1, u2 = st->u2, t_end = st->t_end;
     long nx = p->nx, nx2 = nx * nx, i;
     st->n_events = 0;
@@ -951,7 +955,7 @@ int gc_advance_pwl(const gc_params *p, gc_state *st) {
 static void rhs(const gc_params *p, const gc_state *st, double u1, double u2, const double *x, double *dx) {
     long w = p->nsh, j;
     double F[GC_MAX_STAGES];
-    for (long i = 0; i < p->ns; i++) F[i] = force(p, i, st->mode[i], st->d_ys[i], x);
+    for (long i = 0; i < p->ns; i++) F[i] = force(p, st->org, i, st->mode[i], st->d_ys[i], x);
     for (j = 0; j < w; j++) {
         dx[j] = x[w + j];
         if (p->friction == 1 && st->slip[j] == 0) { /* stuck */
@@ -998,7 +1002,7 @@ static void yang_sun_factor(const gc_params *p, gc_state *st, long i, const doub
     st->d_ys[i] = 6.0 * (1.0 - e) / ((2.0 * e - 1.0) * (2.0 * e - 1.0) + 3.0) * p->k[i] / v;
 }
 
-int gc_advance_ode(const gc_params *p, gc_state *st) {
+static int gc_advance_ode(const gc_params *p, gc_state *st) {
     /* Dormand-Prince 5(4) tableau (the system is autonomous: the nodes c_i are not needed) */
     static const double a21 = 0.2, a31 = 3.0 / 40.0, a32 = 9.0 / 40.0, a41 = 44.0 / 45.0, a42 = -56.0 / 15.0,
                         a43 = 32.0 / 9.0, a51 = 19372.0 / 6561.0, a52 = -25360.0 / 2187.0,
@@ -1146,9 +1150,40 @@ int gc_advance_ode(const gc_params *p, gc_state *st) {
 /* ---------------------------------------------------------------- entry points */
 
 /* One interval [st->t, st->t_end] with the inputs stored in the state: the closed loop's per-sample call
- * (two pointer arguments: cheap from ctypes). */
+ * (two pointer arguments: cheap from ctypes).
+ *
+ * Shift invariance: the dynamics depend on the gaps s_i = rb1_i theta_i - rb2_i theta_{i+1} and the speeds,
+ * never on the absolute angles (but for the phase of a time-varying stiffness, which adds the origin back).
+ * The call integrates in coordinates relative to an origin: the load's angle at the call's start rounded to
+ * a whole radian (ORIGIN_QUANTUM), carried to shaft j by p->ratio[j] (rb2/rb1 of the stages between), which
+ * leaves every gap unchanged. Without it a shaft that has turned many times makes every sum over the angles
+ * (the stuck shaft's held torque and its rounding band, the event functions, the propagators, the ODE's
+ * error norm) carry terms of ~k rb^2 theta that cancel: at 3e4 rad the band of the held torque exceeds the
+ * break-away margin of a servo's Coulomb friction and the load never moves. Rounded to a whole radian, the
+ * origin is zero while the load stays within half a radian of zero (the results there are those of the
+ * plain absolute coordinates, bit for bit), and a run offset by whole radians integrates the very same
+ * relative coordinates; the relative load angle is at most half a radian plus one call's travel, so every
+ * tolerance is what it is for a small move at zero. A shaft that did not move gets its angle back bit for
+ * bit (the subtraction is exact, Sterbenz); the one rounding per call is that of adding the origin back
+ * (half an ulp of the absolute angle, as storing the angle needs anyway), and that of a return to build a
+ * pattern or drain a full event buffer, which adds it back too. gearctl/kernel.py (_origin,
+ * _Mirror) does the same, operation for operation. */
 int gc_step(const gc_params *p, gc_state *st) {
-    return p->exact ? gc_advance_pwl(p, st) : gc_advance_ode(p, st);
+    long w = p->nsh, j;
+    double o = floor(st->x[w - 1] / ORIGIN_QUANTUM + 0.5) * ORIGIN_QUANTUM;
+    int shift = o != 0.0 && isfinite(o);
+    if (shift)
+        for (j = 0; j < w; j++) {
+            st->org[j] = o * p->ratio[j];
+            st->x[j] -= st->org[j];
+        }
+    int status = p->exact ? gc_advance_pwl(p, st) : gc_advance_ode(p, st);
+    if (shift)
+        for (j = 0; j < w; j++) {
+            st->x[j] += st->org[j];
+            st->org[j] = 0.0;
+        }
+    return status;
 }
 
 /* n intervals of length dt with constant torques; the states after each interval to out_x (nx per row), the

@@ -23,6 +23,17 @@ refuses, the sub-steps above locate the event. A pair never takes long steps: it
 sub-steps, bit for bit. The nonlinear plants (Yang–Sun, time-varying stiffness, the smooth Coulomb law)
 use Dormand–Prince 5(4) with error control and locate events on its dense output.
 
+Shift invariance: the dynamics depend on the gaps and the speeds, not on how far the shafts have turned,
+and so do the results. Each call integrates relative to an origin, the load angle rounded to a whole
+:data:`ORIGIN_QUANTUM` carried to every shaft by the stages' ratios (every gap unchanged), and adds it back
+at the end: sums over the angles (a stuck shaft's held torque and its rounding band, the event functions,
+the propagators, the ODE's error norm) see angles of at most half a radian plus one call's travel, and not
+``k rb^2 theta`` terms that cancel (at 3e4 rad the band exceeded a servo's break-away margin and the load
+never moved). While the load stays within half a radian of zero the origin is zero (the results are those
+of absolute coordinates, bit for bit); a run offset by whole radians is the run at zero with its angles
+stored at the offset's precision, bit for bit (``tests/test_kernel_offset.py``). The time-varying stiffness
+reads its mesh phase from the absolute angle (the origin added back).
+
 The C structs are generated from :data:`PARAMS_FIELDS` and :data:`STATE_FIELDS` (one description, read by
 both the C source and its :mod:`ctypes` mirror).
 
@@ -68,6 +79,10 @@ __all__ = [
 
 #: Impacts slower than this along the line of action are made perfectly plastic (the Zeno rule) [m/s].
 ZENO_VELOCITY = 1e-6
+
+#: Each call integrates relative to the load angle rounded to a multiple of this, carried to every shaft by
+#: the ratios (``gc_step`` in ``_kernel.c``): the results do not depend on how far the axis has turned [rad].
+ORIGIN_QUANTUM = 1.0
 
 _SRC = Path(__file__).with_name("_kernel.c")
 
@@ -119,12 +134,14 @@ PARAMS_FIELDS: tuple[tuple[str, str], ...] = (
     ("lv_n", "gc_int*"), ("lv_mult", "gc_int*"), ("lv_Phi", "double*"), ("lv_Gam", "double*"), ("lv_E", "double*"),
     ("lv_e4", "double*"), ("fm_n", "gc_int*"), ("fm_lam", "double*"), ("fm_wt", "double*"), ("fm_W", "double*"),
     ("fm_V", "double*"), ("M3", "double*"), ("lv_dec", "double*"), ("rig", "double*"),
+    ("ratio", "double*"),  # shaft j's angle per radian of the load's (the call's origin, see _origin)
 )
 STATE_FIELDS: tuple[tuple[str, str], ...] = (
     ("x", "double*"), ("t", "double"), ("t_end", "double"), ("d_ys", "double*"), ("h_ode", "double"),
     ("max_pen", "double*"), ("n_events", "gc_int"), ("n_steps", "gc_int"), ("events_total", "gc_int"),
     ("mode", "int*"), ("slip", "int*"), ("need", "gc_int"), ("u1", "double"), ("u2", "double"),
     ("ev", "gc_event*"), ("cap", "gc_int"), ("counts", "gc_int*"), ("vmax", "double*"),
+    ("org", "double*"),  # the origin of the call under way (zeros between calls)
 )
 _EVENT_FIELDS = (("t", "double"), ("v", "double"), ("kind", "gc_int"), ("side", "gc_int"), ("where", "gc_int"))
 _CTYPES = {"double": ctypes.c_double, "gc_int": ctypes.c_int64, "int": ctypes.c_int,
@@ -173,9 +190,8 @@ def _load() -> ctypes.CDLL | None:
     if lib is None:
         return None
     P, S = ctypes.POINTER(_Params), ctypes.POINTER(_State)
-    for fn in (lib.gc_advance_pwl, lib.gc_advance_ode, lib.gc_step):
-        fn.restype = ctypes.c_int
-        fn.argtypes = [P, S]
+    lib.gc_step.restype = ctypes.c_int
+    lib.gc_step.argtypes = [P, S]
     lib.gc_run.restype = ctypes.c_int
     lib.gc_run.argtypes = [P, S, ctypes.c_double, ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p,
                            ctypes.POINTER(ctypes.c_int64)]
@@ -478,6 +494,12 @@ class Kernel:
         self._ev_target = ev["target"].astype(np.intc)
         self._ev_type = ev["type"].astype(np.intc)
         self._ev_ssign = ev["ssign"]
+        # shaft j's angle per radian of the load's: the origin of each call (see _origin) leaves every gap as it is
+        ratio = [1.0] * w
+        for j in range(n - 1, -1, -1):
+            ratio[j] = ratio[j + 1] * p.stages[j].rb2 / p.stages[j].rb1
+        self._ratio = np.array(ratio, f64)
+        self._ratio_list = ratio
         stick = p.friction_law is FrictionLaw.STICK_SLIP and p.has_coulomb
         self.friction = 1 if stick else (2 if p.has_coulomb else 0)
         fshafts = [j for j in range(w) if stick and p.shafts[j].tc > 0]
@@ -503,7 +525,7 @@ class Kernel:
         prm.atol_angle, prm.atol_rate, prm.h_max = scale, scale * p.natural_frequency, h_max
         prm.ws = p.coulomb_velocity
         for name in ("J", "d", "tc", "rb1", "rb2", "b", "k", "c", "table", "aff", "fcoef", "ev_cg", "ev_g0",
-                     "ev_ssign"):
+                     "ev_ssign", "ratio"):
             setattr(prm, name, _ptr(getattr(self, "_" + name), ctypes.c_double))
         prm.mesh_period, prm.mesh_phase = _ptr(self._period, ctypes.c_double), _ptr(self._phase, ctypes.c_double)
         for name in ("table_off", "ev_count", "fbit", "slot"):
@@ -528,6 +550,8 @@ class Kernel:
         st.d_ys, st.max_pen, st.vmax = (_ptr(a, ctypes.c_double) for a in (self._dys, self._max_pen, self._vmax))
         st.mode, st.slip = _ptr(self._mode, ctypes.c_int), _ptr(self._slip, ctypes.c_int)
         st.counts = _ptr(self._counts, ctypes.c_int64)
+        self._org = np.zeros(w)
+        st.org = _ptr(self._org, ctypes.c_double)
         st.t = st.t_end = float(self.t0)
         st.h_ode = 0.0
         self._st = st
@@ -698,10 +722,30 @@ class Kernel:
         return list(zip(log["t"].tolist(), log["kind"].tolist(), log["side"].tolist(), log["v"].tolist(),
                         strict=True))
 
+    def _origin(self, x: list[float]) -> list[float] | None:
+        """The angles a call integrates from (``gc_step`` in ``_kernel.c``): the load's angle rounded to a whole
+        multiple of :data:`ORIGIN_QUANTUM`, carried to each shaft by the stages' ratios (every gap unchanged);
+        None where it is zero (or the angle not finite)."""
+        o = math.floor(float(x[self.nsh - 1]) / ORIGIN_QUANTUM + 0.5) * ORIGIN_QUANTUM if math.isfinite(
+            float(x[self.nsh - 1])) else 0.0
+        if o == 0.0:
+            return None
+        return [o * r for r in self._ratio_list]
+
+    def _relative(self, x: np.ndarray) -> list[float]:
+        """State ``x`` with the angles relative to its origin (:meth:`_origin`)."""
+        xr = [float(v) for v in x]
+        org = self._origin(xr)
+        if org is not None:
+            for j, o in enumerate(org):
+                xr[j] -= o
+        return xr
+
     def classify_all(self, x: np.ndarray) -> list[int]:
         """Contact mode of every stage for state ``x`` (``no_pull`` unloaded overlap as ±2 for the exact solver)."""
         p = self.plant
         w = self.nsh
+        x = self._relative(x)
         out = []
         for i, st in enumerate(p.stages):
             s = st.rb1 * x[i] - st.rb2 * x[i + 1]
@@ -723,6 +767,7 @@ class Kernel:
     def _hold_torque(self, j: int, x: np.ndarray, u1: float, u2: float) -> float:
         """Torque shaft ``j`` needs from friction to stay at rest (everything but Coulomb's) [N m]."""
         p, w = self.plant, self.nsh
+        x = self._relative(x)
         T = -p.shafts[j].d * x[w + j] + (u1 if j == 0 else 0.0) + (u2 if j == self.ns else 0.0)
         modes = self._mode
         if j >= 1 and modes[j - 1] in (1, -1):
@@ -1046,6 +1091,13 @@ class _Mirror:
         self.u1, self.u2, self.t_end = st.u1, st.u2, st.t_end
         self.t = st.t
         self.x = kn._x.tolist()
+        # the call's origin (gc_step in _kernel.c): the angles relative to it, the same operations as the C
+        org = kn._origin(self.x)
+        self.shifted = org is not None
+        self.org = org if org is not None else [0.0] * kn.nsh
+        if org is not None:
+            for j, o in enumerate(org):
+                self.x[j] -= o
         self.mode = kn._mode.tolist()
         self.slip = kn._slip.tolist()
         self.dys = kn._dys.tolist()
@@ -1062,6 +1114,9 @@ class _Mirror:
 
     def finish(self) -> None:
         kn, st = self.kn, self.kn._st
+        if self.shifted:
+            for j, o in enumerate(self.org):
+                self.x[j] += o
         kn._x[:] = self.x
         kn._mode[:] = self.mode
         kn._slip[:] = self.slip
@@ -1107,7 +1162,8 @@ class _Mirror:
         if p.kind is PlantKind.YANG_SUN:
             F = (d_ys * ddelta + self.k[i]) * delta
         else:
-            kk = float(p.stiffness_at(x[i], i)) if p.kind is PlantKind.TVMS else self.k[i]
+            # the stiffness follows the absolute angle: the call's origin added back
+            kk = float(p.stiffness_at(x[i] + self.org[i], i)) if p.kind is PlantKind.TVMS else self.k[i]
             F = kk * delta + self.c[i] * ddelta
         if self.law == 1 and F < 0.0:
             F = 0.0
