@@ -74,29 +74,7 @@ def test_info_says_which_stiffness_and_damping_are_given(capsys) -> None:  # noq
     assert d["plant_stiffness"] == pytest.approx(d["mesh_stiffness"]["mean"], rel=1e-12)
 
 
-WATCH = """
-[source]
-citation = "a watch-size pair (synthetic)"
-[gear1]
-teeth = 18
-[gear2]
-teeth = 72
-[pair]
-module = 0.0002
-pressure_angle_deg = 20.0
-face_width = 0.0005
-backlash = 5e-6
-[material]
-young_modulus = 1.9e11
-poisson_ratio = 0.3
-density = 8000.0
-[dynamics]
-damping_ratio = 0.05
-[servo]
-motor_inertia = 1e-11
-load_inertia = 5e-10
-torque_limit = 1e-5
-"""
+WATCH = (Path(__file__).parent / "data" / "watch_m02.toml").read_text()
 
 
 def test_a_diverging_simulation_says_which_inputs_to_lower(tmp_path: Path, capsys) -> None:  # noqa: ANN001

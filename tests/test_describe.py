@@ -405,34 +405,7 @@ def test_example_runs(tmp_path, monkeypatch):
 
 # an 18 x 72 pair of module 0.2 mm, 0.5 mm wide (a watch-size gear): mesh mode 83 kHz, so eight samples per
 # collision under a 1 ms PID are 1325 samples per controller sample (45 on shing1993_servo)
-WATCH = """
-[source]
-citation = "synthetic stiff small pair (tests/test_describe.py)"
-[gear1]
-teeth = 18
-[gear2]
-teeth = 72
-[pair]
-module = 0.0002
-pressure_angle_deg = 20.0
-face_width = 0.0005
-backlash = 5e-6
-[material]
-young_modulus = 1.9e11
-poisson_ratio = 0.3
-density = 8000.0
-[dynamics]
-damping_ratio = 0.05
-[servo]
-motor_inertia = 1e-11
-load_inertia = 5e-10
-viscous_friction1 = 1e-10
-viscous_friction2 = 1e-9
-torque_limit = 1e-5
-[sensors]
-motor_encoder_cpr = 1024
-load_encoder_cpr = 4096
-"""
+WATCH = (Path(__file__).parent / "data" / "watch_m02.toml").read_text()
 
 
 @pytest.fixture(scope="module")

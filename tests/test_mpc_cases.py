@@ -36,39 +36,14 @@ from gearctl.runs import design_controller, execute, make_run
 
 QUANSER, SERVO = "servo_3stage_quanser_srv02", "shing1993_servo"
 
-WATCH = """
-[gear1]
-teeth = 18
-[gear2]
-teeth = 72
-[pair]
-module = 0.0002
-pressure_angle_deg = 20.0
-face_width = 0.0005
-backlash = 5e-6
-[material]
-young_modulus = 1.9e11
-poisson_ratio = 0.3
-density = 8000.0
-[dynamics]
-damping_ratio = 0.05
-[servo]
-motor_inertia = 1e-11
-load_inertia = 5e-10
-viscous_friction1 = 1e-10
-viscous_friction2 = 1e-9
-torque_limit = 1e-5
-[sensors]
-motor_encoder_cpr = 1024
-load_encoder_cpr = 4096
-"""
+WATCH = (Path(__file__).parent / "data" / "watch_m02.toml").read_text()
 
 needs_cc = pytest.mark.skipif(c_compiler() is None or shutil.which("make") is None, reason="no C compiler")
 
 
 def _model(tmp_path: Path, name: str, text: str) -> Path:
     path = tmp_path / f"{name}.toml"
-    path.write_text('[source]\ncitation = "test"\n' + text)
+    path.write_text(text if "[source]" in text else '[source]\ncitation = "test"\n' + text)
     return path
 
 
