@@ -233,3 +233,33 @@ def test_export_warns_about_an_unhealthy_recorded_loop(tmp_path: Path, capsys) -
     rc = main(["export", TRAIN, "pid_load", "--out", str(tmp_path / "e")])
     err = capsys.readouterr().err
     assert rc == 0 and "warning" in err and "torque" in err, err
+
+
+@needs_make
+@pytest.mark.parametrize("ctrl", ["pid", "deadzone_inverse"])
+def test_a_finite_reading_beyond_the_input_limit_is_bad_input(tmp_path: Path, ctrl: str) -> None:
+    # a reading of 1e308 rad overflowed the derivative filter (inf - inf) into a NaN torque returned with status 0
+    # on every later step; beyond GEARCTL_INPUT_LIMIT (1e12) it is now a missed sample, and the run goes on
+    from gearctl.export.sil import load_exported
+
+    d, _ = _export(tmp_path, SERVO, ctrl, vectors=False)
+    assert _macro((d / "gearctl_ctrl.h").read_text(), "GEARCTL_INPUT_LIMIT") == 1e12
+    sil = load_exported(d)
+    ref = reference("sine")
+    for k in range(100):
+        sil.step(k * sil.Ts, 0.0, 0.0, ref)
+    assert sil.step(100 * sil.Ts, 1e308, 0.0, ref) == 0.0 and "bad input" in sil.fallbacks[-1]["reason"]
+    u = [sil.step((101 + k) * sil.Ts, 0.0, 0.0, ref) for k in range(200)]
+    assert np.all(np.isfinite(u)) and max(abs(v) for v in u) <= 1.0
+
+
+@needs_make
+def test_the_mpc_torque_never_exceeds_the_limit(tmp_path: Path) -> None:
+    # the QP's torque bound held to rounding only (1 + 3e-15 N m was recorded): the torque is clipped after it,
+    # in Python and C alike; the recorded vectors hold no torque beyond the limit
+    from gearctl.export.rows import read_vectors
+
+    d, _ = _export(tmp_path, SERVO, "mpc")
+    limit = _macro((d / "gearctl_ctrl.h").read_text(), "GEARCTL_TORQUE_LIMIT")
+    _, cases = read_vectors(d / "gearctl_vectors.bin")
+    assert max(float(np.max(np.abs(c.u))) for c in cases) <= limit

@@ -267,6 +267,9 @@ from .base import Controller, LoopInfo
 
 __all__ = ["MPC", "MPCSettings", "build_mpc", "SOLVERS", "installed_solvers", "KIND", "LAYOUT"]
 
+#: Readings beyond it (or not finite) are a missed sample, as the exported API's ``GEARCTL_INPUT_LIMIT`` [rad].
+INPUT_LIMIT = 1e12
+
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "mpc"
 
@@ -1437,18 +1440,20 @@ class MPC(Controller):
         the rules of *Standstill* in the module docstring apply (no flank change, one-sided targets, no torque
         on a free load). The entry in :attr:`solve_times` is the step's total QP time.
 
-        A non-finite ``y_motor`` is a missed sample, as in the exported API: the torque is 0, the estimate and
-        the plan stay as they were, and the step is recorded in :attr:`fallbacks`. A missing (non-finite) or
-        wild load reading, or a wild motor reading, is handled by the observer (*Readings*).
+        A ``y_motor`` not finite or beyond :data:`INPUT_LIMIT` is a missed sample, as in the exported API: the
+        torque is 0, the estimate and the plan stay as they were, and the step is recorded in :attr:`fallbacks`.
+        A missing (non-finite) or wild load reading, or a wild motor reading within the limit, is handled by the
+        observer (*Readings*).
         """
         t_step = time.perf_counter()
         n = self.N
         i = self._preview(t, ref)
-        if not math.isfinite(y_motor):  # a missed sample (as the exported API): zero torque, the state unchanged
+        if not abs(y_motor) <= INPUT_LIMIT:  # a missed sample (as the exported API): zero torque, state unchanged
             self._k += 1
             self.solve_times.append(0.0)
             self.statuses.append("bad input")
-            self.fallbacks.append({"t": float(t), "reason": "non-finite motor reading: zero torque, state unchanged"})
+            self.fallbacks.append({"t": float(t), "reason": "motor reading not finite or beyond 1e12 rad: zero torque, "
+                                                            "state unchanged"})
             self.step_times.append(time.perf_counter() - t_step)
             return 0.0
         self._n_obs += 1
@@ -1581,7 +1586,7 @@ class MPC(Controller):
         if reason is None:
             self._plan[:] = qp.x
             self._lam[:] = qp.lam_x
-            u = float(qp.x[0])
+            u = min(max(float(qp.x[0]), -self._umax), self._umax)  # the QP's bound holds to rounding: clip the ulps
             if note is not None:  # a reading missing or rejected: the plan ran on the prediction
                 self.fallbacks.append({"t": float(t), "reason": note})
         else:  # the previous plan's next input, saturated; a late plan still warm-starts the next one

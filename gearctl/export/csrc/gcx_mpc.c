@@ -324,7 +324,7 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
         S->u = u;
         for (int i = 0; i < n; i++) S->plan[i] = 0.0;
         *u_out = u;
-        return 1;
+        return 3; /* GEARCTL_STEP_FAULT */
     }
     double *z = S->z, *p = S->p;
     double tau = P->tau_load + z[4];
@@ -450,7 +450,7 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
     int flag = 0;
     if (status == 0) {
         memcpy(S->plan, S->x, sizeof S->x);
-        u = S->x[0];
+        u = gcx_min(gcx_max(S->x[0], -P->umax), P->umax); /* the QP's bound holds to rounding: clip the ulps */
     } else { /* the previous plan's next input, saturated */
         u = gcx_min(gcx_max(S->x0[0], -P->umax), P->umax);
         memcpy(S->plan, S->x0, sizeof S->x0);
