@@ -454,12 +454,8 @@ def _clear_previous(out: Path, prefix: str, keep: set[str]) -> None:
             raise InputError(f"{out} holds {', '.join(clash[:4])}{' ...' if len(clash) > 4 else ''} and is not a "
                              "gearctl export (no controller.json of one): choose an empty or new folder", field="out")
         return
-    for name in {prefixed_name(n, old_prefix) for n in OWNED}:
+    for name in {prefixed_name(n, p) for n in OWNED for p in (old_prefix, prefix)} - keep:  # build products too
         path = out / name
-        if name not in keep and path.is_file():
-            path.unlink()
-    for name in ("gearctl_ctrl.o", "gearctl_qp.o", "libgearctl_ctrl.a", "check_vectors", "bench_vectors"):
-        path = out / prefixed_name(name, prefix)
         if path.is_file():
             path.unlink()
 

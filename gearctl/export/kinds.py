@@ -202,10 +202,10 @@ def kind_spec(controller: Controller) -> KindSpec:
     common = {"Ts": float(c.Ts), "preview": int(c.preview), "uses_load_encoder": bool(c.uses_load_encoder),
               "describe": c.describe(), "name": str(c.name)}
     # exact types: a subclass may change what a method does, which the C would not know
-    pid = {PID: lambda: c, ReversalOffset: lambda: c.pid, DeadzoneInverse: lambda: c.pid,
-           AdaptiveInverse: lambda: c.inner.pid}.get(type(c))
+    pid = {PID: c, ReversalOffset: getattr(c, "pid", None), DeadzoneInverse: getattr(c, "pid", None),
+           AdaptiveInverse: getattr(getattr(c, "inner", None), "pid", None)}.get(type(c))
     if pid is not None:
-        common.update(ratio=float(pid().N), torque_limit=float(pid().limit))
+        common.update(ratio=float(pid.N), torque_limit=float(pid.limit))
     if type(c) is PID:
         return KindSpec(kind="pid", prefix="pid", values=_pid_values(c), dims={}, **common)
     if type(c) is ReversalOffset:
