@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..controller import Controller
+from ..design.mpc import INPUT_LIMIT
 from ..errors import InputError
 from .cstruct import c_array, c_double
 from .kinds import CSRC, KindSpec, defines, kind_spec, kind_structs, source_text
@@ -164,7 +165,7 @@ extern "C" {{
 #define GEARCTL_RATIO {c_double(spec.ratio)} /* motor angle per load angle in contact (the gear ratio) */
 #define GEARCTL_TORQUE_LIMIT {c_double(spec.torque_limit)} /* |u| never exceeds it [N m] */
 
-#define GEARCTL_INPUT_LIMIT 1e12 /* |y|, |r|, |r'|, |r''| beyond it (or not finite) are a bad input */
+#define GEARCTL_INPUT_LIMIT {INPUT_LIMIT:g} /* |y|, |r|, |r'|, |r''| beyond it (or not finite) are a bad input */
 
 #define GEARCTL_STEP_OK 0        /* a normal step */
 #define GEARCTL_STEP_FALLBACK 1  /* the MPC: its solver failed, or a reading was missing or rejected (the step ran on
