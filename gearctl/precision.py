@@ -135,6 +135,23 @@ def iso230_statistics(up: NDArray[np.float64], down: NDArray[np.float64]) -> dic
     }
 
 
+def unreached_targets(res: PrecisionResult, lost_motion: float, travel: float) -> list[str]:
+    """Warnings for measurements that missed their target by more than backlash can explain.
+
+    A deviation beyond three times the lost motion plus a thousandth of the travel (rad, load side) means the
+    loop did not position: an uncompensated gap leaves at most about the lost motion. One warning names the
+    largest such deviation and how many measurements were that far off.
+    """
+    dev = np.concatenate([res.deviations_up.ravel(), res.deviations_down.ravel()])
+    limit = 3.0 * lost_motion + 1e-3 * travel
+    far = np.abs(dev) > limit
+    if not far.any():
+        return []
+    worst = float(dev[np.argmax(np.abs(dev))])
+    return [f"targets not reached: {int(far.sum())} of {dev.size} measurements deviate by more than {limit:.3g} rad "
+            f"(3 x the lost motion + travel / 1000), the largest by {worst:.3g} rad"]
+
+
 def precision_test(
     plant: Plant,
     controller: Controller,

@@ -36,6 +36,7 @@ HARNESS = Path(__file__).parent / "data" / "export" / "harness.c"
 CATALOG = ("pid", "pid_load", "reversal_offset", "deadzone_inverse", "adaptive_inverse", "mpc")
 REFERENCES = ("sine", "step", "ramp", "move")
 MODEL = "shing1993_servo"
+DATA = Path(__file__).parent / "data"
 
 CC = c_compiler()
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler: the exported C cannot be built here")
@@ -142,15 +143,20 @@ def test_make_check_replays_the_python_torques(exported, name: str) -> None:
 
 
 @needs_make
-@pytest.mark.parametrize("model, estimate", [("servo_2stage_phm09", None), (MODEL, 8e-5)])
-def test_mpc_check_on_a_train_and_with_a_wrong_estimate(tmp_path: Path, model: str, estimate: float | None) -> None:
-    """The MPC's train logic (contact tolerance of the equivalent gap) and its flank learning (an estimate 60 %
-    too large) replay too."""
+@pytest.mark.parametrize("model, estimate, true", [
+    ("servo_2stage_phm09", None, {}), (MODEL, 8e-5, {}), (DATA / "motor_friction.toml", None, {}),
+    ("shing1993_servo_friction", None, {"coulomb_friction1": 0.02})])
+def test_mpc_check_on_a_train_and_with_a_wrong_estimate(tmp_path: Path, model: str | Path, estimate: float | None,
+                                                         true: dict[str, float]) -> None:
+    """The MPC's train logic (contact tolerance of the equivalent gap), its flank learning (an estimate 60 %
+    too large), the motor's friction the model gives and the stalled landings of a friction it does not give (the
+    recorded plant's) replay too."""
     from gearctl.export import export_controller
 
     m = load_model(model)
     plant = build_plant(m)
-    export_controller(load_controller("mpc", plant, backlash=estimate), tmp_path, plant=plant, sensors=m.sensors)
+    recorded = build_plant(load_model(model, **true)) if true else plant
+    export_controller(load_controller("mpc", plant, backlash=estimate), tmp_path, plant=recorded, sensors=m.sensors)
     proc = subprocess.run(["make", "-s", "-C", str(tmp_path), "check"], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert _check_figure(proc.stdout) == 0.0

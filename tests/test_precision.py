@@ -24,7 +24,7 @@ from numpy.testing import assert_allclose
 from gearctl import InputError, build_plant, load_model
 from gearctl.catalog import load_controller
 from gearctl.cli import main
-from gearctl.precision import MotionProgram, PrecisionResult, iso230_statistics, precision_test
+from gearctl.precision import MotionProgram, PrecisionResult, iso230_statistics, precision_test, unreached_targets
 
 # --- 1. ISO 230-2 statistics -------------------------------------------------------------------------------
 
@@ -194,6 +194,20 @@ def test_backlash_reversal_is_the_lost_motion(friction_runs: dict[str, Precision
     assert B == pytest.approx(lost, rel=0.25)
     assert np.all(res.stats["reversal"] < 0)  # the sign says: the load lags the motion
     assert np.all(np.abs(res.stats["reversal"]) > 0.5 * lost)
+
+
+def test_a_target_missed_by_more_than_backlash_explains_is_warned(friction_runs: dict[str, PrecisionResult]) -> None:
+    """The uncompensated PID misses by about the lost motion: no warning; one measurement 0.1 rad off is named (an
+    unseen plastic pair's MPC once scored A = 1.16 rad with no warning but the impact rate)."""
+    import dataclasses
+
+    res = friction_runs["pid"]
+    lost = res.run.plant.lost_motion
+    assert unreached_targets(res, lost, 0.5) == []
+    up = res.deviations_up.copy()
+    up[2, 3] = -0.1
+    (w,) = unreached_targets(dataclasses.replace(res, deviations_up=up), lost, 0.5)
+    assert w.startswith("targets not reached: 1 of 50 measurements") and w.endswith("the largest by -0.1 rad")
 
 
 def test_deadzone_inverse_cuts_reversal(friction_runs: dict[str, PrecisionResult]) -> None:

@@ -445,7 +445,7 @@ def test_three_stage_inverse_factor_is_that_of_the_pair(sine_rms: Callable[[str,
                    "train's load step from running away), not by half the pair's 226x. The intermediate shafts, "
                    "free between two gaps and unmeasured, are hit at the crossing's speed and bounce (1031 impacts "
                    "in 3 s against 126 on the pair); on servo_2stage_phm09, whose intermediate shaft, reflected, is "
-                   "half the motor shaft's inertia, the MPC gives 1.22e-3 against the PID's 1.52e-3")
+                   "half the motor shaft's inertia, the MPC gives 1.42e-3 against the PID's 1.52e-3")
 def test_three_stage_mpc_beats_pid(sine_rms: Callable[[str, str], float]) -> None:
     """The same kind of factor as on the pair: at least half the pair's PID / MPC ratio, and 2.
 

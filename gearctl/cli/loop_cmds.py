@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -115,7 +116,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
 def _cmd_precision(args: argparse.Namespace) -> int:
     from ..catalog import load_controller, load_model
     from ..plant import build_plant
-    from ..precision import precision_test
+    from ..precision import precision_test, unreached_targets
 
     model = load_model(args.model)
     true_model = load_model(args.model, **dict(args.set)) if args.set else model
@@ -130,6 +131,8 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     from ..metrics import loop_health
 
     health = loop_health(res.run, settle=0.0)
+    health = dataclasses.replace(health, warnings=health.warnings + tuple(
+        unreached_targets(res, plant.lost_motion, args.travel)))
     out = {
         "model": model.name, "controller": ctrl.describe(), "plant": args.plant,
         "backlash": plant.backlash if plant.n_stages == 1 else list(plant.backlashes),

@@ -33,6 +33,8 @@
 #define GCX_GATE_PERSIST 4    /* mpc.py: _GATE_PERSIST */
 #define GCX_FAULT_WINDOW 1000 /* mpc.py: _FAULT_WINDOW (GCX_FAULT_RESTARTS: gcx_mpc_state.h) */
 #define GCX_BRAKE_TIME 0.02   /* mpc.py: _BRAKE_TIME */
+#define GCX_STALL_SAMPLES 5   /* mpc.py: _STALL_SAMPLES */
+#define GCX_STALL_SHARE 0.25  /* mpc.py: _STALL_SHARE */
 
 /* MPC.reset */
 GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
@@ -47,6 +49,10 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
     S->flanks[0] = S->flanks[1] = P->b; /* where the back (0) and front (1) flanks are, |s| [m] */
     S->reach[0] = S->reach[1] = 0.0;      /* the furthest the measured gap has been on each side */
     S->revisits[0] = S->revisits[1] = 0;  /* samples since then that came back within tol of it */
+    S->stall[0] = S->stall[1] = 0.0;      /* where a landing stalled on each side (0: none) */
+    S->base[0] = S->base[1] = P->b;       /* the flanks without the stalls */
+    S->overdue = 0;
+    S->f1 = 0.0;
     for (int i = 0; i < n; i++) {
         S->lbx[i] = -P->umax;
         S->ubx[i] = P->umax;
@@ -81,7 +87,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         S->z_set = 1;
         return note;
     }
-    double u = S->u;
+    double u = S->u + S->f1; /* the torque that acted on the motor: the drive's and its friction */
     double phi = S->z[0], om = S->z[1], s = S->z[2], v = S->z[3], d = S->z[4];
     double tau = P->tau_load + d;
     /* the prediction: the gap with the separation model, the centre of inertia as the rigid train (any mode) */
@@ -139,6 +145,13 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         } else if (S->revisits[k] >= 2 && S->reach[k] > 0.5 * b) {
             fl = S->flanks[k] = S->reach[k];
         }
+        S->base[k] = fl;
+        if (S->stall[k] > 0.0) { /* a landing stalled there, until the gap goes further */
+            if (a_s > S->stall[k] + tol)
+                S->stall[k] = 0.0;
+            else
+                fl = S->flanks[k] = gcx_min(fl, S->stall[k]);
+        }
         if (fabs(s_m) >= fl - tol) { /* contact: the reduced model's plastic impact */
             s_n = s_m, v_n = 0.0;
         } else {
@@ -148,7 +161,8 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         }
     } else { /* motor encoder alone: the gap is predicted, and pinned at the flank it reaches */
         s_n = s_p, v_n = v_p;
-        if (fabs(s_n) >= b - tol) s_n = copysign(b, s_n), v_n = 0.0;
+        double fl = S->flanks[s_n > 0.0];
+        if (fabs(s_n) >= fl - tol) s_n = copysign(fl, s_n), v_n = 0.0;
     }
     double phi_meas = !load ? (y_motor - P->kappa1 * s_n) : (y_motor - P->kappa1 * s_m);
     double inn = phi_meas - phi_p;
@@ -334,7 +348,6 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
     for (int i = 0; i < n; i++) p[6 + i] = ref[3 * (i + 1)] - origin; /* r_1 .. r_N */
     p[6 + n] = ref[3 * n + 1];                                 /* r'_N */
     for (int i = 0; i < n; i++) p[7 + n + i] = P->ratio * (P->J_eq * ref[3 * i + 2] + P->d_eq * ref[3 * i + 1]);
-    p[7 + 2 * n] = S->u;
     for (int i = 0; i < n - 1; i++) S->x0[i] = S->plan[i + 1]; /* the previous plan, shifted */
     S->x0[n - 1] = S->plan[n - 1];
     double s = z[2];
@@ -342,7 +355,27 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
     int side = s >= b_hi - P->tol ? 1 : (s <= -(b_lo - P->tol) ? -1 : 0);
     int sig = S->flank;
     if (sig == 0) S->flank = sig = side != 0 ? side : 1; /* first sample */
+    if (side == 0 && S->has_land && S->land <= 1 && P->uses_load) { /* a landing due now, still floating */
+        S->overdue += 1;
+        int k2 = sig > 0;
+        if (S->overdue > P->n_cross + GCX_STALL_SAMPLES && 0.0 <= S->base[k2] - sig * s &&
+            S->base[k2] - sig * s <= GCX_STALL_SHARE * S->base[k2]) { /* stalled: contact where the gap stopped */
+            S->stall[k2] = S->flanks[k2] = sig * s;
+            side = sig, S->overdue = 0;
+        }
+    } else {
+        S->overdue = 0;
+    }
     int hold = !P->rigid && gcx_mpc_holding(P, S, ref);
+    /* the QP plans the torque that acts on the motor, the drive's plus the model's Coulomb friction there */
+    double f1 = 0.0;
+    if (!hold && P->tc1 != 0.0) {
+        double w1 = z[1] + P->kappa1 * z[3];
+        f1 = -P->tc1 * gcx_min(gcx_max(w1 / P->w_friction, -1.0), 1.0);
+    }
+    S->f1 = f1;
+    p[7 + 2 * n] = S->u + f1;
+    for (int i = 0; i < n; i++) S->lbx[i] = f1 - P->umax, S->ubx[i] = f1 + P->umax;
     S->v_land_now = hold ? GCX_STANDSTILL * P->v_land : P->v_land;
     if (hold && !S->has_land && side == -sig) S->flank = sig = side; /* at rest on the other flank */
     if (hold && sig * tau >= 0.0) { /* no load torque presses the load onto this flank: hold it where it is
@@ -450,11 +483,11 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
     int flag = 0;
     if (status == 0) {
         memcpy(S->plan, S->x, sizeof S->x);
-        u = gcx_min(gcx_max(S->x[0], -P->umax), P->umax); /* the QP's bound holds to rounding: clip the ulps */
+        u = gcx_min(gcx_max(S->x[0] - f1, -P->umax), P->umax); /* the QP's bound holds to rounding: clip */
     } else { /* the previous plan's next input, saturated */
-        u = gcx_min(gcx_max(S->x0[0], -P->umax), P->umax);
+        u = gcx_min(gcx_max(S->x0[0] - f1, -P->umax), P->umax);
         memcpy(S->plan, S->x0, sizeof S->x0);
-        S->plan[0] = u;
+        S->plan[0] = u + f1;
         flag = 1;
     }
     S->u = u;

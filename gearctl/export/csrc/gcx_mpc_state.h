@@ -11,6 +11,9 @@ typedef struct {
     double v_land_now;      /* landing-speed bound of the step being solved */
     double flanks[2], reach[2]; /* the flanks learned from the gap, the furthest it has been [m] */
     int revisits[2];
+    double stall[2], base[2]; /* where a landing stalled (0: none), the flanks without the stalls [m] */
+    int overdue;            /* samples in a row a landing has been due and the gap still floats */
+    double f1;              /* the motor's Coulomb friction the last step planned with [N m] */
     int z_set, flank, land, has_land;
     int held;               /* holding at standstill (MPC._held) */
     int rejects;            /* samples in a row whose readings the gate rejected */
