@@ -275,7 +275,7 @@ def test_the_motor_friction_the_model_gives_is_planned_with(kind: str, bound: fl
 def test_a_landing_that_stalls_short_of_the_flank_is_taken_as_contact() -> None:
     """Motor friction the design does not know (2 % of the torque limit on the true plant only): a planned landing
     stops short of the flank, the observer's gap speed biased by the friction; after the crossing's length and five
-    samples more, contact is taken where the gap stopped (*Stalled landings*). Measured sine RMS 2.2e-3 rad; before,
+    samples more, contact is taken where the gap stopped (*Stalled landings*). Measured sine RMS 2.0e-3 rad; before,
     0.11 rad, the load left behind for as long as the reference moved on."""
     out = execute(make_run(FRICTION, "mpc", reference_kind="sine", overrides={"coulomb_friction1": 0.02}))
     assert out.ok, out.message
