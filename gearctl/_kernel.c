@@ -885,6 +885,20 @@ static int gc_advance_pwl(const gc_params *p, gc_state *st) {
                         tau = first_root(q, nt, h, gb + thr2 * h * h + thr0, q[1], db + 2.0 * thr2 * h);
                         if (tau < 0.0) tau = h;
                     }
+                } else if (ga == 0.0 && fn[e].type == 1 && da <= 0.0) {
+                    /* just switched onto a no_pull force boundary (F = 0) and heading back: the force's rate
+                       depends on the mode only through the rounding of the stiff force terms, so both modes
+                       can say "heading out" at once (an endless lift / reload chatter at one instant). The
+                       switch back waits until F is clearly past zero: g(tau) = -(thr0 + thr2 tau^2), thr2
+                       the geometric dead band's acceleration through the mesh stiffness. */
+                    for (i = 0; i < nx; i++) gscale += fabs(cg[i] * x0[i]);
+                    double thr0 = 4e-16 * gscale, thr2 = 0.5e-3 * p->zeno_v / h_pat * p->k[fn[e].idx];
+                    if (nt == 0) nt = taylor(nx, A, rho, x0, a, h, D);
+                    double q[NTAY];
+                    gap_poly(fn + e, nx, sparse, D, nt, q);
+                    q[0] = thr0;
+                    if (nt > 2) q[2] += thr2;
+                    tau = first_root(q, nt, h, gb + thr2 * h * h + thr0, q[1], db + 2.0 * thr2 * h);
                 } else if (ga == 0.0 && (da < 0.0 || (da == 0.0 && db < 0.0))) {
                     tau = 0.0; /* on the boundary and heading out */
                 } else {

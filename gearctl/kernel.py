@@ -60,6 +60,7 @@ from .build import c_compiler, cache_dir, compile_disabled, shared_library
 from .errors import InputError
 from .params import ContactLaw, FrictionLaw
 from .plant import (
+    EVENT_FORCE,
     EVENT_GEOMETRIC,
     MAX_STAGES,
     Plant,
@@ -1573,6 +1574,18 @@ class _Mirror:
                             tau = _first_root(qp, h, gb + thr2 * h * h + thr0, qp[1], db + 2.0 * thr2 * h)
                             if tau < 0.0:
                                 tau = h
+                    elif ga == 0.0 and f.type == EVENT_FORCE and da <= 0.0:
+                        # just switched onto a no_pull force boundary and heading back: wait until the force
+                        # is clearly past zero (the rate's sign is rounding there; see _kernel.c)
+                        gscale = sum(abs(cg[i] * x0[i]) for i in range(nx))
+                        thr0, thr2 = 4e-16 * gscale, 0.5e-3 * self.zeno_v / h_pat * self.k[f.idx]
+                        if D is None:
+                            D = _taylor(A, rho, x0, a, h)
+                        qp = [sum(cg[i] * Dn[i] for i in range(nx)) for Dn in D]
+                        qp[0] = thr0
+                        if len(qp) > 2:
+                            qp[2] += thr2
+                        tau = _first_root(qp, h, gb + thr2 * h * h + thr0, qp[1], db + 2.0 * thr2 * h)
                     elif ga == 0.0 and (da < 0.0 or (da == 0.0 and db < 0.0)):
                         tau = 0.0
                     else:

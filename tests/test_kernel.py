@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,6 +31,7 @@ from gearctl.kernel import ZENO_VELOCITY, EventKind, Kernel, contact_matrices
 from gearctl.simulate import Event, SimulationResult, simulate
 
 KERNELS = [pytest.param(True, id="compiled"), pytest.param(False, id="python")]
+DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="module")
@@ -489,6 +491,29 @@ def test_grazing_contact_does_not_chatter(compiled: bool) -> None:
         status = kn.advance(u1, 0.0, 1e-3)
         assert status == 0, Kernel.status_message(status)
     assert kn.events_total <= 4
+
+
+@pytest.mark.parametrize("compiled", KERNELS)
+def test_no_pull_force_boundary_does_not_chatter(compiled: bool) -> None:
+    """An unseen train's event cascade (the dead-zone inverse's precision run, t = 29.805 s): both stages in
+    back contact under the no_pull law, coasting at a mesh force of zero in stage 1. Right after each switch
+    the force's rate had the sign of the stiff terms' rounding in both modes, so lift and reload alternated
+    at one instant until the event budget ran out (200001 events). The switch back now waits until the force
+    is clearly past zero."""
+    require_compiled(compiled)
+    m = load_model(DATA / "train_steel_alu.toml")
+    p = build_plant(m)
+    x0 = np.array([4.491235240759591, 1.498198600715453, 0.5005346565291457, -0.00014622063779775788,
+                   -4.8740206847427754e-05, -1.624672806931189e-05])
+    kn = Kernel(p, x0, dt=1e-3, compiled=compiled, t0=29.805, max_events=2000)
+    assert kn.modes == (-1, -1)
+    status = kn.advance(-6.870332531810239e-11, 0.0, 1e-3)
+    assert status == 0, Kernel.status_message(status)
+    assert kn.events_total < 100
+    # the force that no mode could agree on stays at zero: the stage never pulls
+    s = p.stages[0]
+    gap = s.rb1 * kn.x[0] - s.rb2 * kn.x[1]
+    assert abs(gap) <= s.backlash + 1e-9
 
 
 def test_event_budget_holds_across_buffer_refills(improved: Plant) -> None:
