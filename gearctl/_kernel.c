@@ -269,10 +269,11 @@ static int collect_events(const gc_params *p, const gc_state *st, double u1, dou
     int n = 0;
     long i, e;
     for (i = 0; i < p->ns; i++) {
-        /* no gap and the linear law: the exact path has one system on both flanks (the mode is only a label,
-           set from the sign of s after each step); the ODE path's laws are not (Yang-Sun's damping term
-           follows the flank, d_ys comes from the speed at s = 0), so it locates s = 0 and changes flank there */
-        if (p->b[i] == 0.0 && p->law == 0 && !ode) continue;
+        /* no gap and the linear law: one system on both flanks (the mode is only a label, set from the sign
+           of s after each step), on the exact path and on the ODE path's time-varying stiffness and smooth
+           friction alike; not for Yang-Sun (its damping term follows the flank, d_ys comes from the speed at
+           s = 0), where the ODE path locates s = 0 and changes flank there */
+        if (p->b[i] == 0.0 && p->law == 0 && (!ode || p->kind != 1)) continue;
         long slot = 5 * i + (st->mode[i] + 2);
         long cnt = p->ev_count[slot];
         for (e = 0; e < cnt; e++) {
@@ -1150,6 +1151,8 @@ static int gc_advance_ode(const gc_params *p, gc_state *st) {
             if (!last) st->h_ode = h * fac;
             h = h * fac;
         }
+        for (i = 0; i < p->ns; i++) /* no gap and the linear law: the mode is only a label (collect_events) */
+            if (p->b[i] == 0.0 && p->law == 0 && p->kind != 1) st->mode[i] = s_of(p, i, st->x) >= 0.0 ? 1 : -1;
         for (i = 0; i < p->ns; i++)
             if (st->mode[i] != 0) {
                 double pen = fabs(s_of(p, i, st->x)) - p->b[i];

@@ -1217,7 +1217,8 @@ class _Mirror:
     def collect(self, ode: bool) -> list[_EvFun]:
         kn, out = self.kn, []
         for i in range(self.ns):
-            if self.b[i] == 0.0 and self.law == 0 and not ode:  # see collect_events in _kernel.c
+            if self.b[i] == 0.0 and self.law == 0 and (not ode or self.p.kind is not PlantKind.YANG_SUN):
+                # a label only (see collect_events in _kernel.c)
                 continue
             slot = 5 * i + self.mode[i] + 2
             for e in range(int(kn._ev_count[slot])):
@@ -1804,6 +1805,9 @@ class _Mirror:
                 if not last:
                     st.h_ode = h * fac
                 h *= fac
+            for i in range(self.ns):  # no gap and the linear law: the mode is only a label (collect)
+                if self.b[i] == 0.0 and self.law == 0 and self.p.kind is not PlantKind.YANG_SUN:
+                    self.mode[i] = 1 if self.s_of(i, self.x) >= 0.0 else -1
             for i in range(self.ns):
                 if self.mode[i] != 0:
                     self.max_pen[i] = max(self.max_pen[i], abs(self.s_of(i, self.x)) - self.b[i])

@@ -516,6 +516,28 @@ def test_no_pull_force_boundary_does_not_chatter(compiled: bool) -> None:
     assert abs(gap) <= s.backlash + 1e-9
 
 
+@pytest.mark.parametrize("compiled", KERNELS)
+def test_zero_backlash_time_varying_stiffness_rolls_on(compiled: bool) -> None:
+    """An unseen case: the report's bare pair with b = 0 on the time-varying stiffness ran out of events at
+    t = 10.8 ms, once its vibration had died and the gears rolled together (s and v at rounding level, the
+    flank label flipping at s = 0 without end). With no gap and the linear law the flank is a label on the ODE
+    path too (the force is k(theta) s + c v on both); the run ends, and the line-of-action momentum
+    rb2 J1 omega1 + rb1 J2 omega2 is conserved (no external torque)."""
+    require_compiled(compiled)
+    p = build_plant(load_model("shing1993", backlash=0.0), kind="tvms")
+    x0 = np.array([0.0, 0.0, 50.0, 0.0])
+    kn = Kernel(p, x0, dt=1e-5, compiled=compiled, max_events=2000)
+    for _ in range(2000):  # the CLI's output steps were 1 us; 10 us hit the same chatter
+        status = kn.advance(0.0, 0.0, 1e-5)
+        assert status == 0, Kernel.status_message(status)
+    s = p.stages[0]
+    J1, J2 = p.shafts[0].J, p.shafts[1].J
+    h0 = s.rb2 * J1 * 50.0
+    h1 = s.rb2 * J1 * kn.x[2] + s.rb1 * J2 * kn.x[3]
+    assert h1 == pytest.approx(h0, rel=1e-7)
+    assert kn.x[2] * s.rb1 == pytest.approx(kn.x[3] * s.rb2, rel=1e-3)  # rolling together by 20 ms
+
+
 def test_event_budget_holds_across_buffer_refills(improved: Plant) -> None:
     """The per-call event cap counts every event of the call, also after the buffer was drained (it used to
     restart at each refill, so a cascade ran forever); and the records kept are capped."""
