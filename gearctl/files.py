@@ -13,7 +13,7 @@ import difflib
 import json
 import math
 import tomllib
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -97,12 +97,15 @@ def toml_value(v: Any) -> str:
     raise TypeError(f"cannot write {v!r} as TOML")
 
 
-def toml_dumps(doc: Mapping[str, Mapping[str, Any]], header: Iterable[str] = ()) -> str:
-    """A document of tables of values (:func:`toml_value`) as TOML text, with ``header`` as comment lines."""
+def toml_dumps(doc: Mapping[str, Mapping[str, Any] | Sequence[Mapping[str, Any]]],
+               header: Iterable[str] = ()) -> str:
+    """A document of tables of values (:func:`toml_value`) as TOML text, with ``header`` as comment lines; a list
+    of tables (a train's stages) is written as an array of tables (``[[stage]]``)."""
     out = [f"# {h}" for h in header]
     for table, keys in doc.items():
-        out.append(f"\n[{table}]")
-        out.extend(f"{k} = {toml_value(v)}" for k, v in keys.items())
+        for one in ([keys] if isinstance(keys, Mapping) else keys):
+            out.append(f"\n[{table}]" if isinstance(keys, Mapping) else f"\n[[{table}]]")
+            out.extend(f"{k} = {toml_value(v)}" for k, v in one.items())
     return "\n".join(out) + "\n"
 
 
