@@ -1053,8 +1053,12 @@ def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[i
     front = np.array([v for sg, v, _ in vals if sg > 0 and math.isfinite(v)])
     back = np.array([v for sg, v, _ in vals if sg < 0 and math.isfinite(v)])
     if front.size == 0 or back.size == 0:
-        raise _no_switch(p, len(eps) - 1, "the flanks never rest in contact carrying torque on one side: the "
-                         "loop rattles in the gap or the load floats")
+        col = "theta2" if p.encoders == "motor+load" else "theta1"
+        missing = "either flank" if front.size == back.size == 0 else f"the {'back' if front.size else 'front'} flank"
+        raise InputError(f"{p.log.name}: column {col}: {len(eps) - 1} gap crossing(s), but no rest on {missing}: "
+                         f"no stretch of {need} samples ({need * p.Ts * 1e3:.3g} ms) with the mesh carrying "
+                         f"torque towards it and the flanks still (the loop rattles in the gap or the load floats); "
+                         f"record moves with dwells in contact on both flanks", field=col)
     b = 0.5 * (float(front.mean()) - float(back.mean()))
     centre = 0.5 * (float(front.mean()) + float(back.mean()))
     var = 0.0

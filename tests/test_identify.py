@@ -399,6 +399,7 @@ CORPUS = [
     ("flat.csv", "column theta1: the motor does not move"),
     ("no_reversal.csv", "column theta1: the motor turns one way only"),
     ("no_gap_crossing.csv", "column theta2: 0 gap crossing(s) found"),
+    ("no_rest.csv", "column theta2: 5 gap crossing(s), but no rest on either flank"),
 ]
 
 

@@ -65,6 +65,16 @@ def main() -> None:
     write("flat.csv", [HEADER] + rows(600, theta1=lambda t: 0.0))
     write("no_reversal.csv", [HEADER] + rows(600, theta1=lambda t: 0.5 * t))
     write("no_gap_crossing.csv", [HEADER] + rows(600, theta2=lambda t: 0.1 * math.sin(2 * math.pi * t) / 4))
+    # the load crosses the gap each half period but always lies on the flank the motor's torque pulls away from
+    # (the torque is that of the 1 Hz sine on shing1993_servo's inertia, 8.46e-4 kg m^2): no rest on either flank
+    rest = ["t,torque,theta1,theta2"]
+    for k in range(3000):
+        t = k * 1e-3
+        a = 0.1 * math.sin(2 * math.pi * t)
+        u = -8.46e-4 * 0.1 * (2 * math.pi) ** 2 * math.sin(2 * math.pi * t)
+        s = 5e-5 * math.tanh(50 * math.sin(2 * math.pi * t))
+        rest.append(f"{t:.6g},{u:.6g},{a:.9g},{a / 4 - s / 0.075175:.9g}")
+    write("no_rest.csv", rest)
 
 
 if __name__ == "__main__":
