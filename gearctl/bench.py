@@ -110,7 +110,8 @@ class BenchSpec:
                 if self.cross_design and "sine" in self.references and "yang-sun" in self.plants:
                     cells.append(("improved", "yang-sun", "sine"))
                 for p, d, r in cells:
-                    design = Design(spec=spec, nominal=nominal[FREE] if p == FREE else nominal[d], label=label)
+                    design = Design(spec=spec, nominal=nominal[FREE] if p == FREE else nominal[d], label=label,
+                                    sensors=model.sensors)
                     out.append(Run(plant=true[p], design=design, reference=reference(r),
                                    duration=self.duration or DEFAULT_DURATION[r], seed=self.seed, sensors=model.sensors,
                                    realtime=self.realtime,
@@ -129,11 +130,13 @@ class BenchSpec:
             for c in ctrls:
                 spec, label = controller_spec(c)
                 out.append({"model": m, "controller": c, "plant": "improved", "true": plant, "sensors": model.sensors,
-                            "design": Design(spec=spec, nominal=plant, label=label), "seed": self.seed})
+                            "design": Design(spec=spec, nominal=plant, label=label, sensors=model.sensors),
+                            "seed": self.seed})
             if "pid" in ctrls:
                 spec, label = controller_spec("pid")
                 out.append({"model": m, "controller": "pid", "plant": FREE, "true": free, "sensors": model.sensors,
-                            "design": Design(spec=spec, nominal=free, label=label), "seed": self.seed})
+                            "design": Design(spec=spec, nominal=free, label=label, sensors=model.sensors),
+                            "seed": self.seed})
         return out
 
 

@@ -250,7 +250,8 @@ def load_model(name_or_path: str | Path, **overrides: Any) -> GearModel:
     return model
 
 
-def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | None = None) -> Any:
+def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | None = None,
+                    sensors: Sensors | None = None) -> Any:
     """Load a controller by catalog name (``pid``, ``deadzone_inverse``, ``mpc``, ...) or TOML path.
 
     Parameters
@@ -262,6 +263,8 @@ def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | N
     backlash : float, optional
         Backlash estimate overriding the file's and the model's [m] (for a train: the lost motion's
         equivalent half-gap on the last stage's line of action, see :meth:`Plant.equivalent_pair`).
+    sensors : Sensors, optional
+        The model's encoders (``model.sensors``): the MPC's default observer noise follows them.
 
     Returns
     -------
@@ -273,4 +276,4 @@ def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | N
         Unknown name, bad key or value.
     """
     path = resolve(name_or_path, "controllers")
-    return build_controller(read_toml(path), plant, path=path, backlash=backlash)
+    return build_controller(read_toml(path), plant, path=path, backlash=backlash, sensors=sensors)

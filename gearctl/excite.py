@@ -259,7 +259,7 @@ def record_excitation(model: GearModel | str | Path, *, motion: str = "identify"
     SEED.check("seed", seed)
     true = build_plant(m, plant, backlash=backlash)
     nominal = build_plant(m, backlash=backlash)
-    ctrl = load_controller(controller, nominal)
+    ctrl = load_controller(controller, nominal, sensors=m.sensors)
     check_output_size(int(round(duration / ctrl.Ts)) + 1, true.nx + 8, field="duration", fix="a shorter --duration")
     run = simulate_closed_loop(true, _RecordBoth(ctrl), program, duration, sensors=m.sensors, seed=seed)
     notes = (f"gearctl excite: model {m.name}, {plant} plant, backlash {true.backlash:.6g} m, motion {motion}, "

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import math
 
 from .errors import InputError
 from .units import (
@@ -157,3 +158,11 @@ class Sensors:
 
     def __post_init__(self) -> None:
         validate_fields(self)
+
+    def reading_std(self, shaft: str) -> float:
+        """Standard deviation of one reading of the ``"motor"`` or ``"load"`` encoder [rad]: its quantisation
+        (a count of ``2 pi / cpr``, uniform: ``/ sqrt(12)``) and its noise, independent."""
+        cpr = self.motor_encoder_cpr if shaft == "motor" else self.load_encoder_cpr
+        q = 2.0 * math.pi / cpr if cpr else 0.0
+        noise = self.motor_noise if shaft == "motor" else self.load_noise
+        return math.sqrt(q * q / 12.0 + noise * noise)

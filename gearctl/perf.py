@@ -186,7 +186,7 @@ def mpc_timing(*, duration: float = 3.0, controller: str = "mpc") -> dict[str, A
 
     model = load_model("shing1993_servo")
     plant = build_plant(model)
-    ctrl = load_controller(controller, plant)
+    ctrl = load_controller(controller, plant, sensors=model.sensors)
     step_times: list[float] = []
     inner = ctrl.step
 
@@ -278,7 +278,7 @@ def standstill_cost(model: str = "shing1993_servo_friction", controller: str = "
     walls = {}
     for label, b in (("backlash_free", 0.0), ("backlash", None)):
         plant = build_plant(m, backlash=b)
-        ctrl = load_controller(controller, plant)
+        ctrl = load_controller(controller, plant, sensors=m.sensors)
         t0 = time.perf_counter()
         precision_test(plant, ctrl, cycles=1, sensors=m.sensors)
         walls[label] = time.perf_counter() - t0

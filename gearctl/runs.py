@@ -47,16 +47,20 @@ class Design:
         Backlash estimate overriding the file's and the model's [m].
     label : str
         The file's name (messages, reports).
+    sensors : Sensors or None
+        The model's encoders as the design knows them (the MPC's default observer noise follows them).
     """
 
     spec: Mapping[str, Any]
     nominal: Plant
     backlash: float | None = None
     label: str = "controller"
+    sensors: Sensors | None = None
 
     def key(self) -> str:
         """A digest of the design (equal designs build equal controllers)."""
-        return hashlib.sha256(pickle.dumps((dict(self.spec), self.nominal, self.backlash, self.label))).hexdigest()
+        return hashlib.sha256(pickle.dumps((dict(self.spec), self.nominal, self.backlash, self.label,
+                                            self.sensors))).hexdigest()
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -147,7 +151,8 @@ def design_controller(design: Design) -> Controller:
     if ctrl is None:
         if len(designs) > 64:  # a sweep over estimates builds many: keep the cache bounded
             designs.clear()
-        ctrl = build_controller(dict(design.spec), design.nominal, path=design.label, backlash=design.backlash)
+        ctrl = build_controller(dict(design.spec), design.nominal, path=design.label, backlash=design.backlash,
+                                sensors=design.sensors)
         designs[key] = ctrl
     return ctrl
 
@@ -197,7 +202,8 @@ def make_run(model: str | Path, controller: str | Path, *, plant: str = "improve
     spec, label = controller_spec(controller)
     ref = reference(reference_kind)
     dur = duration if duration is not None else DEFAULT_DURATION[reference_kind]
-    return Run(plant=true, design=Design(spec=spec, nominal=nominal, backlash=estimate, label=label), reference=ref,
+    return Run(plant=true, design=Design(spec=spec, nominal=nominal, backlash=estimate, label=label,
+                                                 sensors=m.sensors), reference=ref,
                duration=dur, seed=seed, sensors=m_true.sensors, realtime=realtime,
                tags=dict(tags) if tags is not None else {"model": m.name, "controller": Path(label).stem,
                                                          "plant": plant, "reference": reference_kind})

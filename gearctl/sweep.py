@@ -571,7 +571,7 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
                          f"(--runs) or fewer keys", field="runs")
     check_memory(n, grid=grid)
     # the design, once, on the nominal model: a controller that cannot be designed stops here
-    design = Design(spec=spec, nominal=build_plant(nominal_model), label=label)
+    design = Design(spec=spec, nominal=build_plant(nominal_model), label=label, sensors=nominal_model.sensors)
     ctrl = design_controller(design)
     if {"estimate", "estimate_error"} & set(keys) and not _uses_estimate(ctrl):
         raise InputError(f"--vary {'estimate' if 'estimate' in keys else 'estimate_error'}: "

@@ -19,7 +19,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     model = load_model(args.model)
     plant = build_plant(model, backlash=args.backlash)
-    ctrl = load_controller(args.controller, plant, backlash=args.estimate)
+    ctrl = load_controller(args.controller, plant, backlash=args.estimate, sensors=model.sensors)
     info = export_controller(ctrl, args.out, plant=plant, sensors=model.sensors, vectors=not args.no_vectors,
                              seed=args.seed, model=model.name, prefix=args.prefix)
     summary = {"model": model.name, "controller": ctrl.name, "kind": info.kind, "out": str(info.path),

@@ -122,7 +122,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     true_model = load_model(args.model, **dict(args.set)) if args.set else model
     nominal = build_plant(model, backlash=args.backlash)
     plant = build_plant(true_model, args.plant, backlash=args.backlash)
-    ctrl = load_controller(args.controller, nominal, backlash=args.estimate)
+    ctrl = load_controller(args.controller, nominal, backlash=args.estimate, sensors=model.sensors)
     TARGETS.check("targets", args.targets)
     CYCLES.check("cycles", args.cycles)
     res = precision_test(plant, ctrl, targets=args.targets, cycles=args.cycles, travel=args.travel,

@@ -224,8 +224,9 @@ one): :attr:`MPC.fault` latches until :meth:`MPC.reset`, every step is reported 
 braked to rest from its own reading's changes (the speed from two changes in the same direction, decaying as the
 braking takes it, time constant :data:`_BRAKE_TIME`), then the torque is zero. Why: with 16 and 4 counts per
 revolution the plan ran on predictions restarted at rest from the readings and drove the load 2.9 rad away (the
-review: 43 rad); zero torque at the fault let it coast 14.6 rad. Now it stops within 0.43 rad. A load torque still
-moves a faulted drive (the brake is a damper, not a position hold).
+review: 43 rad); zero torque at the fault let it coast 14.6 rad. Now it stops within 0.39 rad (0.43 with a
+measurement noise of 2e-6 rad). A load torque still moves a faulted drive (the brake is a damper, not a position
+hold).
 
 *Crossings.* A crossing still on its old flank (the gap has not left it) is re-decided every sample: the plan that
 stays in contact there is solved too and taken if it is cheaper by :data:`_CROSS_MARGIN`. Why: on
@@ -283,7 +284,7 @@ from ..build import CompileError, c_compiler, compile_disabled, shared_library
 from ..controller import ReferenceLike
 from ..errors import InputError, SolverError
 from ..files import Layout, build_dataclass, spec_values
-from ..params import FrictionLaw
+from ..params import FrictionLaw, Sensors
 from ..plant import input_matrix, mode_matrices
 from ..units import BACKLASH, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
@@ -295,6 +296,9 @@ INPUT_LIMIT = 1e12
 
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "mpc"
+#: The least ``measurement_noise`` [rad] (the default without sensors): about one count of a 2^20-count encoder
+#: (6e-6 rad quantises to 1.7e-6 rad rms). A model's coarser or noisier encoders raise the default (build_mpc).
+MEASUREMENT_NOISE_FLOOR = 2e-6
 
 #: QP solvers the MPC offers: gearctl's own exact dense solver (:class:`gearctl.qp.DenseQP`, the default:
 #: the exported C controller runs the same code) and CasADi conic plugins (``daqp`` and ``qrqp`` compiled).
@@ -360,7 +364,8 @@ class MPCSettings:
         Observer: std of the unmodelled torque on each shaft per sample, and of the load-torque
         disturbance's change per sample, as a share of the torque limit [1].
     measurement_noise : float
-        Observer: std of each encoder's error [rad].
+        Observer: std of each encoder's error [rad]. A controller file that does not set it gets the model's
+        encoders' (:func:`build_mpc`; a 4096-count encoder: 4.4e-4 rad), at least :data:`MEASUREMENT_NOISE_FLOOR`.
     standstill_deadband : float
         Load error [rad] within which the plan holds its flank while the previewed reference rests (see
         *Standstill* in the module docstring); ``0 <= value <= 1``.
@@ -392,7 +397,7 @@ class MPCSettings:
     process_noise: float = quantity(unit="1", doc="observer process noise, a share of the torque limit", low=0.0,
                                     low_open=True, high=1e3, default=1e-4)
     measurement_noise: float = quantity(unit="rad", doc="observer measurement noise", low=0.0, low_open=True,
-                                        high=1.0, default=2e-6)
+                                        high=1.0, default=MEASUREMENT_NOISE_FLOOR)
     backlash: float = BACKLASH.field(default=5e-5, doc="backlash estimate (0: a backlash-free train)")
     standstill_deadband: float = quantity(unit="rad", doc="load error below which the plan does not cross the gap "
                                           "while the previewed reference rests", low=0.0, high=1.0, default=2e-4)
@@ -441,7 +446,7 @@ def _plugin_loads(plugin: str) -> bool:
 
 
 def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, name: str,
-              backlash: float | None = None) -> MPC:
+              backlash: float | None = None, sensors: Sensors | None = None) -> MPC:
     """Build the MPC of a controller file (called by :func:`gearctl.design.registry.build_controller`).
 
     Parameters
@@ -459,6 +464,10 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     backlash : float, optional
         Backlash estimate overriding the file's ``backlash`` and the model's [m]; ``0 <= backlash < 0.01``,
         0 giving the backlash-free (rigid-train) MPC, e.g. on the benchmark's backlash-free plant.
+    sensors : Sensors, optional
+        The model's encoders. Where the file does not set ``measurement_noise``, it is the largest reading
+        error of the encoders the MPC reads (:meth:`Sensors.reading_std`: quantisation and noise), and at least
+        :data:`MEASUREMENT_NOISE_FLOOR`; without sensors, the floor.
 
     Returns
     -------
@@ -487,6 +496,10 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         vals["backlash"] = (None, info.plant.backlash)
     if "max_solve_time" not in vals:
         vals["max_solve_time"] = (None, Ts)
+    if "measurement_noise" not in vals and sensors is not None:
+        load = vals.get("feedback", (None, "load"))[1] == "load"
+        vals["measurement_noise"] = (None, max(MEASUREMENT_NOISE_FLOOR, sensors.reading_std("motor"),
+                                               sensors.reading_std("load") if load else 0.0))
     settings = build_dataclass(path, MPCSettings, vals)
     try:
         return MPC(info, settings, Ts=Ts, name=name)

@@ -17,6 +17,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..files import Layout, check_source
+from ..params import Sensors
 from ..plant import Plant
 from ..units import BACKLASH, SAMPLE_TIME
 from . import adaptive, deadzone, mpc, pid, reversal
@@ -35,7 +36,7 @@ CONTROLLER_KEYS: dict[str, tuple[set[str], dict[str, set[str]]]] = {
 
 
 def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "<controller>",
-                     backlash: float | None = None) -> Controller:
+                     backlash: float | None = None, sensors: Sensors | None = None) -> Controller:
     """Build a controller from a parsed controller file.
 
     Parameters
@@ -49,6 +50,9 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
         File name, for messages.
     backlash : float, optional
         Backlash estimate overriding the file's and the model's [m].
+    sensors : Sensors, optional
+        The model's encoders, as the design knows them: the MPC's default ``measurement_noise`` follows them
+        (see :func:`gearctl.design.mpc.build_mpc`); the other kinds do not use them.
 
     Returns
     -------
@@ -82,5 +86,5 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
             Ts = SAMPLE_TIME.check("sample_time", ts)
         except InputError as exc:
             raise InputError(f"{path}: sample_time = {ts!r} {exc.rule}", field="sample_time", rule=exc.rule) from None
-        return mpc.build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash)
+        return mpc.build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash, sensors=sensors)
     return MODULES[kind].build(path, spec, info, name=name, backlash=backlash)

@@ -130,7 +130,7 @@ def export_timing(*, model: str = "shing1993_servo", controller: str = "mpc", du
 
     m = load_model(model)
     plant = build_plant(m)
-    ctrl = load_controller(controller, plant)
+    ctrl = load_controller(controller, plant, sensors=m.sensors)
     with tempfile.TemporaryDirectory(prefix="gearctl-export-") as tmp:
         info = export_controller(ctrl, tmp, plant=plant, sensors=m.sensors, model=m.name)
         c = bench_folder(tmp)
