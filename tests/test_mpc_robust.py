@@ -286,9 +286,9 @@ def test_a_landing_that_stalls_short_of_the_flank_is_taken_as_contact() -> None:
 
 
 def test_the_default_measurement_noise_follows_the_encoders(tmp_path: Path) -> None:
-    """Without ``measurement_noise`` in the controller file the MPC's observer takes the model's encoders: the
-    larger reading error (quantisation 2 pi / cpr / sqrt(12), and noise) of the encoders it reads, at least 2e-6 rad;
-    a value the file gives wins."""
+    """Without ``measurement_noise`` in the controller file the MPC's observer takes the model's motor encoder's
+    reading error (quantisation 2 pi / cpr / sqrt(12), and noise), at least 2e-6 rad; the load encoder's is not
+    used (the load reading is never weighed below the motor's); a value the file gives wins."""
     from gearctl import Sensors
     from gearctl.design.mpc import MEASUREMENT_NOISE_FLOOR
 
@@ -296,17 +296,15 @@ def test_the_default_measurement_noise_follows_the_encoders(tmp_path: Path) -> N
     q = 2 * math.pi / 4096 / math.sqrt(12)
     coarse = Sensors(motor_encoder_cpr=4096, load_encoder_cpr=65536, load_noise=1e-5)
     assert load_controller("mpc", plant, sensors=coarse).settings.measurement_noise == pytest.approx(q, rel=1e-12)
-    noisy = Sensors(motor_encoder_cpr=2**20, load_encoder_cpr=2**20, load_noise=1e-3)
+    noisy = Sensors(motor_encoder_cpr=2**20, motor_noise=1e-4, load_encoder_cpr=2**20)
     assert load_controller("mpc", plant, sensors=noisy).settings.measurement_noise == pytest.approx(
-        math.hypot(1e-3, 2 * math.pi / 2**20 / math.sqrt(12)), rel=1e-12)
+        math.hypot(1e-4, 2 * math.pi / 2**20 / math.sqrt(12)), rel=1e-12)
+    coarse_load = Sensors(motor_encoder_cpr=2**20, load_encoder_cpr=65536)
+    assert load_controller("mpc", plant, sensors=coarse_load).settings.measurement_noise == MEASUREMENT_NOISE_FLOOR
     fine = load_model("shing1993_servo").sensors  # 2^20 counts: 1.7e-6 rad, below the floor
     assert load_controller("mpc", plant, sensors=fine).settings.measurement_noise == MEASUREMENT_NOISE_FLOOR
     assert load_controller("mpc", plant).settings.measurement_noise == MEASUREMENT_NOISE_FLOOR
-    # the motor encoder alone: the load encoder's noise is not read
     text = (Path(__file__).parents[1] / "controllers" / "mpc.toml").read_text()
-    motor = tmp_path / "mpc_motor.toml"
-    motor.write_text(text.replace('feedback = "load"', 'feedback = "motor"'))
-    assert load_controller(motor, plant, sensors=noisy).settings.measurement_noise == MEASUREMENT_NOISE_FLOOR
     given = tmp_path / "mpc_given.toml"
     given.write_text(text.replace("[observer]\n", "[observer]\nmeasurement_noise = 3e-6\n"))
     assert load_controller(given, plant, sensors=coarse).settings.measurement_noise == 3e-6

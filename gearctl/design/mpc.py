@@ -365,7 +365,8 @@ class MPCSettings:
         disturbance's change per sample, as a share of the torque limit [1].
     measurement_noise : float
         Observer: std of each encoder's error [rad]. A controller file that does not set it gets the model's
-        encoders' (:func:`build_mpc`; a 4096-count encoder: 4.4e-4 rad), at least :data:`MEASUREMENT_NOISE_FLOOR`.
+        motor encoder's (:func:`build_mpc`; a 4096-count encoder: 4.4e-4 rad), at least
+        :data:`MEASUREMENT_NOISE_FLOOR`.
     standstill_deadband : float
         Load error [rad] within which the plan holds its flank while the previewed reference rests (see
         *Standstill* in the module docstring); ``0 <= value <= 1``.
@@ -465,9 +466,13 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         Backlash estimate overriding the file's ``backlash`` and the model's [m]; ``0 <= backlash < 0.01``,
         0 giving the backlash-free (rigid-train) MPC, e.g. on the benchmark's backlash-free plant.
     sensors : Sensors, optional
-        The model's encoders. Where the file does not set ``measurement_noise``, it is the largest reading
-        error of the encoders the MPC reads (:meth:`Sensors.reading_std`: quantisation and noise), and at least
-        :data:`MEASUREMENT_NOISE_FLOOR`; without sensors, the floor.
+        The model's encoders. Where the file does not set ``measurement_noise``, it is the motor encoder's
+        reading error (:meth:`Sensors.reading_std`: quantisation and noise), at least
+        :data:`MEASUREMENT_NOISE_FLOOR`; without sensors, the floor. The load encoder's own is not used: it
+        reads the output itself, while the motor encoder reads it through the lost motion and compliance that
+        the observer's rigid-train model leaves out, so the load reading is never weighed below the motor's. On
+        an unseen three-stage train with a 65536-count load encoder (2.8e-5 rad rms) weighing it by its own
+        error leaned on the 2^20-count motor encoder and took the sine from 1.3e-4 to 7.6e-4 rad RMS.
 
     Returns
     -------
@@ -496,10 +501,8 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         vals["backlash"] = (None, info.plant.backlash)
     if "max_solve_time" not in vals:
         vals["max_solve_time"] = (None, Ts)
-    if "measurement_noise" not in vals and sensors is not None:
-        load = vals.get("feedback", (None, "load"))[1] == "load"
-        vals["measurement_noise"] = (None, max(MEASUREMENT_NOISE_FLOOR, sensors.reading_std("motor"),
-                                               sensors.reading_std("load") if load else 0.0))
+    if "measurement_noise" not in vals and sensors is not None:  # the motor encoder's (see the docstring)
+        vals["measurement_noise"] = (None, max(MEASUREMENT_NOISE_FLOOR, sensors.reading_std("motor")))
     settings = build_dataclass(path, MPCSettings, vals)
     try:
         return MPC(info, settings, Ts=Ts, name=name)
