@@ -487,6 +487,17 @@ static double first_root(const double *q, int nt, double h, double g1, double dg
     return g1 <= 0.0 ? poly_root(q, nt, 0.0, h) : -1.0;
 }
 
+/* The first time in [0, h] that event function f, starting on its boundary (g(0) = 0), is clearly past it:
+ * g(tau) = -(thr0 + thr2 tau^2); -1 if it is not by h (gb, db: g and g' at h). */
+static double clearly_past(const gc_evfun *f, long nx, int sparse, double D[NTAY][GC_NX_MAX], int nt, double h,
+                           double gb, double db, double thr0, double thr2) {
+    double q[NTAY];
+    gap_poly(f, nx, sparse, D, nt, q);
+    q[0] = thr0;
+    if (nt > 2) q[2] += thr2;
+    return first_root(q, nt, h, gb + thr2 * h * h + thr0, q[1], db + 2.0 * thr2 * h);
+}
+
 /* Grazing decision for a geometric boundary reached with zero rate: 1 to leave the current side now, 0 to
  * stay. acc_tol: the gap acceleration taken as zero (a pull or push far below anything the encoders or the
  * Zeno rule resolve). */
@@ -879,11 +890,7 @@ static int gc_advance_pwl(const gc_params *p, gc_state *st) {
                            endless separation / plastic-impact chatter at one instant). After the switch the new
                            side starts that far inside, so a way back needs a real motion of the gap. */
                         if (nt == 0) nt = taylor(nx, A, rho, x0, a, h, D);
-                        double q[NTAY];
-                        gap_poly(fn + e, nx, sparse, D, nt, q);
-                        q[0] = thr0;
-                        if (nt > 2) q[2] += thr2;
-                        tau = first_root(q, nt, h, gb + thr2 * h * h + thr0, q[1], db + 2.0 * thr2 * h);
+                        tau = clearly_past(fn + e, nx, sparse, D, nt, h, gb, db, thr0, thr2);
                         if (tau < 0.0) tau = h;
                     }
                 } else if (ga == 0.0 && fn[e].type == 1 && da <= 0.0) {
@@ -893,13 +900,9 @@ static int gc_advance_pwl(const gc_params *p, gc_state *st) {
                        switch back waits until F is clearly past zero: g(tau) = -(thr0 + thr2 tau^2), thr2
                        the geometric dead band's acceleration through the mesh stiffness. */
                     for (i = 0; i < nx; i++) gscale += fabs(cg[i] * x0[i]);
-                    double thr0 = 4e-16 * gscale, thr2 = 0.5e-3 * p->zeno_v / h_pat * p->k[fn[e].idx];
                     if (nt == 0) nt = taylor(nx, A, rho, x0, a, h, D);
-                    double q[NTAY];
-                    gap_poly(fn + e, nx, sparse, D, nt, q);
-                    q[0] = thr0;
-                    if (nt > 2) q[2] += thr2;
-                    tau = first_root(q, nt, h, gb + thr2 * h * h + thr0, q[1], db + 2.0 * thr2 * h);
+                    tau = clearly_past(fn + e, nx, sparse, D, nt, h, gb, db, 4e-16 * gscale,
+                                       0.5e-3 * p->zeno_v / h_pat * p->k[fn[e].idx]);
                 } else if (ga == 0.0 && (da < 0.0 || (da == 0.0 && db < 0.0))) {
                     tau = 0.0; /* on the boundary and heading out */
                 } else {

@@ -1020,6 +1020,18 @@ _PEN_REL = 1e-3  # a long step may raise a penetration record to its bound where
 _BACKOFF = (2, 16)  # sub-steps before the next long try after a refusal: first, most (doubling)
 
 
+def _clearly_past(cg: list[float], D: list[list[float]], h: float, gb: float, db: float, thr0: float,
+                  thr2: float) -> float:
+    """The first time in [0, h] that an event function starting on its boundary is clearly past it:
+    g(tau) = -(thr0 + thr2 tau^2); -1 if not by h (``clearly_past`` in _kernel.c)."""
+    nx = len(cg)
+    qp = [sum(cg[i] * Dn[i] for i in range(nx)) for Dn in D]
+    qp[0] = thr0
+    if len(qp) > 2:
+        qp[2] += thr2
+    return _first_root(qp, h, gb + thr2 * h * h + thr0, qp[1], db + 2.0 * thr2 * h)
+
+
 def _cubic_range(s0: float, s1: float, d0: float, d1: float, umax: float = 1.0) -> tuple[float, float]:
     """Range on [0, umax] of the cubic Hermite interpolant on [0, 1] of values s0, s1, scaled slopes d0, d1."""
     c1, c2, c3 = d0, -3.0 * s0 - 2.0 * d0 + 3.0 * s1 - d1, 2.0 * s0 + d0 - 2.0 * s1 + d1
@@ -1568,25 +1580,17 @@ class _Mirror:
                             # moved it): the first time it is clearly past (see _kernel.c)
                             if D is None:
                                 D = _taylor(A, rho, x0, a, h)
-                            qp = [sum(cg[i] * Dn[i] for i in range(nx)) for Dn in D]
-                            qp[0] = thr0
-                            if len(qp) > 2:
-                                qp[2] += thr2
-                            tau = _first_root(qp, h, gb + thr2 * h * h + thr0, qp[1], db + 2.0 * thr2 * h)
+                            tau = _clearly_past(cg, D, h, gb, db, thr0, thr2)
                             if tau < 0.0:
                                 tau = h
                     elif ga == 0.0 and f.type == EVENT_FORCE and da <= 0.0:
                         # just switched onto a no_pull force boundary and heading back: wait until the force
                         # is clearly past zero (the rate's sign is rounding there; see _kernel.c)
                         gscale = sum(abs(cg[i] * x0[i]) for i in range(nx))
-                        thr0, thr2 = 4e-16 * gscale, 0.5e-3 * self.zeno_v / h_pat * self.k[f.idx]
                         if D is None:
                             D = _taylor(A, rho, x0, a, h)
-                        qp = [sum(cg[i] * Dn[i] for i in range(nx)) for Dn in D]
-                        qp[0] = thr0
-                        if len(qp) > 2:
-                            qp[2] += thr2
-                        tau = _first_root(qp, h, gb + thr2 * h * h + thr0, qp[1], db + 2.0 * thr2 * h)
+                        tau = _clearly_past(cg, D, h, gb, db, 4e-16 * gscale,
+                                            0.5e-3 * self.zeno_v / h_pat * self.k[f.idx])
                     elif ga == 0.0 and (da < 0.0 or (da == 0.0 and db < 0.0)):
                         tau = 0.0
                     else:
