@@ -271,6 +271,14 @@ def _check_tips(pair: GearPair, g: dict[str, Any]) -> None:
     for j in (1, 2):
         sa = g[f"g{j}"]["sa"]
         if sa <= 0.0:
+            if getattr(pair, f"x{j}") == 0.0:  # an unshifted gear: its few teeth (at this pressure angle) did it
+                rule = (
+                    f"makes the tip of gear {j} pointed at a pressure angle of {math.degrees(pair.pressure_angle):g} "
+                    f"deg and addendum {pair.addendum_coefficient:g} (tooth thickness at the tip {sa * 1e3:.4g} mm "
+                    f"<= 0): expected a tip thickness > 0 (ISO 21771 / DIN 3960 recommend >= 0.2 module); use more "
+                    f"teeth, a smaller pressure angle or a shorter addendum"
+                )
+                raise _input_error(pair, f"teeth{j}", rule)
             rule = (
                 f"makes the tip of gear {j} pointed (tooth thickness at the tip {sa * 1e3:.4g} mm <= 0): expected "
                 f"a tip thickness > 0 (ISO 21771 / DIN 3960 recommend >= 0.2 module); use a smaller profile shift "

@@ -760,6 +760,19 @@ FOUND_CASES = {
         "(design/deadzone.py _start_take_up: RuntimeWarning, invalid value in scalar divide)",
         fixed=(
         "fixed: without a torque limit no acceleration bound lengthens the take-up (Python and exported C)")),
+    "mpc_encoder_noise_1rad": Found("mpc_encoder_noise_1rad.toml", (
+        ("track", "MODEL", "mpc", "--reference", "sine", "--duration", "0.1"),), 4.0,
+        "vague error: the MPC's observer noise, derived from the model's motor encoder (1 rad of noise), was over the "
+        "range of measurement_noise (0 < value <= 1 rad), and the error blamed controllers/mpc.toml's "
+        "measurement_noise, a key the file no longer sets",
+        fixed="the derived value is held within the key's range (at most 1 rad); the run ends, its readings rejected "
+              "and reported as fallbacks"),
+    "pointed_tip_unshifted": Found("pointed_tip_unshifted.toml", (("info", "MODEL"),), 4.0,
+        "vague error: a 12-tooth gear at 35 deg without profile shift has a pointed tip; the error named "
+        "addendum_coefficient = 1, a key the file does not set",
+        fixed="an unshifted gear's pointed tip names its teeth: '[gear2] teeth = 12 makes the tip of gear 2 pointed "
+              "at a pressure angle of 35 deg and addendum 1 ...; use more teeth, a smaller pressure angle or a "
+              "shorter addendum'"),
 }
 
 

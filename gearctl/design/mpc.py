@@ -468,11 +468,12 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     sensors : Sensors, optional
         The model's encoders. Where the file does not set ``measurement_noise``, it is the motor encoder's
         reading error (:meth:`Sensors.reading_std`: quantisation and noise), at least
-        :data:`MEASUREMENT_NOISE_FLOOR`; without sensors, the floor. The load encoder's own is not used: it
-        reads the output itself, while the motor encoder reads it through the lost motion and compliance that
-        the observer's rigid-train model leaves out, so the load reading is never weighed below the motor's. On
-        an unseen three-stage train with a 65536-count load encoder (2.8e-5 rad rms) weighing it by its own
-        error leaned on the 2^20-count motor encoder and took the sine from 1.3e-4 to 7.6e-4 rad RMS.
+        :data:`MEASUREMENT_NOISE_FLOOR` and at most 1 rad (the key's range); without sensors, the floor. The
+        load encoder's own is not used: it reads the output itself, while the motor encoder reads it through the
+        lost motion and compliance that the observer's rigid-train model leaves out, so the load reading is never
+        weighed below the motor's. On an unseen three-stage train with a 65536-count load encoder (2.8e-5 rad
+        rms) weighing it by its own error leaned on the 2^20-count motor encoder and took the sine from 1.3e-4
+        to 7.6e-4 rad RMS.
 
     Returns
     -------
@@ -502,7 +503,8 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     if "max_solve_time" not in vals:
         vals["max_solve_time"] = (None, Ts)
     if "measurement_noise" not in vals and sensors is not None:  # the motor encoder's (see the docstring)
-        vals["measurement_noise"] = (None, max(MEASUREMENT_NOISE_FLOOR, sensors.reading_std("motor")))
+        # within the key's range: a reading error over 1 rad (a 4-count encoder, a noise of radians) is 1 rad
+        vals["measurement_noise"] = (None, min(max(MEASUREMENT_NOISE_FLOOR, sensors.reading_std("motor")), 1.0))
     settings = build_dataclass(path, MPCSettings, vals)
     try:
         return MPC(info, settings, Ts=Ts, name=name)

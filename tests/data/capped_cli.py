@@ -18,7 +18,8 @@ before it runs (so a hang or a kill names the command), and after it ends::
 ``error`` is the class name of the :class:`gearctl.GearctlError` the command raised (``InputError``,
 ``SimulationError``, ...; None if it raised none); ``traceback`` is the formatted traceback of any other
 exception that escaped ``main`` (a bug: the CLI would have printed it), with ``rc`` None. ``stdout`` keeps
-the first 20 000 characters; ``maxrss_mb`` is this process's peak resident memory so far.
+the first STDOUT_KEEP characters (enough for a whole ``--json`` object: a short simulation's ``impact_times``
+can run to tens of kB); ``maxrss_mb`` is this process's peak resident memory so far.
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ from typing import Any
 
 #: Default memory cap of a child [bytes] (address space: numpy, CasADi and the compiled kernels fit in 3 GB).
 MEMORY_CAP = 3 * 1024**3
+#: Characters of a command's stdout kept in its record (and parsed as its JSON) [1].
+STDOUT_KEEP = 2_000_000
 
 
 def _peak_mb() -> float:
@@ -86,7 +89,7 @@ def run_commands(commands: list[list[str]], out_path: str) -> None:
                         tb = traceback.format_exc()
                 wall = time.perf_counter() - t0
                 text = out.getvalue()
-                rec = {"i": i, "argv": argv, "rc": rc, "stdout_bytes": len(text.encode()), "stdout": text[:20000],
+                rec = {"i": i, "argv": argv, "rc": rc, "stdout_bytes": len(text.encode()), "stdout": text[:STDOUT_KEEP],
                        "stderr": err.getvalue(), "wall": wall, "maxrss_mb": _peak_mb(),
                        "error": raised[-1] if raised else None, "traceback": tb}
                 log.write(json.dumps(rec) + "\n")
