@@ -76,6 +76,12 @@
 
 static inline int sgn_mode(int mode) { return mode > 0 ? 1 : (mode < 0 ? -1 : 0); }
 static inline int loaded(int mode) { return mode == 1 || mode == -1; }
+/* Stage i has no gap and the linear law: one system on both flanks, the mode only a label (set from the sign of s
+ * after each step). On the ODE path not for Yang-Sun (its damping term follows the flank, d_ys comes from the
+ * speed at s = 0): there s = 0 is located and the flank changes there. */
+static inline int flank_is_label(const gc_params *p, long i, int ode) {
+    return p->b[i] == 0.0 && p->law == 0 && (!ode || p->kind != 1);
+}
 static inline double s_of(const gc_params *p, long i, const double *x) {
     return p->rb1[i] * x[i] - p->rb2[i] * x[i + 1];
 }
@@ -269,11 +275,7 @@ static int collect_events(const gc_params *p, const gc_state *st, double u1, dou
     int n = 0;
     long i, e;
     for (i = 0; i < p->ns; i++) {
-        /* no gap and the linear law: one system on both flanks (the mode is only a label, set from the sign
-           of s after each step), on the exact path and on the ODE path's time-varying stiffness and smooth
-           friction alike; not for Yang-Sun (its damping term follows the flank, d_ys comes from the speed at
-           s = 0), where the ODE path locates s = 0 and changes flank there */
-        if (p->b[i] == 0.0 && p->law == 0 && (!ode || p->kind != 1)) continue;
+        if (flank_is_label(p, i, ode)) continue; /* no flank change to locate */
         long slot = 5 * i + (st->mode[i] + 2);
         long cnt = p->ev_count[slot];
         for (e = 0; e < cnt; e++) {
@@ -806,7 +808,7 @@ static int gc_advance_pwl(const gc_params *p, gc_state *st) {
                     for (i = 0; i < p->ns; i++)
                         if (pen[i] > st->max_pen[i]) st->max_pen[i] = pen[i];
                     for (i = 0; i < p->ns; i++)
-                        if (p->b[i] == 0.0 && p->law == 0) st->mode[i] = s_of(p, i, x1) >= 0.0 ? 1 : -1;
+                        if (flank_is_label(p, i, 0)) st->mode[i] = s_of(p, i, x1) >= 0.0 ? 1 : -1;
                     for (i = 0; i < nx; i++)
                         if (!isfinite(st->x[i])) return ST_NAN;
                     continue;
@@ -929,7 +931,7 @@ static int gc_advance_pwl(const gc_params *p, gc_state *st) {
             have_dx = 1;
             st->t = lands ? t_end : st->t + h;
             for (i = 0; i < p->ns; i++) /* no gap and the linear law: the mode is only a label */
-                if (p->b[i] == 0.0 && p->law == 0) st->mode[i] = s_of(p, i, x1) >= 0.0 ? 1 : -1;
+                if (flank_is_label(p, i, 0)) st->mode[i] = s_of(p, i, x1) >= 0.0 ? 1 : -1;
         } else {
             have_dx = 0; /* the state jumped to the event (and a plastic impact may change it) */
             cached = 0;
@@ -1154,8 +1156,8 @@ static int gc_advance_ode(const gc_params *p, gc_state *st) {
             if (!last) st->h_ode = h * fac;
             h = h * fac;
         }
-        for (i = 0; i < p->ns; i++) /* no gap and the linear law: the mode is only a label (collect_events) */
-            if (p->b[i] == 0.0 && p->law == 0 && p->kind != 1) st->mode[i] = s_of(p, i, st->x) >= 0.0 ? 1 : -1;
+        for (i = 0; i < p->ns; i++)
+            if (flank_is_label(p, i, 1)) st->mode[i] = s_of(p, i, st->x) >= 0.0 ? 1 : -1;
         for (i = 0; i < p->ns; i++)
             if (st->mode[i] != 0) {
                 double pen = fabs(s_of(p, i, st->x)) - p->b[i];

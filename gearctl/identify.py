@@ -842,8 +842,13 @@ class _Problem:
         return self.uf - theta[0] * m.a - theta[2] * m.w - theta[4] * np.where(mv, np.sign(m.w), 0.0)
 
 
+def _gap_column(p: _Problem) -> str:
+    """The log column the gap's crossings are read from (the load encoder's, or the motor's alone)."""
+    return "theta2" if p.encoders == "motor+load" else "theta1"
+
+
 def _no_switch(p: _Problem, found: int, what: str) -> InputError:
-    col = "theta2" if p.encoders == "motor+load" else "theta1"
+    col = _gap_column(p)
     return InputError(f"{p.log.name}: column {col}: {found} gap crossing(s) found ({what}); identification needs at "
                       f"least {MIN_SWITCHES}: record a motion that reverses (moves back and forth, a sine)",
                       field=col)
@@ -1053,7 +1058,7 @@ def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[i
     front = np.array([v for sg, v, _ in vals if sg > 0 and math.isfinite(v)])
     back = np.array([v for sg, v, _ in vals if sg < 0 and math.isfinite(v)])
     if front.size == 0 or back.size == 0:
-        col = "theta2" if p.encoders == "motor+load" else "theta1"
+        col = _gap_column(p)
         missing = "either flank" if front.size == back.size == 0 else f"the {'back' if front.size else 'front'} flank"
         raise InputError(f"{p.log.name}: column {col}: {len(eps) - 1} gap crossing(s), but no rest on {missing}: "
                          f"no stretch of {need} samples ({need * p.Ts * 1e3:.3g} ms) with the mesh carrying "

@@ -1149,6 +1149,10 @@ class _Mirror:
             kn.dropped_events += n - keep
 
     # -- shared pieces
+    def flank_is_label(self, i: int, ode: bool) -> bool:
+        """No gap and the linear law: the mode is only a label (``flank_is_label`` in _kernel.c)."""
+        return self.b[i] == 0.0 and self.law == 0 and (not ode or self.p.kind is not PlantKind.YANG_SUN)
+
     def s_of(self, i: int, x: list[float]) -> float:
         return self.rb1[i] * x[i] - self.rb2[i] * x[i + 1]
 
@@ -1229,8 +1233,7 @@ class _Mirror:
     def collect(self, ode: bool) -> list[_EvFun]:
         kn, out = self.kn, []
         for i in range(self.ns):
-            if self.b[i] == 0.0 and self.law == 0 and (not ode or self.p.kind is not PlantKind.YANG_SUN):
-                # a label only (see collect_events in _kernel.c)
+            if self.flank_is_label(i, ode):  # no flank change to locate
                 continue
             slot = 5 * i + self.mode[i] + 2
             for e in range(int(kn._ev_count[slot])):
@@ -1526,7 +1529,7 @@ class _Mirror:
                         lcur, backoff = lvl + 1, 0
                         self.max_pen = [max(m_, q_) for m_, q_ in zip(self.max_pen, pen, strict=True)]
                         for i in range(self.ns):
-                            if self.b[i] == 0.0 and self.law == 0:
+                            if self.flank_is_label(i, False):
                                 self.mode[i] = 1 if self.s_of(i, self.x) >= 0.0 else -1
                         if not all(math.isfinite(v) for v in self.x):
                             return 2
@@ -1609,7 +1612,7 @@ class _Mirror:
                 have_dx = True
                 self.t = self.t_end if lands else self.t + h
                 for i in range(self.ns):
-                    if self.b[i] == 0.0 and self.law == 0:
+                    if self.flank_is_label(i, False):
                         self.mode[i] = 1 if self.s_of(i, x1) >= 0.0 else -1
             else:
                 have_dx = False
@@ -1809,8 +1812,8 @@ class _Mirror:
                 if not last:
                     st.h_ode = h * fac
                 h *= fac
-            for i in range(self.ns):  # no gap and the linear law: the mode is only a label (collect)
-                if self.b[i] == 0.0 and self.law == 0 and self.p.kind is not PlantKind.YANG_SUN:
+            for i in range(self.ns):
+                if self.flank_is_label(i, True):
                     self.mode[i] = 1 if self.s_of(i, self.x) >= 0.0 else -1
             for i in range(self.ns):
                 if self.mode[i] != 0:

@@ -202,9 +202,9 @@ def make_run(model: str | Path, controller: str | Path, *, plant: str = "improve
     spec, label = controller_spec(controller)
     ref = reference(reference_kind)
     dur = duration if duration is not None else DEFAULT_DURATION[reference_kind]
-    return Run(plant=true, design=Design(spec=spec, nominal=nominal, backlash=estimate, label=label,
-                                                 sensors=m.sensors), reference=ref,
-               duration=dur, seed=seed, sensors=m_true.sensors, realtime=realtime,
+    design = Design(spec=spec, nominal=nominal, backlash=estimate, label=label, sensors=m.sensors)
+    return Run(plant=true, design=design, reference=ref, duration=dur, seed=seed, sensors=m_true.sensors,
+               realtime=realtime,
                tags=dict(tags) if tags is not None else {"model": m.name, "controller": Path(label).stem,
                                                          "plant": plant, "reference": reference_kind})
 
