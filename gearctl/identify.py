@@ -3,7 +3,8 @@
 A servo log is what a drive or a data logger exports (:func:`read_log`, :func:`write_log`): CSV, optional
 ``#`` comment lines, a header row, then one row per sample at a fixed period with the columns
 
-- ``t`` [s], evenly spaced (within :data:`PERIOD_TOLERANCE` of the period);
+- ``t`` [s], at a fixed period: evenly spaced, or stamped with a clock that jitters by less than
+  :data:`JITTER_TOLERANCE` of the period around a fixed grid (read as that grid, with a warning);
 - ``torque`` [N m], the motor torque command, held from its sample to the next (zero-order hold);
 - ``theta1`` [rad], the motor encoder's reading (quantised, noisy, any zero);
 - ``theta2`` [rad], the load encoder's reading, optional;
@@ -40,7 +41,7 @@ from .units import SAMPLE_TIME
 
 __all__ = ["EncoderLog", "read_log", "write_log", "Identification", "ReversalWindow", "identify", "identified_model",
            "write_identified_model", "ENCODERS", "MAX_LOG_BYTES", "MAX_LOG_SAMPLES", "MIN_LOG_SAMPLES",
-           "PERIOD_TOLERANCE", "MIN_SWITCHES", "MAX_WINDOWS", "sample_period"]
+           "PERIOD_TOLERANCE", "JITTER_TOLERANCE", "MIN_SWITCHES", "MAX_WINDOWS", "sample_period"]
 
 #: Largest log file read [bytes] (a 1 kHz log of 17 min with five columns is about 60 MB).
 MAX_LOG_BYTES = 100_000_000
@@ -48,8 +49,11 @@ MAX_LOG_BYTES = 100_000_000
 MAX_LOG_SAMPLES = 1_000_000
 #: Fewest samples a log must hold (0.5 s at 1 kHz).
 MIN_LOG_SAMPLES = 500
-#: Samples must be evenly spaced: each interval within this fraction of the period.
+#: Samples are evenly spaced when each interval is within this fraction of the period.
 PERIOD_TOLERANCE = 0.01
+#: Time stamps that jitter are read as the fixed period's grid while each lies within this fraction of the period
+#: of it (a logger that stamps a drive's samples with its own clock); a missing or doubled sample is refused.
+JITTER_TOLERANCE = 0.25
 #: The columns of a log: required, then optional.
 REQUIRED_COLUMNS = ("t", "torque", "theta1")
 OPTIONAL_COLUMNS = ("theta2",)
@@ -77,6 +81,9 @@ class EncoderLog:
         The ``#`` lines before the header, without the ``#``.
     path : Path or None
         The file read.
+    jitter : tuple of float
+        RMS and largest distance of the time stamps from the fixed period's grid [s] (zeros when the samples are
+        evenly spaced within :data:`PERIOD_TOLERANCE`).
     """
 
     t: NDArray[np.float64]
@@ -87,6 +94,7 @@ class EncoderLog:
     sample_time: float
     comments: tuple[str, ...] = ()
     path: Path | None = None
+    jitter: tuple[float, float] = (0.0, 0.0)
 
     @property
     def n(self) -> int:
@@ -127,8 +135,9 @@ def read_log(path: str | Path) -> EncoderLog:
     InputError
         One line naming the file and the line or column: unreadable, binary or non-UTF-8, larger than
         :data:`MAX_LOG_BYTES` or :data:`MAX_LOG_SAMPLES`, no header, a missing or repeated column, a row
-        with the wrong number of fields, a value that is not a finite number, time that does not increase
-        or is not evenly spaced (within :data:`PERIOD_TOLERANCE`), fewer than :data:`MIN_LOG_SAMPLES`
+        with the wrong number of fields, a value that is not a finite number, time that does not increase,
+        a missing or doubled sample (an interval off the period by more than :data:`JITTER_TOLERANCE`), time
+        stamps that stray from a fixed period's grid by more than that, fewer than :data:`MIN_LOG_SAMPLES`
         samples.
     """
     path = Path(path)
@@ -241,19 +250,36 @@ def read_log(path: str | Path) -> EncoderLog:
         SAMPLE_TIME.check("sample period", Ts)
     except InputError as exc:
         raise _fail(path, "column t", f"sample period {Ts:g} s {exc.rule}", "t") from None
-    off = np.flatnonzero(np.abs(dt - Ts) > PERIOD_TOLERANCE * Ts)
-    if off.size:
+    off = np.flatnonzero(np.abs(dt - Ts) > JITTER_TOLERANCE * Ts)
+    if off.size:  # a sample missing or doubled: no grid to read the log on
         j = int(off[0])
         raise _fail(path, f"line {line_of[j + 1]}", f"t = {float(t[j + 1]):.10g} is {dt[j]:.6g} s after the "
-                    f"previous sample; the log's period is {Ts:.6g} s: expected evenly spaced samples (within "
-                    f"{PERIOD_TOLERANCE:.0%}); resample the log or cut it at the gap", "t")
+                    f"previous sample; the log's period is {Ts:.6g} s: expected samples at a fixed period (each "
+                    f"interval within {JITTER_TOLERANCE:.0%} of it); resample the log or cut it at the gap", "t")
     Ts = sample_period(t)
+    jitter = (0.0, 0.0)
+    if np.any(np.abs(dt - Ts) > PERIOD_TOLERANCE * Ts):  # a jittering clock: how far from the fixed grid
+        dev = _grid_deviation(t, Ts)
+        j = int(np.argmax(np.abs(dev)))
+        if abs(dev[j]) > JITTER_TOLERANCE * Ts:
+            raise _fail(path, f"line {line_of[j]}", f"t = {float(t[j]):.10g} is {abs(dev[j]):.3g} s off the grid of "
+                        f"the log's period {Ts:.6g} s: expected samples at a fixed period (time stamps within "
+                        f"{JITTER_TOLERANCE:.0%} of it); resample the log", "t")
+        jitter = (float(np.sqrt(np.mean(dev * dev))), float(abs(dev[j])))
     if n < MIN_LOG_SAMPLES:
         raise _fail(path, "", f"{n} samples ({n * Ts:.3g} s) is too short: expected at least {MIN_LOG_SAMPLES} (with "
                     f"at least two reversals of the motion)", "log")
     extra = {c: v for c, v in col.items() if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS}
     return EncoderLog(t=t, torque=col["torque"], theta1=col["theta1"], theta2=col.get("theta2"), extra=extra,
-                      sample_time=Ts, comments=tuple(comments), path=path)
+                      sample_time=Ts, comments=tuple(comments), path=path, jitter=jitter)
+
+
+def _grid_deviation(t: NDArray[np.float64], Ts: float) -> NDArray[np.float64]:
+    """The time stamps' distance from the least-squares grid ``t0 + k Ts`` [s] (origin subtracted first)."""
+    tt = np.asarray(t, dtype=float) - float(t[0])
+    k = np.arange(tt.size, dtype=float)
+    t0 = float(np.mean(tt - k * Ts))
+    return tt - t0 - k * Ts
 
 
 def sample_period(t: NDArray[np.float64]) -> float:
@@ -1503,6 +1529,10 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
                          f"load encoder's column or use --encoders motor", field="theta2")
     nominal = build_plant(mdl)
     notes: list[str] = []
+    if lg.jitter[1] > 0.0:
+        notes.append(f"the time stamps jitter by {lg.jitter[0] * 1e6:.3g} us RMS (at most {lg.jitter[1] * 1e6:.3g} us, "
+                     f"{lg.jitter[1] / lg.sample_time:.1%} of the period) around a fixed period: read as samples at "
+                     f"{lg.sample_time:.6g} s, the torque held over each")
     if lg.theta2 is not None:
         lg, flipped = _load_encoder_direction(lg)
         if flipped:

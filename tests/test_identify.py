@@ -197,6 +197,34 @@ def test_a_load_encoder_counting_the_other_way_is_turned_round(logs: Callable, r
     assert not any("counts against the motor" in w for w in ref.warnings)
 
 
+def test_jittering_time_stamps_are_read_on_the_fixed_period(logs: Callable, results: Callable,
+                                                            tmp_path: Path) -> None:
+    """A logger that stamps a drive's 1 kHz samples with its own clock: 10 us RMS of jitter (intervals off by up
+    to 4 %) is read as the fixed grid, with a warning that gives the figure; the estimate is the one from the
+    evenly stamped log to rounding. A sample missing, or stamps that wander off the grid, are refused."""
+    path, _ = logs("identify", 1.0)
+    log = read_log(path)
+    ref, _ = results("identify", 1.0, "motor+load")
+    rng = np.random.default_rng(3)
+    jittered = tmp_path / "jitter.csv"
+    write_log(jittered, dataclasses.replace(log, t=log.t + rng.normal(0.0, 1e-5, log.n)))
+    got = read_log(jittered)
+    assert got.jitter[0] == pytest.approx(1e-5, rel=0.05) and got.jitter[1] < ident.JITTER_TOLERANCE * got.sample_time
+    assert_allclose(got.sample_time, log.sample_time, rtol=1e-6)
+    res = identify(jittered, START_MODEL)
+    assert_allclose(res.backlash, ref.backlash, rtol=1e-9)
+    assert any("time stamps jitter by 10" in w for w in res.warnings), res.warnings
+    assert not any("jitter" in w for w in ref.warnings)
+    # a clock that runs 20 % slow over the second half: every interval within 25 % of the period, the stamps not
+    drift = tmp_path / "drift.csv"
+    t = log.t.copy()
+    half = log.n // 2
+    t[half:] = t[half] + 1.2 * (t[half:] - t[half])
+    write_log(drift, dataclasses.replace(log, t=t))
+    with pytest.raises(InputError, match="off the grid of the log's period"):
+        read_log(drift)
+
+
 def test_log_round_trip(tmp_path: Path) -> None:
     t = np.arange(600) * 1e-3
     log = EncoderLog(t=t, torque=np.sin(t), theta1=0.1 * np.cos(t), theta2=None, extra={"r": t**2},

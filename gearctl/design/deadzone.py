@@ -86,14 +86,22 @@ decelerating flank) and with load torques (the observer), both of which the reve
 the reversal offset needs no model at all, and on a friction-dominated load with a correct backlash value
 it is as good as the PID on the backlash-free plant.
 
-Limits (measured, see ``tests/test_compensation.py``): on a load without friction
-(``shing1993_servo``) the motor encoder cannot see a load that bounces off its flank at the end of a
-move (the mesh's restitution is about 0.85), and the load then floats on: at 3.7e-3 rad/s after a short
-ISO 230-2 overshoot move it drifts a lost motion over the 0.3 s dwell. Only impacts slower than the
-kernel's plastic limit (1e-6 m/s along the line of action, 1.3e-5 rad/s at this load) would leave it at
-rest, and a motor that resolves 1.1e-7 m of the line of action per encoder count cannot aim a landing that
-finely in the few ms of a crossing. B and R there stay near the lost motion; a load encoder (the MPC) sees
-the float.
+Limits (measured, see ``tests/test_compensation.py``): on a load without friction (``shing1993_servo``)
+nothing holds the load once it rests on a flank with no force on it. ISO 230-2 there gives A / B / R of 208 /
+46 / 128 urad (the PID's 1440 / 1319 / 1346; the backlash-free PID's 1.4 / 1.0 / 1.4). Two things leave the
+load moving:
+
+- *The short overshoot moves* (0.02 rad after each end target) cross to the braking flank in the middle of
+  the deceleration, and the landing leaves the load some 50 urad past the target. The stop rule does not push
+  it back: it rebounds off the flank at about 2e-4 rad/s;
+- *The motor's hunting at rest.* The PID holds the motor to a few encoder counts, and its speed wanders by
+  about 1e-3 rad/s. When the braking flank's force reaches zero, the load leaves at the motor's speed over
+  the ratio, 1e-5 to 2e-4 rad/s, and drifts 3-60 urad over the 0.3 s dwell (its viscous time constant is
+  2.5 s). Only impacts slower than the kernel's plastic limit (1e-6 m/s along the line of action, 1.3e-5
+  rad/s at this load) leave it at rest.
+
+Reaching the backlash-free figure on such a load would need a preloaded (anti-backlash) train, or a motor that
+leaves the flank without hunting.
 
 References
 ----------
