@@ -1026,18 +1026,19 @@ def _flank_value(v: NDArray[np.float64], width: float, need: int) -> float:
     """Where the flank is, from ``v = sigma (s - F/k)`` of samples that may touch it.
 
     In contact ``v`` sits at the flank (up to the encoders' flicker); a sample inside the gap has ``v``
-    below it. The flank is the densest bin of width ``width`` in the top of the distribution (within 20
-    bins of the largest value), refined as the median of the samples within 1.5 bins of it; NaN if that
-    bin holds fewer than ``need`` samples.
+    below it. The flank is the densest window of width ``width`` in the top of the distribution (within 20
+    widths of the largest value; a sliding window, so that a rest's samples are not split by where fixed bins'
+    edges fall; of equally dense windows the highest), refined as the median of the samples within 1.5 widths
+    of its centre; NaN if that window holds fewer than ``need`` samples.
     """
     top = float(v.max())
-    v = v[v >= top - 20 * width]
-    edges = np.arange(top - 20 * width, top + 1.5 * width, width)
-    counts, edges = np.histogram(v, bins=edges)
-    j = int(np.argmax(counts))
-    if counts[j] < need:
+    v = np.sort(v[v >= top - 20 * width])
+    counts = np.searchsorted(v, v + width, side="right") - np.arange(v.size)
+    best = int(counts.max())
+    if best < need:
         return math.nan
-    c = 0.5 * (edges[j] + edges[j + 1])
+    j = int(np.flatnonzero(counts == best)[-1])
+    c = v[j] + 0.5 * width
     near = v[np.abs(v - c) <= 1.5 * width]
     return float(np.median(near))
 
@@ -1056,8 +1057,12 @@ def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[i
     tau = p.transmitted(theta)
     force = tau / pl.rb1
     h = max(0.15 * float(np.percentile(np.abs(tau), 75)), 1e-12)
-    # in contact s moves only by the deflection and the encoders' flicker; inside the gap it travels
-    ds = np.abs(np.gradient(s))
+    # in contact s moves only by the deflection and the encoders' flicker; inside the gap it travels. The travel is
+    # taken over +-1 ms (one sample at 1 kHz and slower): at 5 kHz a sample's travel through the gap, 1 um, is
+    # within the flicker, and a load bouncing in the gap would count as resting
+    m = max(1, int(round(1e-3 / p.Ts)))
+    ds = np.abs(np.gradient(s)) if m == 1 else 0.5 * np.abs(np.concatenate([s[m:], np.repeat(s[-1], m)])
+                                                             - np.concatenate([np.repeat(s[0], m), s[:-m]]))
     still = ds <= (pl.rb1 * p.m.q + pl.rb2 * ld.q) + 6 * math.hypot(pl.rb1 * p.m.sigma, pl.rb2 * ld.sigma)
     width = max(0.5 * (pl.rb1 * p.m.q + pl.rb2 * ld.q), 2 * math.hypot(pl.rb1 * p.m.sigma, pl.rb2 * ld.sigma))
     vals: list[tuple[int, float, float]] = []  # (flank, plateau, time)
