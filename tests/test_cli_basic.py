@@ -143,3 +143,16 @@ def test_usage_errors_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert "usage" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(("argv", "fragment"), [
+    (["track", "shing1993_servo", "pid", "--backlash", "-1e-5"], "--backlash: -1e-5 is out of range"),
+    (["simulate", "shing1993_servo", "--dt", "-1e-6"], "--dt: '-1e-6' must be > 0"),
+])
+def test_a_negative_number_in_exponent_form_is_a_value(argv: list[str], fragment: str,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    # argparse's own pattern of a negative number knows -1 and -.5, not -1e-5: it read the value as an option and
+    # said "expected one argument" instead of the range
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert fragment in err and "expected one argument" not in err

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 
@@ -22,8 +23,18 @@ __all__ = ["main"]
 GROUPS = (model_cmds, loop_cmds, sweep_cmds, identify_cmds, export_cmds)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, reading ``-1e-5`` as a negative number (its own pattern knows ``-1`` and ``-.5`` only, and
+    took ``--backlash -1e-5`` for two options: "expected one argument" instead of the value's range). The
+    subcommands' parsers are of this class too (``add_subparsers`` makes them of the parent's class)."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 def _parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]]:
-    ap = argparse.ArgumentParser(
+    ap = _Parser(
         prog="gearctl",
         description="Control design for geared servos with backlash (Shing, Tsai & Krishnaprasad, TR 93-28).",
     )
