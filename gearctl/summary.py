@@ -43,6 +43,7 @@ def _stage_summary(pair: GearPair, dynamics: MeshDynamics, plant: Plant, i: int)
         },
         "inertia": list(geo.inertia),
         "equivalent_mass": m_eq,
+        "plant_equivalent_mass": plant.stage_m_eq(i),
         "mesh_stiffness": {"mean": ms.mean, "c1": ms.c1, "c2": ms.c2, "min": ms.min, "max": ms.max},
         "mesh_stiffness_per_width": ms.mean / pair.face_width * 1e-9,
         "damping_coefficient": st.c,
@@ -70,8 +71,10 @@ def model_summary(model: GearModel) -> dict[str, Any]:
         JSON-ready. For a pair: ``contact_ratio``, ``base_pitch`` [m], ``pitch_radius``, ``base_radius``,
         ``addendum_radius``, ``dedendum_radius`` [m, m], ``line_of_action`` {AB, AC, AD, AE, AF, AP} [m],
         ``tooth_thickness`` {pitch, base, addendum} [m], ``inertia`` [I1, I2] [kg m^2],
-        ``equivalent_mass`` [kg], ``mesh_stiffness`` {mean, c1, c2, min, max} [N/m] (eq 21 over the
-        mesh cycle), ``mesh_stiffness_per_width`` [N/(mm um)], ``damping_coefficient`` [N s/m] (the
+        ``equivalent_mass`` [kg] (the gears alone, the report's), ``plant_equivalent_mass`` [kg] (with the
+        shafts' inertias: the mesh mode's, which the plant's damping uses), ``mesh_stiffness`` {mean, c1, c2,
+        min, max} [N/m] (eq 21 over the mesh cycle), ``mesh_stiffness_per_width`` [N/(mm um)],
+        ``damping_coefficient`` [N s/m] (the
         plant's c: the file's value or eq 38 from the plant's k; ``damping_coefficient_given`` says which),
         ``plant_stiffness`` [N/m] (the plant's k: the file's ``mesh_stiffness`` if given, which
         ``mesh_stiffness_given`` says, else the computed mean), ``damping_coefficient_eq38``
