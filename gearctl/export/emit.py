@@ -111,10 +111,17 @@ def header_text(spec: KindSpec) -> str:
     if spec.prefix == "mpc":
         state += source_text("gcx_mpc_state.h")
     load = int(spec.uses_load_encoder)
+    returns = "GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK or GEARCTL_STEP_BAD_INPUT"
+    if spec.prefix == "mpc":
+        returns = ("GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK, GEARCTL_STEP_BAD_INPUT\n"
+                   " * or GEARCTL_STEP_FAULT (the latched fault)")
+    statuses = "GEARCTL_STEP_OK, _FALLBACK, _BAD_INPUT or _FAULT" if spec.prefix == "mpc" else \
+        "GEARCTL_STEP_OK, _FALLBACK or _BAD_INPUT"
     if not spec.uses_load_encoder:
         load_rule = ""
     elif spec.prefix == "mpc":
-        load_rule = " (a non-finite y[1] is a missing load reading:\n * the observer predicts over it)"
+        load_rule = (" (a y[1] not finite or beyond it\n * is a missing load reading: the observer predicts over "
+                     "it and the step returns\n * GEARCTL_STEP_FALLBACK)")
     else:
         load_rule = ", or such a y[1] (the load\n * encoder is used)"
     wild = (" * as missed: the clock k still advances). A finite reading farther from its predicted angle than the\n"
@@ -133,7 +140,7 @@ def header_text(spec: KindSpec) -> str:
  *       double y[2] = {{motor_angle, load_angle}};     [rad]; y[1] = NAN when the controller uses no load encoder
  *       double ref[3 * GEARCTL_PREVIEW];          rows (r, r', r'') of the load-angle reference at t, t + Ts, ...
  *       double u;                                  the motor torque [N m]
- *       int status = gearctl_ctrl_step(&c, y, ref, &u);   GEARCTL_STEP_OK, _FALLBACK or _BAD_INPUT
+ *       int status = gearctl_ctrl_step(&c, y, ref, &u);   {statuses}
  *
  * Signals. y[0] is the motor shaft's angle (before the gears), y[1] the load shaft's, both in radians from
  * the same zero as the reference, counted positive the way the motor's positive torque turns them (flip an
@@ -189,7 +196,7 @@ void gearctl_ctrl_init(gearctl_ctrl_t *c);
 
 /* One sample: y[0] motor shaft angle, y[1] load shaft angle (NAN when unused) [rad]; ref: GEARCTL_PREVIEW
  * rows of (r, r', r'') of the load-angle reference at t, t + Ts, ... [rad, rad/s, rad/s^2]; *u: motor torque
- * [N m], |u| <= GEARCTL_TORQUE_LIMIT. Returns GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK or GEARCTL_STEP_BAD_INPUT. */
+ * [N m], |u| <= GEARCTL_TORQUE_LIMIT. Returns {returns}. */
 int gearctl_ctrl_step(gearctl_ctrl_t *c, const double y[2], const double *ref, double *u);
 
 #ifdef __cplusplus
@@ -203,7 +210,7 @@ int gearctl_ctrl_step(gearctl_ctrl_t *c, const double y[2], const double *ref, d
 def _implementation(spec: KindSpec) -> str:
     """``gearctl_ctrl.c``."""
     mpc = spec.prefix == "mpc"
-    check_load = spec.uses_load_encoder and not mpc  # the MPC takes a non-finite load reading as missing
+    check_load = spec.uses_load_encoder and not mpc  # the MPC takes a load reading beyond the limit as missing
     parts = [
         f"/* gearctl_ctrl.c -- exported controller \"{spec.name}\" (kind {spec.kind}): the kind's C, which mirrors\n"
         " * gearctl's Python methods line by line. SPDX-License-Identifier: MIT (see LICENSE) */\n",
@@ -298,9 +305,10 @@ int status = gearctl_ctrl_step(&ctrl, y, ref, &u);
 - `status`: `GEARCTL_STEP_OK` (0); `GEARCTL_STEP_FALLBACK` (1, the MPC: its solver failed, or a reading was missing
   or rejected by its gate and the step ran on the prediction); `GEARCTL_STEP_BAD_INPUT` (2, a `y[0]`, a reference
   entry, or a `y[1]` where the load encoder is used, not finite or beyond `GEARCTL_INPUT_LIMIT`; the MPC takes a
-  non-finite `y[1]` as a missing reading): `u = 0`, the state unchanged but for the sample clock, which advances;
+  `y[1]` not finite or beyond the limit as a missing reading and returns `GEARCTL_STEP_FALLBACK`): `u = 0`, the state
+  unchanged but for the sample clock, which advances;
   `GEARCTL_STEP_FAULT` (3, the MPC's latched fault: its estimate restarted 3 times within 1000 samples, e.g. encoders
-  too coarse to follow or a long dropout of `y[0]`; the motor is braked to rest, then `u = 0`, until
+  too coarse to follow, or an encoder that keeps jumping; the motor is braked to rest, then `u = 0`, until
   `gearctl_ctrl_init`).
 
 The step at sample `k` is the Python controller's step at `t = k * GEARCTL_TS`.

@@ -53,6 +53,8 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
     S->base[0] = S->base[1] = P->b;       /* the flanks without the stalls */
     S->overdue = 0;
     S->f1 = 0.0;
+    S->f2 = 0.0;
+    S->dir = 0.0;
     for (int i = 0; i < n; i++) {
         S->lbx[i] = -P->umax;
         S->ubx[i] = P->umax;
@@ -78,7 +80,7 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
  * Returns 1 when a reading was missing or rejected (the step reports a fallback), else 0. */
 GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, double y_load) {
     double b = P->b, tol = P->tol;
-    int load = P->uses_load && isfinite(y_load);
+    int load = P->uses_load && fabs(y_load) <= GEARCTL_INPUT_LIMIT; /* else missing (also NaN) */
     int note = P->uses_load && !load;
     double s_m = load ? P->rb1 * y_motor - P->rb2 * y_load : 0.0;
     if (!S->z_set) { /* first sample: at rest, the gap from the encoders (mid-gap without them) */
@@ -89,7 +91,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
     }
     double u = S->u + S->f1; /* the torque that acted on the motor: the drive's and its friction */
     double phi = S->z[0], om = S->z[1], s = S->z[2], v = S->z[3], d = S->z[4];
-    double tau = P->tau_load + d;
+    double tau = P->tau_load + d + S->f2;
     /* the prediction: the gap with the separation model, the centre of inertia as the rigid train (any mode) */
     const double *gr = P->gap_rows;
     double a0 = gr[0], a1 = gr[1], a2 = gr[2], a3 = gr[3], b0 = gr[4], b1 = gr[5];
@@ -325,6 +327,23 @@ GCX_FN int gcx_mpc_land_on(const gcx_mpc_p *P, gcx_mpc_s *S, int flank, int e, d
     return status;
 }
 
+/* MPC._planned_load_friction: the mean of -tc2 sgn over the previewed r'_1 .. r'_N (sgn: the sign of r', or where
+ * the reference rests, of its last motion); sets the friction the observer predicts the next sample with (r'_0) */
+GCX_FN double gcx_mpc_planned_load_friction(const gcx_mpc_p *P, gcx_mpc_s *S, const double *ref) {
+    if (P->tc2 == 0.0) return 0.0;
+    const int n = GCX_MPC_N;
+    double r0 = ref[1];
+    double d = S->dir = r0 != 0.0 ? (r0 > 0.0 ? 1.0 : -1.0) : S->dir;
+    S->f2 = -P->tc2 * d;
+    double total = 0.0;
+    for (int k = 1; k <= n; k++) {
+        double rk = ref[3 * k + 1];
+        if (rk != 0.0) d = rk > 0.0 ? 1.0 : -1.0;
+        total += d;
+    }
+    return -P->tc2 * total / n;
+}
+
 /* MPC.step; returns 1 when the solve failed and the previous plan's next input was applied, or a reading
  * was missing or rejected (the plan ran on the prediction) */
 GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double y[2], const double *ref,
@@ -341,7 +360,7 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
         return 3; /* GEARCTL_STEP_FAULT */
     }
     double *z = S->z, *p = S->p;
-    double tau = P->tau_load + z[4];
+    double tau = P->tau_load + z[4] + gcx_mpc_planned_load_friction(P, S, ref);
     double origin = ref[0]; /* the QP's angles from the reference at t: the same data at any offset */
     p[0] = z[0] - P->ratio * origin, p[1] = z[1], p[2] = z[2], p[3] = z[3];
     p[4] = tau;

@@ -14,6 +14,8 @@ typedef struct {
     double stall[2], base[2]; /* where a landing stalled (0: none), the flanks without the stalls [m] */
     int overdue;            /* samples in a row a landing has been due and the gap still floats */
     double f1;              /* the motor's Coulomb friction the last step planned with [N m] */
+    double f2;              /* the load's Coulomb friction the observer predicts the next sample with [N m] */
+    double dir;             /* the direction of the reference's last motion (0 before any) */
     int z_set, flank, land, has_land;
     int held;               /* holding at standstill (MPC._held) */
     int rejects;            /* samples in a row whose readings the gate rejected */
