@@ -177,10 +177,11 @@ speed biased by the unmodelled torque, and every sample plans the landing for th
 encoder, a landing that has been due for ``n_cross + 5`` samples (:data:`_STALL_SAMPLES`) while the gap stays
 within a quarter of ``b`` of the flank (:data:`_STALL_SHARE`) has stalled: contact is taken where the gap stopped,
 on that side, until the gap goes further. Measured: ``gearctl track shing1993_servo_friction mpc --set
-coulomb_friction1=0.02`` 0.11 rad RMS before (the load left behind while the reference moved on), 2.0e-3 rad now;
-a POM pair with 4096-count motor encoders, ISO accuracy 1.16 rad before, 23 mrad now. An unknown motor friction
-of 5 % of the torque limit still defeats the plan on the sine (0.11 rad RMS; the move 1.4e-3 rad): estimating it
-is future work.
+coulomb_friction1=0.02`` 0.11 rad RMS before (the load left behind while the reference moved on), 2.0e-3 rad with
+it (4.1e-5 with the load's friction in the plan as well); a POM pair with 4096-count motor encoders, ISO accuracy
+1.16 rad before, 23 mrad with it (0.70 mrad with the encoders' noise and the load's friction, below). An unknown
+motor friction of 5 % of the torque limit still defeats the plan on the sine (0.11 rad RMS; the move 1.4e-3 rad):
+estimating it is future work.
 
 *Standstill.* While the previewed reference rests (constant over the whole horizon), the load is slow (its
 estimated speed would not carry it one ``standstill_deadband`` further within the horizon) and within the
@@ -1276,8 +1277,8 @@ class MPC(Controller):
 
         Returns why a reading was not used (a fallback to report), else None. A load reading not finite or
         beyond :data:`INPUT_LIMIT` is a missing one: the motor encoder alone updates the estimate, as with
-        ``feedback = "motor"``. A finite reading whose innovation (the reading minus the predicted shaft angle) exceeds
-        :attr:`reading_gate` is rejected: the estimate is the prediction alone on that sample. A reading
+        ``feedback = "motor"``. A finite reading whose innovation (the reading minus the predicted shaft angle)
+        exceeds :attr:`reading_gate` is rejected: the estimate is the prediction alone on that sample. A reading
         rejected on more than :data:`_GATE_PERSIST` samples in a row is taken as the truth: the estimate
         restarts from it, as on the first sample (speeds and disturbance zero).
         """
