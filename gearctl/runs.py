@@ -24,6 +24,7 @@ from .controller import Controller
 from .design.registry import build_controller
 from .errors import GearctlError
 from .metrics import TrackingMetrics, tracking_metrics
+from .model import GearModel
 from .params import Sensors
 from .plant import Plant, build_plant
 from .references import DEFAULT_DURATION, Reference, reference
@@ -163,6 +164,17 @@ def controller_spec(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
     return read_toml(path), str(path)
 
 
+def true_model(name: str | Path, model: GearModel, overrides: Mapping[str, Any]) -> GearModel:
+    """The model ``name`` (already loaded as ``model``) with ``overrides`` (``--set``): read from the file again, or,
+    where a value is a factor of the nominal one (:class:`~gearctl.sweep.Scale`, ``--set backlash=1.5x``), each
+    stage's own value scaled."""
+    from .sweep import Scale, perturb_model
+
+    if any(isinstance(v, Scale) for v in overrides.values()):
+        return perturb_model(model, overrides)
+    return load_model(name, **overrides)
+
+
 def make_run(model: str | Path, controller: str | Path, *, plant: str = "improved", reference_kind: str = "sine",
              duration: float | None = None, seed: int = 0, backlash: float | None = None,
              estimate: float | None = None, realtime: bool = False, design_plant: str = "improved",
@@ -196,7 +208,7 @@ def make_run(model: str | Path, controller: str | Path, *, plant: str = "improve
         designed on the unchanged model, as in reality.
     """
     m = load_model(model)
-    m_true = load_model(model, **overrides) if overrides else m
+    m_true = true_model(model, m, overrides) if overrides else m
     true = build_plant(m_true, plant, backlash=backlash)
     nominal = build_plant(m, design_plant, backlash=backlash)
     spec, label = controller_spec(controller)

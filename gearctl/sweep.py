@@ -21,7 +21,8 @@ spec                          Monte Carlo draw                               gri
 
 Keys: every numeric field :func:`gearctl.catalog.load_model` accepts as an override (the fields of
 :class:`~gearctl.geometry.GearPair`, :class:`~gearctl.params.MeshDynamics`, :class:`~gearctl.params.Servo`,
-:class:`~gearctl.params.Sensors`; for a train a stage key sets every stage), plus ``estimate`` (the
+:class:`~gearctl.params.Sensors`; for a train an absolute value sets every stage, and a relative spec of a key whose
+stages differ scales each stage's own value: its values are factors, :class:`Scale`), plus ``estimate`` (the
 controller's backlash estimate [m]; ``x`` scales the nominal estimate) and ``estimate_error`` (the
 estimate's relative error against each run's true backlash: ``estimate = (1 + e) b``).
 
@@ -76,7 +77,7 @@ from .runs import Design, Run, RunResult, controller_spec, design_controller
 from .units import BACKLASH, DURATION, SEED, Spec, check_number
 
 __all__ = ["Vary", "SweepResult", "SweepContext", "SweepPlan", "sweep", "plan_sweep", "run_batch", "parse_vary",
-           "parse_set", "perturb_model", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
+           "parse_set", "perturb_model", "Scale", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
            "ROW_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size", "run_cost", "default_workers",
            "SWEEP_RUNS", "GRID_POINTS", "METRICS", "FLAGS", "ISO_FIGURES", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
 
@@ -144,11 +145,22 @@ def _key_meta(key: str) -> dict[str, Any]:
                      field=key)
 
 
+class Scale(float):
+    """A model value given as a factor of the nominal one (``--set backlash=1.5x``): on a train, each stage's own
+    value times it (the reading of a relative sweep spec on a train whose stages differ in the key)."""
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return f"{float(self)!r}x"
+
+
 def parse_set(text: str) -> tuple[str, float | int]:
     """Parse ``KEY=VALUE`` (one model key and one plain number), checked against the key's range.
 
     The reading ``gearctl track --set`` uses, so a sweep's ``command`` rebuilds the very same plant:
-    whole-number keys become ``int``, every other value ``float``.
+    whole-number keys become ``int``, every other value ``float``. ``VALUE`` with a trailing ``x`` is a factor
+    of the nominal value (:class:`Scale`; on a train, of each stage's own value), checked once applied.
 
     Raises
     ------
@@ -162,6 +174,15 @@ def parse_set(text: str) -> tuple[str, float | int]:
     meta = _key_meta(key)
     if meta["owner"] == "controller":
         raise InputError(f"{key} is not a model key: the estimate is an option of its own (--estimate)", field=key)
+    text_v = value.strip()
+    if text_v.endswith("x") and not meta["integer"]:
+        try:
+            f = float(text_v[:-1])
+        except ValueError:
+            raise InputError(f"{key} = {text_v!r} is not a number", field=key) from None
+        if not (f >= 0.0 and math.isfinite(f)):
+            raise InputError(f"{key} = {text_v!r}: a factor of the nominal value is a number >= 0", field=key)
+        return key, Scale(f)
     try:
         v = float(value)
     except ValueError:
@@ -182,18 +203,35 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
         A value out of its range, or a model the changed value makes invalid (:func:`check_model`).
     """
     per: dict[type, dict[str, Any]] = {cls: {} for cls in _MODEL_CLASSES}
+    scaled: dict[str, float] = {}  # stage keys given as a factor of each stage's own value
     for key, value in overrides.items():
         owner = next((cls for cls in _MODEL_CLASSES if key in _OWNER_FIELDS[cls]), None)
         if owner is None:
             _key_meta(key)  # raises the unknown-key message
             raise InputError(f"{key} is not a model key", field=key)
+        if isinstance(value, Scale):
+            if owner in (GearPair, MeshDynamics):
+                scaled[key] = float(value)
+                continue
+            nominal = getattr(model.servo if owner is Servo else model.sensors, key)
+            if nominal is None or not math.isfinite(nominal):
+                raise InputError(f"{key} = {value!r}: {key} has no nominal value to scale; give a number", field=key)
+            value = float(value) * float(nominal)
         per[owner][key] = value
-    stages = tuple(dataclasses.replace(
-        sm, pair=dataclasses.replace(sm.pair, **per[GearPair]) if per[GearPair] else sm.pair,
-        dynamics=dataclasses.replace(sm.dynamics, **per[MeshDynamics]) if per[MeshDynamics] else sm.dynamics)
-        for sm in model.stages)
+    values = {key: _stage_values(key, model) for key in scaled}
+
+    def stage_fields(cls: type, i: int) -> dict[str, Any]:
+        out = dict(per[cls])
+        out.update({k: f * values[k][i] for k, f in scaled.items() if k in _OWNER_FIELDS[cls]})
+        return out
+
+    stages = []
+    for i, sm in enumerate(model.stages):
+        pf, df = stage_fields(GearPair, i), stage_fields(MeshDynamics, i)
+        stages.append(dataclasses.replace(sm, pair=dataclasses.replace(sm.pair, **pf) if pf else sm.pair,
+                                          dynamics=dataclasses.replace(sm.dynamics, **df) if df else sm.dynamics))
     out = dataclasses.replace(
-        model, stages=stages,
+        model, stages=tuple(stages),
         servo=dataclasses.replace(model.servo, **per[Servo]) if per[Servo] else model.servo,
         sensors=dataclasses.replace(model.sensors, **per[Sensors]) if per[Sensors] else model.sensors)
     check_model(out)
@@ -211,6 +249,20 @@ def _nominal(key: str, model: GearModel, spec: Mapping[str, Any]) -> float | Non
     if meta["owner"] in ("Servo", "Sensors"):
         v = getattr(model.servo if meta["owner"] == "Servo" else model.sensors, key)
         return None if v is None or not math.isfinite(v) else float(v)
+    vals = _stage_values(key, model)
+    if len(set(vals)) > 1:
+        raise _DifferingStages(f"{key} differs between the stages of {model.name} "
+                               f"({', '.join(f'{v:g}' for v in vals)})", field=key)
+    return vals[0]
+
+
+class _DifferingStages(InputError):
+    """A stage key whose value differs between a train's stages: a relative spec scales each stage."""
+
+
+def _stage_values(key: str, model: GearModel) -> list[float]:
+    """Each stage's value of a stage key (a computed one, e.g. an unset ``mesh_stiffness``: the plant's)."""
+    meta = _KEYS[key]
     vals = []
     plant = None
     for i, sm in enumerate(model.stages):
@@ -222,10 +274,31 @@ def _nominal(key: str, model: GearModel, spec: Mapping[str, Any]) -> float | Non
                 plant = plant or build_plant(model)
                 v = plant.stages[i].k if key == "mesh_stiffness" else plant.stages[i].c
         vals.append(float(v))
-    if len(set(vals)) > 1:
-        raise InputError(f"{key} differs between the stages of {model.name} ({', '.join(f'{v:g}' for v in vals)}): "
-                         f"a relative spec has no one nominal value; give absolute values", field=key)
-    return vals[0]
+    return vals
+
+
+def _parse_vary_on(text: str, model: GearModel, spec: Mapping[str, Any]) -> Vary:
+    """:func:`parse_vary` against a nominal model. A relative spec of a stage key whose stages differ scales each
+    stage's own value: its numbers are factors (every number relative, or 0 or inf), drawn as :class:`Scale`."""
+    try:
+        return parse_vary(text, lambda k: _nominal(k, model, spec))
+    except _DifferingStages as exc:
+        key = text.partition("=")[0].strip()
+        if _KEYS[key]["integer"]:
+            raise InputError(f"--vary {text}: {exc}; a whole-number key is not scaled: give its values", field=key,
+                             rule=exc.rule) from None
+        spec = text.partition("=")[2].strip()
+        dist = re.fullmatch(r"([a-z]+)\s*\((.*)\)", spec)
+        tokens = [t.strip() for t in re.split(r"[,:]", dist.group(2) if dist else spec)]
+        for j, tok in enumerate(tokens):
+            if dist and dist.group(1) == "lognormal" and j == 1:  # the log-std is no value of the key
+                continue
+            if not tok.lower().endswith("x") and tok.lower().lstrip("+-") not in ("0", "0.0", "inf"):
+                raise InputError(f"--vary {text}: {exc}, so a relative spec scales each stage's own value: give "
+                                 f"every number of it with an x (e.g. 0.5x:2x), or absolute values for every "
+                                 f"stage alike", field=key) from None
+        return dataclasses.replace(parse_vary(text, {key: 1.0}, check=False), scale=True, nominal=1.0,
+                                   unit="x each stage's value")
 
 
 # --- specs ----------------------------------------------------------------------------------------------
@@ -247,6 +320,9 @@ class Vary:
     nominal : float or None
         The nominal value relative numbers scaled.
     unit : str
+    scale : bool
+        The values are factors of each stage's own value (a relative spec of a stage key whose stages differ),
+        drawn as :class:`Scale`.
     """
 
     key: str
@@ -255,6 +331,7 @@ class Vary:
     args: tuple[float, ...]
     nominal: float | None
     unit: str
+    scale: bool = False
 
     @property
     def bounded(self) -> bool:
@@ -329,7 +406,8 @@ def _number(token: str, where: str, nominal: float | None, key: str, *, relative
     return v
 
 
-def parse_vary(text: str, nominal: Callable[[str], float | None] | Mapping[str, float | None] | None = None) -> Vary:
+def parse_vary(text: str, nominal: Callable[[str], float | None] | Mapping[str, float | None] | None = None, *,
+               check: bool = True) -> Vary:
     """Parse ``KEY=SPEC`` (see the module docstring for the specs).
 
     Parameters
@@ -338,6 +416,8 @@ def parse_vary(text: str, nominal: Callable[[str], float | None] | Mapping[str, 
         E.g. ``backlash=0.5x:2x``, ``coulomb_friction2=normal(0.2,0.05,0,inf)``, ``load_noise=0,1e-6,2e-6``.
     nominal : callable or mapping, optional
         The nominal value of a key, for relative numbers (``1.5x``); without it relative numbers are errors.
+    check : bool
+        Check a bounded spec's ends against the key's range (off for factors, :class:`Scale`).
 
     Returns
     -------
@@ -415,10 +495,12 @@ def parse_vary(text: str, nominal: Callable[[str], float | None] | Mapping[str, 
         if kind == "loguniform" and not a > 0:
             raise InputError(f"{where}: a log-uniform range needs 0 < low, got {a:g}", field=key)
         for v in (a, b):  # a bounded spec inside the range is checked once, here
-            _check_value(key, v, meta, where)
+            if check:
+                _check_value(key, v, meta, where)
     if kind == "list":
         for v in args:
-            _check_value(key, v, meta, where)
+            if check:
+                _check_value(key, v, meta, where)
     return Vary(key=key, text=spec, kind=kind, args=tuple(float(a) for a in args), nominal=lazy.get("v"),
                 unit=meta["unit"])
 
@@ -558,7 +640,7 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     texts = [f"{k}={v}" for k, v in vary.items()] if isinstance(vary, Mapping) else list(vary)
     nominal_model = load_model(model)
     spec, label = controller_spec(controller)
-    varies = tuple(parse_vary(t, lambda k: _nominal(k, nominal_model, spec)) for t in texts)
+    varies = tuple(_parse_vary_on(t, nominal_model, spec) for t in texts)
     keys = [v.key for v in varies]
     dup = sorted({k for k in keys if keys.count(k) > 1})
     if dup:
@@ -588,6 +670,9 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
         params = {}
         for v in varies:
             x = columns[v.key][i]
+            if v.scale:  # a factor of each stage's value: checked on the stages, by perturb_model below
+                params[v.key] = Scale(x)
+                continue
             x = int(round(x)) if metas[v.key]["integer"] and float(x).is_integer() else float(x)
             _check_value(v.key, x, metas[v.key], f"--vary {v.key}={v.text}", run=i)
             params[v.key] = x
@@ -596,7 +681,8 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
             try:
                 perturb_model(nominal_model, overrides)
             except InputError as exc:
-                shown = ", ".join(f"{k} = {params[k]:.6g}" for k in model_keys)
+                shown = ", ".join(f"{k} = {params[k]:.6g}{'x' if isinstance(params[k], Scale) else ''}"
+                                  for k in model_keys)
                 raise InputError(f"run {i} ({shown}): {exc}", field=exc.field, rule=exc.rule) from None
         if "estimate_error" in params and b_nominal is not None:  # a pair: the estimate is known here
             e = (1.0 + params["estimate_error"]) * float(params.get("backlash", b_nominal))
@@ -610,6 +696,7 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     settings = {"model": str(model), "controller": str(controller), "plant": plant, "reference": reference_kind,
                 "duration": dur, "seed": seed, "grid": grid, "points": points, "runs": n, "precision": precision,
                 "vary": {v.key: v.text for v in varies},
+                "factors": [v.key for v in varies if v.scale],  # keys whose values are factors of each stage's
                 "nominal": {k: x for k, x in ((v.key, _shown_nominal(v, nominal_model, spec)) for v in varies)
                             if x is not None},
                 "design": ctrl.describe()}
@@ -721,7 +808,7 @@ def _command(head: Sequence[str], job: Job, estimate: float | None) -> str:
     argv = [*head, "--seed", str(seed)]
     for k, v in params.items():
         if _KEYS[k]["owner"] != "controller":
-            argv += ["--set", f"{k}={v!r}"]
+            argv += ["--set", f"{k}={v!r}"]  # a Scale reads 1.5x
     if estimate is not None:
         argv += ["--estimate", repr(estimate)]
     return shlex.join(argv)
@@ -902,7 +989,10 @@ class SweepResult:
             head += [*ISO_FIGURES, "precision_message"]
         head += ["message", "command"] + (["precision_command"] if self.settings.get("precision") else [])
         rows = [[r["params"][h] if h in self.keys else r.get(h) for h in head] for r in self.runs]
-        return head, rows
+        # a factor of each stage's value (Scale) is a plain number in a column named for it
+        scaled = {h for h in self.keys if any(isinstance(r["params"].get(h), Scale) for r in self.runs)}
+        rows = [[float(v) if isinstance(v, Scale) else v for v in row] for row in rows]
+        return [f"{h}_factor" if h in scaled else h for h in head], rows
 
 
 def _quantiles(x: np.ndarray) -> dict[str, float] | None:

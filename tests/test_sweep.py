@@ -31,6 +31,7 @@ from gearctl.plant import build_plant
 from gearctl.references import reference
 from gearctl.runs import Design, Run, controller_spec, execute
 from gearctl.sweep import (
+    Scale,
     compare_grids,
     grid_axes,
     noise_seed,
@@ -42,6 +43,7 @@ from gearctl.sweep import (
 )
 
 MODEL = "shing1993_servo"
+TRAIN = "servo_3stage_quanser_srv02"  # its stages' backlash differ: 12, 12, 21 um
 B0 = 5e-5  # the model's backlash [m] (models/shing1993_servo.toml)
 NOMINAL = {"backlash": B0, "load_inertia": 5e-3, "coulomb_friction2": 0.0}
 FIGURES = ("rms_error", "max_error", "final_error", "impacts", "max_impact_velocity", "torque_rms")
@@ -152,6 +154,14 @@ def test_parse_set() -> None:
             parse_set(bad)
 
 
+def test_parse_set_reads_a_factor() -> None:
+    key, v = parse_set("backlash=1.5x")
+    assert (key, type(v), float(v), repr(v)) == ("backlash", Scale, 1.5, "1.5x")
+    for bad in ("backlash=-1x", "backlash=abcx"):
+        with pytest.raises(InputError, match="backlash"):
+            parse_set(bad)
+
+
 # --- plans: draws, checks, memory -----------------------------------------------------------------------
 
 def test_draws_are_seeded_by_seed_index_and_key() -> None:
@@ -212,6 +222,42 @@ def test_perturb_model_equals_load_model_overrides() -> None:
                       {"coulomb_friction2": 0.05, "load_inertia": 4e-3, "load_noise": 1e-6},
                       {"motor_encoder_cpr": 4096, "teeth1": 21}):
         assert perturb_model(nominal, overrides) == load_model(MODEL, **overrides), overrides
+
+
+def test_a_factor_scales_each_stage_and_the_servo_value() -> None:
+    """``--set backlash=1.5x``: each stage's own backlash times 1.5 (the Quanser train's stages differ: 12, 12,
+    21 um); on a pair the same as the absolute value; a servo key scales its one value."""
+    train = load_model(TRAIN)
+    got = perturb_model(train, {"backlash": Scale(1.5), "load_inertia": Scale(2.0)})
+    assert [s.pair.backlash for s in got.stages] == [1.5 * s.pair.backlash for s in train.stages]
+    assert got.servo.load_inertia == 2.0 * train.servo.load_inertia
+    pair = load_model(MODEL)
+    assert perturb_model(pair, {"backlash": Scale(1.5)}) == load_model(MODEL, backlash=1.5 * B0)
+    with pytest.raises(InputError, match="out of range"):
+        perturb_model(train, {"backlash": Scale(100.0)})
+
+
+def test_a_relative_spec_on_a_train_whose_stages_differ_scales_each_stage() -> None:
+    """The README's own example on the catalog train: ``backlash=0.5x:2x`` scales each stage's backlash by the
+    drawn factor (before, it was refused: no one nominal value), and each run's command (``--set backlash=Fx``)
+    rebuilds the very same plant. A spec mixing factors and absolute values, or a whole-number key, is refused."""
+    res = sweep(TRAIN, "pid", vary=["backlash=0.5x:2x"], runs=3, duration=0.3, engine="serial")
+    nominal = load_model(TRAIN)
+    for row in res.runs:
+        f = row["params"]["backlash"]
+        assert isinstance(f, Scale) and 0.5 <= f <= 2.0
+        assert f"--set backlash={float(f)!r}x" in row["command"]
+        argv = shlex.split(row["command"])[1:] + ["--json"]
+        rc, out, _ = _cli(argv)
+        assert rc == 0 and json.loads(out)["rms_error"] == row["rms_error"]
+        model = perturb_model(nominal, {"backlash": f})
+        assert [s.pair.backlash for s in model.stages] == [f * s.pair.backlash for s in nominal.stages]
+    for text, match in (("backlash=1x:3e-5", "every number of it with an x"),
+                        ("teeth1=0.9x:1.1x", "a whole-number key is not scaled")):
+        with pytest.raises(InputError, match=match):
+            plan_sweep(TRAIN, "pid", vary=[text], runs=2)
+    absolute = plan_sweep(TRAIN, "pid", vary=["backlash=1e-5:3e-5"], runs=2)  # absolute: every stage alike
+    assert not absolute.vary[0].scale
 
 
 # --- runs: the sweep's figures are those of the run built by hand ---------------------------------------

@@ -117,9 +117,10 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     from ..catalog import load_controller, load_model
     from ..plant import build_plant
     from ..precision import precision_test, unreached_targets
+    from ..runs import true_model as true_model_of
 
     model = load_model(args.model)
-    true_model = load_model(args.model, **dict(args.set)) if args.set else model
+    true_model = true_model_of(args.model, model, dict(args.set)) if args.set else model
     nominal = build_plant(model, backlash=args.backlash)
     plant = build_plant(true_model, args.plant, backlash=args.backlash)
     ctrl = load_controller(args.controller, nominal, backlash=args.estimate, sensors=model.sensors)

@@ -63,7 +63,10 @@ def _text(result: Any) -> list[str]:
                  f"(failed {s['failed']})")
     w = s["worst"]
     if w is not None:
-        shown = ", ".join(f"{k} = {v:.4g}" for k, v in w["params"].items()) or "nominal"
+        from ..sweep import Scale
+
+        shown = ", ".join(f"{k} = {v:.4g}{'x' if isinstance(v, Scale) else ''}" for k, v in w["params"].items()) \
+            or "nominal"
         lines.append(f"  worst                  run {w['index']} ({shown}): RMS {w['rms_error'] * 1e6:.4g} urad, "
                      f"max {w['max_error'] * 1e6:.4g} urad")
         lines.append(f"                         {w['command']}")
