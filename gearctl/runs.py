@@ -25,6 +25,7 @@ from .design.registry import build_controller
 from .errors import GearctlError
 from .metrics import TrackingMetrics, tracking_metrics
 from .model import GearModel
+from .overrides import Scale, perturb_model
 from .params import Sensors
 from .plant import Plant, build_plant
 from .references import DEFAULT_DURATION, Reference, reference
@@ -166,10 +167,8 @@ def controller_spec(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
 
 def true_model(name: str | Path, model: GearModel, overrides: Mapping[str, Any]) -> GearModel:
     """The model ``name`` (already loaded as ``model``) with ``overrides`` (``--set``): read from the file again, or,
-    where a value is a factor of the nominal one (:class:`~gearctl.sweep.Scale`, ``--set backlash=1.5x``), each
+    where a value is a factor of the nominal one (:class:`~gearctl.overrides.Scale`, ``--set backlash=1.5x``), each
     stage's own value scaled."""
-    from .sweep import Scale, perturb_model
-
     if any(isinstance(v, Scale) for v in overrides.values()):
         return perturb_model(model, overrides)
     return load_model(name, **overrides)

@@ -67,10 +67,10 @@ import numpy as np
 from .catalog import load_model
 from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
-from .geometry import GearPair, pair_geometry
-from .model import GearModel, check_model
+from .model import GearModel
+from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, stage_values
+from .overrides import perturb_model as _perturb
 from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, default_workers, local_cluster
-from .params import MeshDynamics, Sensors, Servo
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
 from .runs import Design, Run, RunResult, controller_spec, design_controller
@@ -98,7 +98,6 @@ FLAGS = ("limit_cycle", "saturated", "impact_rate_high", "growing", "not_followi
 #: ISO 230-2 figures of each run with ``precision=True``.
 ISO_FIGURES = ("reversal_value", "repeatability", "accuracy")
 
-_MODEL_CLASSES: tuple[type, ...] = (GearPair, MeshDynamics, Servo, Sensors)
 _ESTIMATE = Spec(unit="m", doc="backlash estimate of the controller", low=BACKLASH.low, high=BACKLASH.high,
                  high_open=BACKLASH.high_open)
 _ESTIMATE_ERROR = Spec(unit="1", doc="relative error of the backlash estimate against the true backlash",
@@ -116,7 +115,7 @@ def sweep_keys() -> dict[str, dict[str, Any]]:
     are not numbers (``contact_law``, ``friction_law``) or lists (``intermediate_*``) are not keys.
     """
     out: dict[str, dict[str, Any]] = {}
-    for cls in _MODEL_CLASSES:
+    for cls in MODEL_CLASSES:
         for f in dataclasses.fields(cls):
             if "unit" in f.metadata and not f.metadata.get("sequence") and f.name not in out:
                 out[f.name] = {**f.metadata, "owner": cls.__name__}
@@ -126,13 +125,12 @@ def sweep_keys() -> dict[str, dict[str, Any]]:
 
 
 _KEYS = sweep_keys()
-_OWNER_FIELDS = {cls: {f.name for f in dataclasses.fields(cls)} for cls in _MODEL_CLASSES}
 
 
 def _key_meta(key: str) -> dict[str, Any]:
     if key in _KEYS:
         return _KEYS[key]
-    every = {f.name for cls in _MODEL_CLASSES for f in dataclasses.fields(cls)}
+    every = {f.name for cls in MODEL_CLASSES for f in dataclasses.fields(cls)}
     if key in every:
         raise InputError(f"{key} is not a number a sweep can vary: vary numeric keys (e.g. backlash, "
                          f"mesh_stiffness, coulomb_friction2, load_inertia, load_noise, estimate)", field=key)
@@ -143,16 +141,6 @@ def _key_meta(key: str) -> dict[str, Any]:
     raise InputError(f"unknown sweep key {key!r}: expected a model key (backlash, mesh_stiffness, "
                      f"coulomb_friction2, load_inertia, load_noise, ...), estimate or estimate_error{hint}",
                      field=key)
-
-
-class Scale(float):
-    """A model value given as a factor of the nominal one (``--set backlash=1.5x``): on a train, each stage's own
-    value times it (the reading of a relative sweep spec on a train whose stages differ in the key)."""
-
-    __slots__ = ()
-
-    def __repr__(self) -> str:
-        return f"{float(self)!r}x"
 
 
 def parse_set(text: str) -> tuple[str, float | int]:
@@ -192,50 +180,11 @@ def parse_set(text: str) -> tuple[str, float | int]:
 
 
 def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel:
-    """The model with some fields changed (every stage's, for a stage key), checked like a model file.
-
-    The same values as :func:`gearctl.catalog.load_model` with ``**overrides`` gives for the model's file,
-    built from the loaded model (a remote worker needs no file).
-
-    Raises
-    ------
-    InputError
-        A value out of its range, or a model the changed value makes invalid (:func:`check_model`).
-    """
-    per: dict[type, dict[str, Any]] = {cls: {} for cls in _MODEL_CLASSES}
-    scaled: dict[str, float] = {}  # stage keys given as a factor of each stage's own value
-    for key, value in overrides.items():
-        owner = next((cls for cls in _MODEL_CLASSES if key in _OWNER_FIELDS[cls]), None)
-        if owner is None:
+    """:func:`gearctl.overrides.perturb_model`, an unknown key named as the sweep's keys are (with a hint)."""
+    for key in overrides:
+        if not any(key in OWNER_FIELDS[cls] for cls in MODEL_CLASSES):
             _key_meta(key)  # raises the unknown-key message
-            raise InputError(f"{key} is not a model key", field=key)
-        if isinstance(value, Scale):
-            if owner in (GearPair, MeshDynamics):
-                scaled[key] = float(value)
-                continue
-            nominal = getattr(model.servo if owner is Servo else model.sensors, key)
-            if nominal is None or not math.isfinite(nominal):
-                raise InputError(f"{key} = {value!r}: {key} has no nominal value to scale; give a number", field=key)
-            value = float(value) * float(nominal)
-        per[owner][key] = value
-    values = {key: _stage_values(key, model) for key in scaled}
-
-    def stage_fields(cls: type, i: int) -> dict[str, Any]:
-        out = dict(per[cls])
-        out.update({k: f * values[k][i] for k, f in scaled.items() if k in _OWNER_FIELDS[cls]})
-        return out
-
-    stages = []
-    for i, sm in enumerate(model.stages):
-        pf, df = stage_fields(GearPair, i), stage_fields(MeshDynamics, i)
-        stages.append(dataclasses.replace(sm, pair=dataclasses.replace(sm.pair, **pf) if pf else sm.pair,
-                                          dynamics=dataclasses.replace(sm.dynamics, **df) if df else sm.dynamics))
-    out = dataclasses.replace(
-        model, stages=tuple(stages),
-        servo=dataclasses.replace(model.servo, **per[Servo]) if per[Servo] else model.servo,
-        sensors=dataclasses.replace(model.sensors, **per[Sensors]) if per[Sensors] else model.sensors)
-    check_model(out)
-    return out
+    return _perturb(model, overrides)
 
 
 def _nominal(key: str, model: GearModel, spec: Mapping[str, Any]) -> float | None:
@@ -249,7 +198,7 @@ def _nominal(key: str, model: GearModel, spec: Mapping[str, Any]) -> float | Non
     if meta["owner"] in ("Servo", "Sensors"):
         v = getattr(model.servo if meta["owner"] == "Servo" else model.sensors, key)
         return None if v is None or not math.isfinite(v) else float(v)
-    vals = _stage_values(key, model)
+    vals = stage_values(key, model)
     if len(set(vals)) > 1:
         raise _DifferingStages(f"{key} differs between the stages of {model.name} "
                                f"({', '.join(f'{v:g}' for v in vals)})", field=key)
@@ -258,23 +207,6 @@ def _nominal(key: str, model: GearModel, spec: Mapping[str, Any]) -> float | Non
 
 class _DifferingStages(InputError):
     """A stage key whose value differs between a train's stages: a relative spec scales each stage."""
-
-
-def _stage_values(key: str, model: GearModel) -> list[float]:
-    """Each stage's value of a stage key (a computed one, e.g. an unset ``mesh_stiffness``: the plant's)."""
-    meta = _KEYS[key]
-    vals = []
-    plant = None
-    for i, sm in enumerate(model.stages):
-        v = getattr(sm.pair if meta["owner"] == "GearPair" else sm.dynamics, key)
-        if v is None:  # computed: the plant's value
-            if key in ("inertia1", "inertia2"):
-                v = pair_geometry(sm.pair).inertia[0 if key == "inertia1" else 1]
-            else:
-                plant = plant or build_plant(model)
-                v = plant.stages[i].k if key == "mesh_stiffness" else plant.stages[i].c
-        vals.append(float(v))
-    return vals
 
 
 def _parse_vary_on(text: str, model: GearModel, spec: Mapping[str, Any]) -> Vary:

@@ -39,7 +39,7 @@ LAYERS: dict[str, int] = {
     "gearctl.errors": 0, "gearctl.units": 0, "gearctl.files": 0, "gearctl.limits": 0, "gearctl.build": 0,
     "gearctl.qp": 0,
     "gearctl.geometry": 1, "gearctl.stiffness": 1, "gearctl.params": 1, "gearctl.model": 1,
-    "gearctl.plant": 2, "gearctl.modes": 2, "gearctl.oracle": 2,
+    "gearctl.plant": 2, "gearctl.modes": 2, "gearctl.oracle": 2, "gearctl.overrides": 2,
     "gearctl.kernel": 3, "gearctl.simulate": 3, "gearctl.references": 3, "gearctl.controller": 3,
     "gearctl.closedloop": 3,
     "gearctl.design": 4,

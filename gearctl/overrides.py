@@ -1,0 +1,98 @@
+"""A gear model with some of its values changed: ``gearctl track --set KEY=VALUE``, a sweep's runs.
+
+A value is either absolute (on a train, every stage's) or a :class:`Scale`, a factor of the nominal value (on a
+train, of each stage's own value: ``--set backlash=1.5x``). Below the runs and the sweeps, which both use it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from .errors import InputError
+from .geometry import GearPair, pair_geometry
+from .model import GearModel, check_model
+from .params import MeshDynamics, Sensors, Servo
+from .plant import build_plant
+
+__all__ = ["Scale", "perturb_model", "stage_values", "MODEL_CLASSES", "OWNER_FIELDS"]
+
+#: The dataclasses whose fields a model key names, in the order an override looks for it.
+MODEL_CLASSES: tuple[type, ...] = (GearPair, MeshDynamics, Servo, Sensors)
+#: Each class's field names.
+OWNER_FIELDS = {cls: {f.name for f in dataclasses.fields(cls)} for cls in MODEL_CLASSES}
+
+
+class Scale(float):
+    """A model value given as a factor of the nominal one (``--set backlash=1.5x``): on a train, each stage's own
+    value times it (the reading of a relative sweep spec on a train whose stages differ in the key)."""
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return f"{float(self)!r}x"
+
+
+def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel:
+    """The model with some fields changed (every stage's, for a stage key), checked like a model file.
+
+    The same values as :func:`gearctl.catalog.load_model` with ``**overrides`` gives for the model's file,
+    built from the loaded model (a remote worker needs no file).
+
+    Raises
+    ------
+    InputError
+        A value out of its range, or a model the changed value makes invalid (:func:`check_model`).
+    """
+    per: dict[type, dict[str, Any]] = {cls: {} for cls in MODEL_CLASSES}
+    scaled: dict[str, float] = {}  # stage keys given as a factor of each stage's own value
+    for key, value in overrides.items():
+        owner = next((cls for cls in MODEL_CLASSES if key in OWNER_FIELDS[cls]), None)
+        if owner is None:
+            raise InputError(f"{key} is not a model key", field=key)
+        if isinstance(value, Scale):
+            if owner in (GearPair, MeshDynamics):
+                scaled[key] = float(value)
+                continue
+            nominal = getattr(model.servo if owner is Servo else model.sensors, key)
+            if nominal is None or not math.isfinite(nominal):
+                raise InputError(f"{key} = {value!r}: {key} has no nominal value to scale; give a number", field=key)
+            value = float(value) * float(nominal)
+        per[owner][key] = value
+    values = {key: stage_values(key, model) for key in scaled}
+
+    def stage_fields(cls: type, i: int) -> dict[str, Any]:
+        out = dict(per[cls])
+        out.update({k: f * values[k][i] for k, f in scaled.items() if k in OWNER_FIELDS[cls]})
+        return out
+
+    stages = []
+    for i, sm in enumerate(model.stages):
+        pf, df = stage_fields(GearPair, i), stage_fields(MeshDynamics, i)
+        stages.append(dataclasses.replace(sm, pair=dataclasses.replace(sm.pair, **pf) if pf else sm.pair,
+                                          dynamics=dataclasses.replace(sm.dynamics, **df) if df else sm.dynamics))
+    out = dataclasses.replace(
+        model, stages=tuple(stages),
+        servo=dataclasses.replace(model.servo, **per[Servo]) if per[Servo] else model.servo,
+        sensors=dataclasses.replace(model.sensors, **per[Sensors]) if per[Sensors] else model.sensors)
+    check_model(out)
+    return out
+
+
+def stage_values(key: str, model: GearModel) -> list[float]:
+    """Each stage's value of a stage key (a computed one, e.g. an unset ``mesh_stiffness``: the plant's)."""
+    pair = key in OWNER_FIELDS[GearPair]
+    vals = []
+    plant = None
+    for i, sm in enumerate(model.stages):
+        v = getattr(sm.pair if pair else sm.dynamics, key)
+        if v is None:  # computed: the plant's value
+            if key in ("inertia1", "inertia2"):
+                v = pair_geometry(sm.pair).inertia[0 if key == "inertia1" else 1]
+            else:
+                plant = plant or build_plant(model)
+                v = plant.stages[i].k if key == "mesh_stiffness" else plant.stages[i].c
+        vals.append(float(v))
+    return vals
