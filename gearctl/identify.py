@@ -1010,10 +1010,10 @@ def _episodes(p: _Problem) -> tuple[float, float, list[tuple[int, int, int]]]:
     noise = max(_noise_level(s, quietest=True), math.hypot(pl.rb1 * p.m.q, pl.rb2 * p.l.q) / math.sqrt(12.0))
     if b0 <= 10 * noise:
         col = _gap_column(p)
-        raise InputError(f"{p.log.name}: column {col}: r_b1 theta1 - r_b2 theta2 spans {2 * b0:.3g} m, its half "
-                         f"{b0 / noise:.3g} times the encoders' noise on it ({noise:.3g} m; at least 10 needed): the "
-                         f"gap does not stand out of the noise (finer or less noisy encoders, or a motion that rests "
-                         f"in contact on both flanks)", field=col)
+        raise InputError(f"{p.log.name}: column {col}: 0 gap crossing(s) found: r_b1 theta1 - r_b2 theta2 "
+                         f"spans {2 * b0:.3g} m, its half {b0 / noise:.3g} times the encoders' noise on it ({noise:.3g} m; at "
+                         f"least 10 needed): the gap does not stand out of the noise (the shafts turn together, or "
+                         f"the encoders are too coarse or noisy to show the gap)", field=col)
     eps = [(i0, i1, 1) for i0, i1 in _runs(sm - c0 > 0.6 * b0)] + \
           [(i0, i1, -1) for i0, i1 in _runs(sm - c0 < -0.6 * b0)]
     eps.sort()
