@@ -1011,9 +1011,9 @@ def _episodes(p: _Problem) -> tuple[float, float, list[tuple[int, int, int]]]:
     if b0 <= 10 * noise:
         col = _gap_column(p)
         raise InputError(f"{p.log.name}: column {col}: 0 gap crossing(s) found: r_b1 theta1 - r_b2 theta2 "
-                         f"spans {2 * b0:.3g} m, its half {b0 / noise:.3g} times the encoders' noise on it ({noise:.3g} m; at "
-                         f"least 10 needed): the gap does not stand out of the noise (the shafts turn together, or "
-                         f"the encoders are too coarse or noisy to show the gap)", field=col)
+                         f"spans {2 * b0:.3g} m, its half {b0 / noise:.3g} times the encoders' noise on it "
+                         f"({noise:.3g} m; at least 10 needed): the gap does not stand out of the noise (the shafts "
+                         f"turn together, or the encoders are too coarse or noisy to show the gap)", field=col)
     eps = [(i0, i1, 1) for i0, i1 in _runs(sm - c0 > 0.6 * b0)] + \
           [(i0, i1, -1) for i0, i1 in _runs(sm - c0 < -0.6 * b0)]
     eps.sort()
