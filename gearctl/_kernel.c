@@ -1104,6 +1104,14 @@ static int gc_advance_ode(const gc_params *p, gc_state *st) {
                     if (gb >= -(0.5 * acc_tol * h * h + 4e-16 * gscale)) continue; /* stays on its side */
                 }
             }
+            if (fn[e].type == 0 && ga < 0.0) { /* already past this flank: a grazing approach let go on (within
+                                                 * the band above) that crept past; contact once clearly past,
+                                                 * else no root is ever found again and the teeth pass through */
+                double gscale = 0.0;
+                for (i = 0; i < nx; i++) gscale += fabs(fn[e].cg[i] * y[i]);
+                if (ga < -(0.5e-3 * p->zeno_v * h + 4e-16 * gscale)) { best = 0.0; which = e; break; }
+                continue;
+            }
             if (!(gb <= 0.0) || ga < 0.0) continue;
             if (!have_dense) {
                 for (i = 0; i < nx; i++) {

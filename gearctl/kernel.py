@@ -1765,6 +1765,15 @@ class _Mirror:
                         acc_tol = 1e-3 * self.zeno_v / h
                         if gb >= -(0.5 * acc_tol * h * h + 4e-16 * gscale):
                             continue
+                if f.type == EVENT_GEOMETRIC and ga < 0.0:
+                    # already past this flank at the step's start: a grazing approach the rule above let go on
+                    # (it stays on its side only within the band) that then crept past. Contact now, once clearly
+                    # past the band; else no root would ever be found again and the teeth would pass through
+                    gscale = sum(abs(f.cg[i] * y[i]) for i in range(nx))
+                    if ga < -(0.5e-3 * self.zeno_v * h + 4e-16 * gscale):
+                        best, which = 0.0, e
+                        break
+                    continue
                 if not gb <= 0.0 or ga < 0.0:
                     continue
                 if r is None:
