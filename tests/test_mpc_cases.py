@@ -156,25 +156,66 @@ def test_a_smoothing_the_motor_cannot_give_is_refused(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("ref", ["sine", "move"])
 def test_coarse_encoders_fault_and_brake_to_rest(tmp_path: Path, ref: str) -> None:
-    # 16 and 4 counts per revolution. Measured: the fault latched at 0.029 / 0.192 s (sine / move), zero torque in
-    # the last 0.5 s, the motor's speed there at most 0.037 / 0.118 rad/s and decaying, largest error 0.39 / 0.10
-    # rad (with the default measurement noise of the encoders, 0.45 rad, the plan is the rigid train's). With a
+    # 16 and 4 counts per revolution, 4 s. Measured: the fault latched at 0.078 / 0.249 s (sine / move), zero
+    # torque in the last 0.5 s, the motor's speed there at most 0.09 / 0.04 rad/s (the move's motor and load still
+    # coast at 0.3 rad/s at 2 s, and the load knocks the free motor about in the gap), largest error 0.39 / 0.19
+    # rad (with the default measurement noise of the encoders, 0.45 rad, the plan is the rigid train's). Before
+    # the gate compared each innovation with the last accepted one (not with zero) the fault latched at 0.029 /
+    # 0.192 s; that gate took a 0.5 N m load step under 2e-4 rad of encoder noise for broken encoders (a latched
+    # fault, 0.34 rad RMS; now 2.8e-3). With a
     # measurement noise of 2e-6 rad (the default before it followed the encoders): 0.43 / 0.39 rad. Before the
     # fault rule: 2.9 rad on the sine, the torque at its limit 58 % of the time; with zero torque after the fault,
     # 14.6 rad coasting. The brake sees the motor's speed through changes of a 0.39 rad count, so it lets go of a
     # slow motor; the motor's own viscous friction (time constant 2.2 s) takes the rest.
     from gearctl.runs import execute_controller
 
-    run = make_run(_coarse(tmp_path), "mpc", reference_kind=ref)
+    run = make_run(_coarse(tmp_path), "mpc", reference_kind=ref, duration=4.0)
     ctrl = design_controller(run.design)
     out, res = execute_controller(run, ctrl, keep=True)
     assert ctrl.fault.startswith("fault: the estimate restarted 3 times")
     last = res.t >= res.t[-1] - 0.5
     speed = np.abs(res.x[2, last])
-    assert np.max(speed) < 0.2 and speed[-1] < speed[0] and np.max(np.abs(res.torque[last])) < 1e-3
+    assert np.max(speed) < 0.2 and np.max(np.abs(res.torque[last])) < 1e-3
     assert out.metrics.max_error < 1.0, out.metrics.max_error
 
 
 @needs_cc
 def test_the_fault_replays_in_c(tmp_path: Path) -> None:
     _same_in_c(make_run(_coarse(tmp_path), "mpc", duration=0.5), tmp_path)
+
+
+# --- 5. noisy encoders under a load step ---------------------------------------------------------------------
+
+
+def _noisy(tmp_path: Path) -> Path:
+    from gearctl.catalog import resolve
+
+    text = resolve(SERVO, "models").read_text()
+    text = text.replace("load_encoder_cpr = 1048576",
+                        "load_encoder_cpr = 1048576\nmotor_noise = 2e-4\nload_noise = 2e-4")
+    assert "motor_noise = 2e-4" in text
+    return _model(tmp_path, "noisy", text)
+
+
+def test_a_load_step_under_noisy_encoders_is_no_fault(tmp_path: Path) -> None:
+    """2e-4 rad of noise on both encoders (a reviewer's low-cost servo): the observer, weighing that noise, follows
+    the 0.5 N m load step slowly, and its prediction drifts off by up to 3 gates. The gate compared the innovation
+    with zero: it rejected the drifting readings, restarted the estimate three times and latched the fault, and the
+    load ran off under the load torque (0.34 rad RMS). It now compares each innovation with the last accepted one:
+    a drift moves it a little every sample, a wild reading at once. Measured: no fallback, RMS 2.8e-3 rad, the PID's
+    1.6e-3 on the same plant (1.7x); bound: no fault and within 2x the PID's."""
+    from gearctl.runs import execute_controller
+
+    path = _noisy(tmp_path)
+    run = make_run(path, "mpc", reference_kind="step")
+    ctrl = design_controller(run.design)
+    out = execute_controller(run, ctrl)
+    pid = execute_controller(make_run(path, "pid", reference_kind="step"),
+                             design_controller(make_run(path, "pid", reference_kind="step").design))
+    assert not ctrl.fault and out.ok
+    assert out.metrics.rms_error <= 2.0 * pid.metrics.rms_error, (out.metrics.rms_error, pid.metrics.rms_error)
+
+
+@needs_cc
+def test_the_noisy_load_step_replays_in_c(tmp_path: Path) -> None:
+    _same_in_c(make_run(_noisy(tmp_path), "mpc", reference_kind="step", duration=1.3), tmp_path)

@@ -124,9 +124,10 @@ def header_text(spec: KindSpec) -> str:
                      "it and the step returns\n * GEARCTL_STEP_FALLBACK)")
     else:
         load_rule = ", or such a y[1] (the load\n * encoder is used)"
-    wild = (" * as missed: the clock k still advances). A finite reading farther from its predicted angle than the\n"
-            " * MPC's gate (one sample of full torque plus twice the lost motion) is rejected: the step runs on the\n"
-            " * prediction and returns GEARCTL_STEP_FALLBACK; one that persists 5 samples restarts the estimate.\n"
+    wild = (" * as missed: the clock k still advances). A finite reading whose distance from its predicted angle\n"
+            " * moves by more than the MPC's gate (one sample of full torque plus twice the lost motion) from the\n"
+            " * last accepted reading's is rejected: the step runs on the prediction, returns GEARCTL_STEP_FALLBACK;\n"
+            " * one that persists 5 samples restarts the estimate.\n"
             if spec.prefix == "mpc" else
             " * as missed: the clock k still advances). A wild reading within the limit is the caller's to\n"
             " * screen: the integral action is bounded (twice the torque limit), but the measurement filter decays\n"

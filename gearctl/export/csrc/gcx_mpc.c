@@ -84,6 +84,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
     int note = P->uses_load && !load;
     double s_m = load ? P->rb1 * y_motor - P->rb2 * y_load : 0.0;
     if (!S->z_set) { /* first sample: at rest, the gap from the encoders (mid-gap without them) */
+        S->inn[0] = S->inn[1] = 0.0;
         double phi_m = y_motor - P->kappa1 * s_m;
         S->z[0] = phi_m, S->z[1] = 0.0, S->z[2] = P->rigid ? 0.0 : s_m, S->z[3] = 0.0, S->z[4] = 0.0;
         S->z_set = 1;
@@ -102,9 +103,13 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
     double k00 = cr[0], k01 = cr[1], k11 = cr[2], kb0 = cr[3], kb1 = cr[4], e0 = cr[5], e1 = cr[6];
     double phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau;
     double om_p = k11 * om + kb1 * u + e1 * tau;
-    /* the gate: how far the readings are from the shaft angles the prediction puts them at */
-    int bad = !(fabs(y_motor - (phi_p + P->kappa1 * s_p)) <= S->gate[0]);
-    if (load && !(fabs(y_load - (phi_p / P->ratio - P->kappa2 * s_p)) <= S->gate[1])) bad = 1;
+    /* the gate: how far the readings are from the shaft angles the prediction puts them at, against how far the
+     * last accepted ones were (a drifting prediction moves the innovation a little; a wild reading at once) */
+    double inn1 = y_motor - (phi_p + P->kappa1 * s_p);
+    double inn2 = load ? y_load - (phi_p / P->ratio - P->kappa2 * s_p) : S->inn[1];
+    int bad = !(fabs(inn1 - S->inn[0]) <= S->gate[0]);
+    if (load && !(fabs(inn2 - S->inn[1]) <= S->gate[1])) bad = 1;
+    if (!bad) S->inn[0] = inn1, S->inn[1] = inn2;
     double s_n, v_n;
     if (bad) {
         S->rejects += 1;

@@ -20,6 +20,7 @@ typedef struct {
     int held;               /* holding at standstill (MPC._held) */
     int rejects;            /* samples in a row whose readings the gate rejected */
     double gate[2];         /* the readings' gate on the motor and the load shaft [rad] */
+    double inn[2];          /* the last accepted readings' innovations, motor and load [rad] */
     int64_t n_obs;          /* samples observed (MPC._n_obs) */
     int64_t restarts[GCX_FAULT_RESTARTS]; /* the samples of the last restarts of the estimate */
     int fault;              /* latched: the motor braked, then zero torque (MPC.fault) */
