@@ -75,6 +75,7 @@ from typing import Any
 from ..controller import ReferenceLike
 from ..errors import InputError
 from ..files import Layout, build_dataclass, spec_values
+from ..params import Sensors
 from ..units import BACKLASH, BACKLASH_FLOOR, quantity, validate_fields
 from . import deadzone
 from .base import Controller, LoopInfo
@@ -287,7 +288,7 @@ LAYOUT: Layout = {**deadzone.LAYOUT,
 
 
 def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
-          backlash: float | None = None) -> AdaptiveInverse:
+          backlash: float | None = None, sensors: Sensors | None = None) -> AdaptiveInverse:
     """The adaptive inverse of a ``kind = "adaptive_inverse"`` file; ``backlash`` overrides the initial estimate.
 
     Every key but the ``[adaptation]`` table is the inverse's, built by :func:`gearctl.design.deadzone.build`
@@ -297,7 +298,7 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
     settings = build_dataclass(path, AdaptationSettings, values.get(AdaptationSettings, {}))
     inner_spec = {k: v for k, v in spec.items() if k != "adaptation"}
     inner_spec["kind"] = deadzone.KIND
-    inverse = deadzone.build(path, inner_spec, info, name=name + "/inverse", backlash=backlash)
+    inverse = deadzone.build(path, inner_spec, info, name=name + "/inverse", backlash=backlash, sensors=sensors)
     try:
         return AdaptiveInverse(inverse, settings, name=name)
     except InputError as exc:

@@ -126,6 +126,7 @@ import scipy.linalg
 from ..controller import ReferenceLike
 from ..errors import InputError
 from ..files import Layout, build_dataclass, spec_values
+from ..params import Sensors
 from ..units import BACKLASH, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
 from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, pid_from_values, restate
@@ -432,7 +433,7 @@ class DeadzoneInverse(Controller):
 
     def __init__(self, pid: PID, *, backlash: float, rule: str = "torque", width: float | None = None,
                  crossing_time: float = 0.01, observer_hz: float = 5.0, disturbance_threshold: float = 0.02,
-                 name: str = "deadzone_inverse") -> None:
+                 jump_floor: float = 0.0, name: str = "deadzone_inverse") -> None:
         super().__init__()
         check_choice("rule", rule, ("torque", "velocity"))
         BACKLASH.check("backlash", backlash)
@@ -454,6 +455,9 @@ class DeadzoneInverse(Controller):
         self._a_limit = pid.limit / (pid.N * pid.info.J_eq)  # load acceleration at the torque limit [rad/s^2]
         self._J1 = p.J1
         self._jump_den = 2.0 * p.rb1 * pid.Ts  # the rattle guard's threshold is b / this (set_backlash)
+        #: the rattle guard's threshold is never below what the motor encoder's counts and noise alone give the motor
+        #: speed's change over a sample [rad/s] (:func:`jump_floor`)
+        self.jump_floor = jump_floor
         # on a train the motor meets the intermediate shafts before the load: their impacts make it lag its ramp as
         # a too large estimate would (6 false contacts in 3 s on servo_3stage_quanser_srv02 with a 5 ms crossing,
         # each stopping the offset short: the PID's error), so the contact check is a pair's
@@ -473,7 +477,7 @@ class DeadzoneInverse(Controller):
         self.backlash = backlash
         #: motor speed jump [rad/s] that counts as an impact for the rattle guard: half the speed at which the
         #: motor crosses the whole gap of the estimate in two samples (a fresh design's, whatever the estimate)
-        self.jump_threshold = backlash / self._jump_den if backlash > 0.0 else math.inf
+        self.jump_threshold = max(backlash / self._jump_den, self.jump_floor) if backlash > 0.0 else math.inf
         self._offset = backlash / self.pid.info.plant.rb2  # half the lost motion, load angle [rad]
         self._ramp.span = 2.0 * self._offset
         if self._sigma != 0.0:  # in contact the motor follows the new offset; a crossing lands on it
@@ -754,7 +758,7 @@ class DeadzoneInverse(Controller):
                 "crossing_time": self.crossing_time, "observer_hz": self.observer_hz,
                 "disturbance_threshold": self.disturbance_threshold,
                 "contact_lag": self._contact_lag if math.isfinite(self._contact_lag) else None,  # None: off (a train)
-                "jump_threshold": self.jump_threshold}
+                "jump_threshold": self.jump_threshold, "jump_floor": self.jump_floor}
 
 
 #: The keys of a ``deadzone_inverse`` controller file and the settings fields they feed.
@@ -762,9 +766,21 @@ LAYOUT: Layout = {"": {**LOOP_KEYS, **{f.name: (InverseSettings, f.name) for f i
                   **PID_TABLES}
 
 
+def jump_floor(sensors: Sensors | None, Ts: float) -> float:
+    """What the motor encoder's counts and noise alone make of the motor speed's change over a sample [rad/s]: a
+    count's flicker up and down (two counts in the second difference) and three standard deviations of the noise
+    in it (``sqrt(6) sigma``), over the sample period. Below it the rattle guard would count the encoder's flicker
+    as impacts (0 without sensors)."""
+    if sensors is None:
+        return 0.0
+    q = 2.0 * math.pi / sensors.motor_encoder_cpr if sensors.motor_encoder_cpr else 0.0
+    return (2.0 * q + 3.0 * math.sqrt(6.0) * sensors.motor_noise) / Ts
+
+
 def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
-          backlash: float | None = None) -> DeadzoneInverse:
-    """The inverse of a ``kind = "deadzone_inverse"`` file; ``backlash`` overrides the file's estimate."""
+          backlash: float | None = None, sensors: Sensors | None = None) -> DeadzoneInverse:
+    """The inverse of a ``kind = "deadzone_inverse"`` file; ``backlash`` overrides the file's estimate; ``sensors``
+    (the model's encoders) set the rattle guard's floor (:func:`jump_floor`)."""
     values = spec_values(path, spec, LAYOUT, kind=KIND)
     loop = build_dataclass(path, LoopSettings, values.get(LoopSettings, {}))
     settings = build_dataclass(path, InverseSettings, values.get(InverseSettings, {}))
@@ -773,6 +789,7 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
     pid = pid_from_values(path, values, info, loop, name + "/pid")
     try:
         return DeadzoneInverse(pid, backlash=b, rule=settings.rule, width=settings.width,
+                               jump_floor=jump_floor(sensors, pid.Ts),
                                crossing_time=settings.crossing_time, observer_hz=settings.observer_hz,
                                disturbance_threshold=settings.disturbance_threshold,
                                name=name)

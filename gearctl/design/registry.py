@@ -52,7 +52,8 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
         Backlash estimate overriding the file's and the model's [m].
     sensors : Sensors, optional
         The model's encoders, as the design knows them: the MPC's default ``measurement_noise`` follows them
-        (see :func:`gearctl.design.mpc.build_mpc`); the other kinds do not use them.
+        (see :func:`gearctl.design.mpc.build_mpc`), and the inverses' rattle guard is never finer than the motor
+        encoder (:func:`gearctl.design.deadzone.jump_floor`); the other kinds do not use them.
 
     Returns
     -------
@@ -87,4 +88,6 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
         except InputError as exc:
             raise InputError(f"{path}: sample_time = {ts!r} {exc.rule}", field="sample_time", rule=exc.rule) from None
         return mpc.build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash, sensors=sensors)
+    if kind in ("deadzone_inverse", "adaptive_inverse"):  # the rattle guard's floor follows the motor encoder
+        return MODULES[kind].build(path, spec, info, name=name, backlash=backlash, sensors=sensors)
     return MODULES[kind].build(path, spec, info, name=name, backlash=backlash)

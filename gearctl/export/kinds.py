@@ -56,7 +56,8 @@ _struct("gcx_rev_p", [("pid", "gcx_pid_p"), ("plant", "gcx_plant_p"), ("ramp_sha
 _struct("gcx_inv_p", [("pid", "gcx_pid_p"), ("plant", "gcx_plant_p"), ("obs", "gcx_obs_p"), ("has_observer", "int"),
                       ("rule_velocity", "int"), ("ramp_shape", "int"), ("width", "double"),
                       ("crossing_time", "double"), ("disturbance_threshold", "double"), ("backlash", "double"),
-                      ("a_limit", "double"), ("jump_den", "double"), ("rattle_decay", "double"),
+                      ("a_limit", "double"), ("jump_den", "double"), ("jump_floor", "double"),
+                      ("rattle_decay", "double"),
                       ("rattle_level", "double"), ("rattle_gain", "double"), ("contact_lag", "double"),
                       ("take_up_acceleration", "double")])
 _struct("gcx_ada_p", [("inv", "gcx_inv_p"), ("rb1", "double"), ("rb2", "double"), ("k", "double"),
@@ -185,7 +186,7 @@ def _inv_values(inv: DeadzoneInverse) -> dict[str, Any]:
             "has_observer": int(obs is not None), "rule_velocity": int(inv.rule == "velocity"),
             "ramp_shape": _RAMP_CODES[inv._ramp.shape], "width": inv.width, "crossing_time": inv.crossing_time,
             "disturbance_threshold": inv.disturbance_threshold, "backlash": inv.backlash, "a_limit": inv._a_limit,
-            "jump_den": inv._jump_den, "rattle_decay": deadzone.RATTLE_DECAY,
+            "jump_den": inv._jump_den, "jump_floor": inv.jump_floor, "rattle_decay": deadzone.RATTLE_DECAY,
             "rattle_level": deadzone.RATTLE_LEVEL, "rattle_gain": deadzone.RATTLE_GAIN,
             "contact_lag": inv._contact_lag, "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION}
 

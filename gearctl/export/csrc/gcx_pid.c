@@ -238,7 +238,7 @@ GCX_FN void gcx_obs_update(const gcx_obs_p *P, gcx_obs_s *O, double theta, doubl
 /* DeadzoneInverse.set_backlash */
 GCX_FN void gcx_inv_set_backlash(const gcx_inv_p *P, gcx_inv_s *S, double backlash) {
     S->backlash = backlash;
-    S->jump_threshold = backlash > 0.0 ? backlash / P->jump_den : INFINITY;
+    S->jump_threshold = backlash > 0.0 ? gcx_max(backlash / P->jump_den, P->jump_floor) : INFINITY;
     S->offset = backlash / P->plant.rb2;
     S->ramp.span = 2.0 * S->offset;
     if (S->sigma != 0.0) {
