@@ -187,3 +187,16 @@ def warn(command: str, warnings: Iterable[str]) -> None:
     """Print each warning of an unhealthy loop on stderr, one line each."""
     for w in warnings:
         print(f"gearctl {command}: warning: {w}", file=sys.stderr)
+
+
+def separated_past_flank(plant: Any, s: Any, mode: Any) -> float:
+    """The largest ``(|s| - b) / b`` of a stage labelled separated at an output time (0 if none): a contact the
+    kernel missed, the teeth passing through each other (``simulate`` and ``track --json``, the fuzzer's oracle;
+    stages without backlash skipped). ``s``, ``mode``: per stage and sample (a pair's may be 1-D)."""
+    s, mode = np.atleast_2d(s), np.atleast_2d(mode)
+    worst = 0.0
+    for i, b in enumerate(plant.backlashes):
+        sep = mode[i] == 0
+        if b > 0.0 and sep.any():
+            worst = max(worst, float(np.max(np.abs(s[i, sep]))) / b - 1.0)
+    return worst

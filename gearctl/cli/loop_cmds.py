@@ -23,6 +23,7 @@ from .common import (
     progress_bar,
     save_figure,
     say_written,
+    separated_past_flank,
     spec_arg,
     warn,
     write_csv_stream,
@@ -62,6 +63,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     summary = {"model": run.tags["model"], "controller": ctrl, "plant": args.plant, "reference": args.reference,
                "backlash": plant.backlash if n == 1 else list(plant.backlashes), "seed": args.seed,
                "preview": ctrl.get("preview", 1), "ok": out.ok, "message": out.message, **m.as_dict()}
+    summary["separated_past_flank"] = separated_past_flank(plant, plant.gaps(res.x), res.mode.reshape(n, -1))
     if n > 1:
         c = res.counts
         summary["impacts_per_stage"] = [int(c["impacts_front"][i] + c["impacts_back"][i] + c["plastic_front"][i]
