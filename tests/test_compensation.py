@@ -649,3 +649,22 @@ def test_the_rattle_guard_is_not_fooled_by_a_coarse_noisy_encoder(controller: st
         e = (res.reference - res.x[1])[res.t >= 0.5]
         rms[name] = float(np.sqrt(np.mean(e**2)))
     assert rms[controller] <= 1.5 * rms["pid"], rms
+
+
+def test_the_inverse_defaults_scale_with_the_servo() -> None:
+    """A 1 mN m instrument servo (ratio 4): the catalog inverse's width (5e-4 N m) and disturbance threshold
+    (0.02 N m) were absolute, 12 % and 500 % of the torque its motor can put on the load, so the flank never changed
+    and the inverse gave its PID's RMS to every digit. The defaults are now shares of N x torque_limit (the
+    benchmark servo's values exactly: its figures are unchanged). Measured: 1.32e-4 rad against the PID's 1.57e-3
+    (12x); bound 4x, and the benchmark servo's defaults are the old numbers."""
+    m = load_model(Path(__file__).parent / "data" / "instrument_1mNm.toml")
+    plant = build_plant(m)
+    rms = {}
+    for name in ("pid", "deadzone_inverse"):
+        res = simulate_closed_loop(plant, load_controller(name, plant, sensors=m.sensors), reference("sine"), 3.0,
+                                   sensors=m.sensors)
+        e = (res.reference - res.x[1])[res.t >= 0.5]
+        rms[name] = float(np.sqrt(np.mean(e**2)))
+    assert rms["deadzone_inverse"] <= rms["pid"] / 4, rms
+    servo = load_controller("deadzone_inverse", build_plant(load_model("shing1993_servo")))
+    assert (servo.width, servo.disturbance_threshold) == (5e-4, 0.02)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -132,13 +133,21 @@ def test_a_load_that_never_moves_does_not_follow(sine_run: ClosedLoopResult) -> 
     assert late.tracking_ratio is None and not late.not_following
 
 
-def test_a_rejected_load_disturbance_is_not_a_loss_of_tracking() -> None:
-    # the benchmark step (0.05 rad) with its 0.5 N m load step at 1 s on the three-stage servo: the inverse
-    # rejects it with a 0.16 rad error for about 0.3 s and returns to 0.03 mrad. By RMS the hold is worse than
-    # a load that stood still (1.19 measured); by the median the loop follows (0.04 measured)
+def test_a_rejected_load_disturbance_is_not_a_loss_of_tracking(tmp_path: Path) -> None:
+    # the benchmark step (0.05 rad) with its 0.5 N m load step at 1 s on the three-stage servo: the inverse with the
+    # 1 N m servo's disturbance threshold (0.02 N m, 3.7 % of what this train's motor puts on its load; the catalog's
+    # default now scales to 2.7e-3 and holds the step within 27 mrad) rejects it with a 0.16 rad error for about
+    # 0.3 s and returns to 0.03 mrad. By RMS the hold is worse than a load that stood still (1.19 measured); by the
+    # median the loop follows (0.04 measured)
+    from gearctl.catalog import resolve
     from gearctl.runs import execute, make_run
 
-    out, res = execute(make_run("servo_3stage_quanser_srv02", "deadzone_inverse", reference_kind="step"), keep=True)
+    ctrl = tmp_path / "inverse_absolute.toml"
+    text = resolve("deadzone_inverse", "controllers").read_text()
+    ctrl.write_text(text.replace("# width = 5e-4 ", "width = 5e-4 ").replace("# disturbance_threshold = 0.02 ",
+                                                                              "disturbance_threshold = 0.02 "))
+    assert "\nwidth = 5e-4" in ctrl.read_text() and "\ndisturbance_threshold = 0.02" in ctrl.read_text()
+    out, res = execute(make_run("servo_3stage_quanser_srv02", ctrl, reference_kind="step"), keep=True)
     e, keep = res.error, res.t >= res.settle
     x = res.reference - res.load_angle[0]
     assert np.sqrt(np.mean(e[keep] ** 2)) > np.sqrt(np.mean(x[keep] ** 2))

@@ -143,6 +143,9 @@ CONTACT_LAG = 0.05
 #: sample; above RATTLE_LEVEL the feedback in contact is scaled by RATTLE_GAIN J1 / J_eq until the level drops
 #: below 1.
 RATTLE_DECAY, RATTLE_LEVEL, RATTLE_GAIN = 0.9, 3.0, 0.25
+#: Default hysteresis of the torque rule's flank decision and default disturbance threshold, as shares of the torque
+#: the motor can put on the load (N x torque_limit; 5e-4 and 0.02 N m on the catalog's 1 N m, ratio-4 servo).
+WIDTH_SHARE, THRESHOLD_SHARE = 1.25e-4, 5e-3
 #: A landing's lag is taken up asking at most this share of the load acceleration the torque limit gives.
 TAKE_UP_ACCELERATION = 0.25
 
@@ -387,9 +390,10 @@ class InverseSettings:
                                     "offset; 0: a step)", low=0.0, high=1.0, default=0.01)
     observer_hz: float = quantity(unit="Hz", doc="bandwidth of the load-disturbance observer (0: none, the "
                                   "flank follows the reference alone)", low=0.0, high=1e3, default=5.0)
-    disturbance_threshold: float = quantity(unit="N m", doc="load torque the observer must see beyond the load's "
-                                            "static friction before it changes the flank", low=0.0, high=1e3,
-                                            default=0.02)
+    disturbance_threshold: float | None = quantity(unit="N m", doc="load torque the observer must see beyond the "
+                                                   "load's static friction before it changes the flank (default: "
+                                                   "5e-3 of N x torque_limit)", low=0.0, high=1e3, optional=True,
+                                                   default=None)
 
     def __post_init__(self) -> None:
         check_choice("rule", self.rule, ("torque", "velocity"))
@@ -432,13 +436,19 @@ class DeadzoneInverse(Controller):
     """
 
     def __init__(self, pid: PID, *, backlash: float, rule: str = "torque", width: float | None = None,
-                 crossing_time: float = 0.01, observer_hz: float = 5.0, disturbance_threshold: float = 0.02,
+                 crossing_time: float = 0.01, observer_hz: float = 5.0, disturbance_threshold: float | None = None,
                  jump_floor: float = 0.0, name: str = "deadzone_inverse") -> None:
         super().__init__()
         check_choice("rule", rule, ("torque", "velocity"))
         BACKLASH.check("backlash", backlash)
         self.pid, self.backlash, self.rule, self.name = pid, backlash, rule, name
-        self.width = width if width is not None else (5e-4 if rule == "torque" else 1e-2)
+        # the torque rule's defaults are shares of the torque the motor can put on the load, N x torque_limit (the
+        # catalog servo's 4 N m gives 5e-4 and 0.02 N m): absolute values left a 1 mN m instrument servo's inverse
+        # with a flank that never changed, its PID without a word
+        cap = pid.N * pid.limit if math.isfinite(pid.limit) and pid.limit > 0.0 else 4.0
+        self.width = width if width is not None else (WIDTH_SHARE * cap if rule == "torque" else 1e-2)
+        if disturbance_threshold is None:
+            disturbance_threshold = min(THRESHOLD_SHARE * cap, 1e3)
         if not (self.width > 0 and math.isfinite(self.width)):
             raise InputError(f"width = {self.width!r} is out of range: expected a number > 0", field="width")
         for key, v, hi in (("crossing_time", crossing_time, 1.0), ("observer_hz", observer_hz, 0.5 / pid.Ts),
