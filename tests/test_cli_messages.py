@@ -101,3 +101,16 @@ def test_python_build_plant_refuses_the_same_override() -> None:
 
     with pytest.raises(InputError, match="0.5 x module"):
         build_plant(load_model("shing1993_servo"), backlash=2e-3)
+
+
+def test_a_load_step_beyond_the_motor_is_said(capsys: pytest.CaptureFixture[str]) -> None:
+    """The step reference's 0.5 N m load step on a 1 mN m instrument servo (ratio 4: 4 mN m at the load) ran off
+    with only 'saturated' and 'growing error' warnings; track now says the step is 125 times what the motor holds."""
+    from gearctl.cli import main
+
+    data = Path(__file__).parent / "data" / "instrument_1mNm.toml"
+    main(["track", str(data), "pid", "--reference", "step", "--duration", "1.2"])
+    err = capsys.readouterr().err
+    assert "load step, 0.5 N m, is 125 times the torque the motor can put on the load" in err
+    main(["track", "shing1993_servo", "pid", "--reference", "step", "--duration", "1.2"])
+    assert "load step" not in capsys.readouterr().err

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import os
 import sys
 import time
@@ -69,6 +70,11 @@ def _cmd_track(args: argparse.Namespace) -> int:
         summary["impacts_per_stage"] = [int(c["impacts_front"][i] + c["impacts_back"][i] + c["plastic_front"][i]
                                             + c["plastic_back"][i]) for i in range(n)]
     warn("track", m.health.warnings)
+    hold = plant.gear_ratio * plant.torque_limit  # the most torque the motor puts on the load [N m]
+    dist = abs(getattr(run.reference, "disturbance", 0.0))
+    if dist > hold and math.isfinite(dist):
+        warn("track", [f"the reference's load step, {dist:g} N m, is {dist / hold:.3g} times the torque the motor can "
+                       f"put on the load (ratio x torque_limit = {hold:.3g} N m): no controller can hold it"])
     if not out.ok:
         warn("track", [f"the run stopped early: {out.message}"])
     if args.csv:
