@@ -654,9 +654,9 @@ def test_the_rattle_guard_is_not_fooled_by_a_coarse_noisy_encoder(controller: st
 def test_the_inverse_defaults_scale_with_the_servo() -> None:
     """A 1 mN m instrument servo (ratio 4): the catalog inverse's width (5e-4 N m) and disturbance threshold
     (0.02 N m) were absolute, 12 % and 500 % of the torque its motor can put on the load, so the flank never changed
-    and the inverse gave its PID's RMS to every digit. The defaults are now shares of N x torque_limit (the
-    benchmark servo's values exactly: its figures are unchanged). Measured: 1.32e-4 rad against the PID's 1.57e-3
-    (12x); bound 4x, and the benchmark servo's defaults are the old numbers."""
+    and the inverse gave its PID's RMS to every digit. The defaults now scale down with the load's own inertial and
+    viscous torque on the catalog sine (the benchmark servo's values exactly: its figures are unchanged). Measured:
+    1.32e-4 rad against the PID's 1.57e-3 (12x); bound 4x, and the benchmark servo's defaults are the old numbers."""
     m = load_model(Path(__file__).parent / "data" / "instrument_1mNm.toml")
     plant = build_plant(m)
     rms = {}

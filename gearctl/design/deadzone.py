@@ -143,9 +143,12 @@ CONTACT_LAG = 0.05
 #: sample; above RATTLE_LEVEL the feedback in contact is scaled by RATTLE_GAIN J1 / J_eq until the level drops
 #: below 1.
 RATTLE_DECAY, RATTLE_LEVEL, RATTLE_GAIN = 0.9, 3.0, 0.25
-#: Default hysteresis of the torque rule's flank decision and default disturbance threshold, as shares of the torque
-#: the motor can put on the load (N x torque_limit; 5e-4 and 0.02 N m on the catalog's 1 N m, ratio-4 servo).
-WIDTH_SHARE, THRESHOLD_SHARE = 1.25e-4, 5e-3
+#: The torque scale of the default width and disturbance threshold: the load's inertial and viscous torque at the
+#: peak of a sine of this amplitude [rad] and angular frequency [rad/s] (the catalog sine), and its value on the
+#: benchmark servo [N m] (``shing1993_servo``: J2 = 0.010019 kg m^2, d2 = 2e-3 N m s/rad), where the defaults are
+#: 5e-4 and 0.02 N m exactly.
+_REF_AMPLITUDE, _REF_OMEGA = 0.1, 2.0 * math.pi
+_BENCH_LOAD_TORQUE = 0.0408081125116859
 #: A landing's lag is taken up asking at most this share of the load acceleration the torque limit gives.
 TAKE_UP_ACCELERATION = 0.25
 
@@ -392,7 +395,7 @@ class InverseSettings:
                                   "flank follows the reference alone)", low=0.0, high=1e3, default=5.0)
     disturbance_threshold: float | None = quantity(unit="N m", doc="load torque the observer must see beyond the "
                                                    "load's static friction before it changes the flank (default: "
-                                                   "5e-3 of N x torque_limit)", low=0.0, high=1e3, optional=True,
+                                                   "0.02 N m scaled as the width)", low=0.0, high=1e3, optional=True,
                                                    default=None)
 
     def __post_init__(self) -> None:
@@ -442,13 +445,17 @@ class DeadzoneInverse(Controller):
         check_choice("rule", rule, ("torque", "velocity"))
         BACKLASH.check("backlash", backlash)
         self.pid, self.backlash, self.rule, self.name = pid, backlash, rule, name
-        # the torque rule's defaults are shares of the torque the motor can put on the load, N x torque_limit (the
-        # catalog servo's 4 N m gives 5e-4 and 0.02 N m): absolute values left a 1 mN m instrument servo's inverse
-        # with a flank that never changed, its PID without a word
-        cap = pid.N * pid.limit if math.isfinite(pid.limit) and pid.limit > 0.0 else 4.0
-        self.width = width if width is not None else (WIDTH_SHARE * cap if rule == "torque" else 1e-2)
+        # the torque rule's defaults follow the torque the load itself needs: the benchmark servo's 5e-4 and 0.02 N m,
+        # scaled down by the load's inertial and viscous torque on the catalog sine against that servo's (never up).
+        # Absolute values left a 1 mN m instrument servo's inverse with a flank that never changed, its PID without a
+        # word; scaled by the motor's capacity, N x torque_limit, the three-stage train got a width below its sweet
+        # spot (ISO A 2701 urad, worse than its PID's 1602; now 845)
+        p0 = pid.info.plant
+        load = p0.J2 * _REF_AMPLITUDE * _REF_OMEGA**2 + p0.d2 * _REF_AMPLITUDE * _REF_OMEGA
+        scale = min(load / _BENCH_LOAD_TORQUE, 1.0) if load > 0.0 and math.isfinite(load) else 1.0
+        self.width = width if width is not None else (5e-4 * scale if rule == "torque" else 1e-2)
         if disturbance_threshold is None:
-            disturbance_threshold = min(THRESHOLD_SHARE * cap, 1e3)
+            disturbance_threshold = 0.02 * scale
         if not (self.width > 0 and math.isfinite(self.width)):
             raise InputError(f"width = {self.width!r} is out of range: expected a number > 0", field="width")
         for key, v, hi in (("crossing_time", crossing_time, 1.0), ("observer_hz", observer_hz, 0.5 / pid.Ts),
