@@ -57,8 +57,8 @@ How a flank change is made, and how a move is finished
   and a larger error are corrected as in motion. On that servo's ISO
   230-2 test this took A / B / R from 2125 / 712 / 1562 to 210 / 47 / 139 urad (the shifted 17-tooth
   pinion's from 3952 / 960 / 2754 to 227 / 43 / 143, and 217 / 48 / 153 with its load-scaled width); the
-  sine, the step, the ramp and trapezoidal moves are unchanged to the last bit, the S-curve move is a little better, and every figure on a load with
-  friction is unchanged.
+  sine, the step, the ramp and trapezoidal moves are unchanged to the last bit, the S-curve move is a little
+  better, and every figure on a load with friction is unchanged.
 - *Rattle guard.* A motor whose speed jumps by more than the torque explains (more than
   :attr:`DeadzoneInverse.jump_threshold`, half the speed at which it crosses the whole gap in two samples)
   is hitting a flank; when such jumps come in a run (a leaky count above :data:`RATTLE_LEVEL`) the motor is
