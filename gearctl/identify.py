@@ -1026,25 +1026,26 @@ def _episodes(p: _Problem) -> tuple[float, float, list[tuple[int, int, int]]]:
     return c0, b0, merged
 
 
-def _flank_value(v: NDArray[np.float64], width: float, need: int) -> float:
+def _flank_value(v: NDArray[np.float64], width: float, need: int) -> tuple[float, float]:
     """Where the flank is, from ``v = sigma (s - F/k)`` of samples that may touch it.
 
     In contact ``v`` sits at the flank (up to the encoders' flicker); a sample inside the gap has ``v``
     below it. The flank is the densest window of width ``width`` in the top of the distribution (within 20
     widths of the largest value; a sliding window, so that a rest's samples are not split by where fixed bins'
     edges fall; of equally dense windows the highest), refined as the median of the samples within 1.5 widths
-    of its centre; NaN if that window holds fewer than ``need`` samples.
+    of its centre; NaN if that window holds fewer than ``need`` samples. Also returns the plateau's pull into the
+    gap: how far the 90th percentile of those top samples lies above it (0 at least).
     """
     top = float(v.max())
     v = np.sort(v[v >= top - 20 * width])
     counts = np.searchsorted(v, v + width, side="right") - np.arange(v.size)
     best = int(counts.max())
     if best < need:
-        return math.nan
+        return math.nan, math.nan
     j = int(np.flatnonzero(counts == best)[-1])
     c = v[j] + 0.5 * width
-    near = v[np.abs(v - c) <= 1.5 * width]
-    return float(np.median(near))
+    value = float(np.median(v[np.abs(v - c) <= 1.5 * width]))
+    return value, max(float(np.percentile(v, 90)) - value, 0.0)
 
 
 def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[int, int, int]]
@@ -1078,13 +1079,12 @@ def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[i
         # contact for sure: the mesh carries torque towards this flank and the flanks do not move apart
         idx = a + np.flatnonzero((sg * tau[a:i1] > h) & still[a:i1]) if i1 > a else np.zeros(0, int)
         v = sg * (s[idx] - force[idx] / pl.k)
-        value = _flank_value(v, width, need) if idx.size >= need else math.nan
+        value, pull = _flank_value(v, width, need) if idx.size >= need else (math.nan, math.nan)
         if not math.isfinite(value):
             vals.append((sg, math.nan, float(p.log.t[i0])))
             continue
         corr.append(float(np.mean(np.abs(force[idx] / pl.k))))
-        top = v[v >= float(v.max()) - 20 * width]
-        pulls.append(max(float(np.percentile(top, 90)) - value, 0.0))
+        pulls.append(pull)
         vals.append((sg, sg * value, float(p.log.t[(a + i1) // 2])))
     # a plateau can only be pulled into the gap (by samples of a contact too brief to settle), never out of
     # it: on each side keep the plateaus within 4 bins of the upper quartile

@@ -78,16 +78,16 @@ def _print_stage(s: dict[str, Any], indent: str = "  ") -> None:
     print(f"{indent}line of action [mm]    " + ", ".join(f"{k} {v * 1e3:.4f}" for k, v in loa.items()))
     print(f"{indent}inertia                I1 {s['inertia'][0]:.5g}, I2 {s['inertia'][1]:.5g} kg m^2")
     shafts = s["plant_equivalent_mass"]
+    with_shafts = abs(shafts - s["equivalent_mass"]) > 1e-9 * shafts  # a servo: motor and load on the shafts
     print(f"{indent}equivalent mass        {s['equivalent_mass']:.5g} kg (the gears alone, along the line of action)"
-          + (f"; {shafts:.5g} kg with the shafts" if abs(shafts - s["equivalent_mass"]) > 1e-9 * shafts else ""))
+          + (f"; {shafts:.5g} kg with the shafts" if with_shafts else ""))
     print(f"{indent}mesh stiffness         mean {ms['mean']:.5g} N/m ({s['mesh_stiffness_per_width']:.3g} N/(mm um)), "
           f"C1 {ms['c1']:.4g}, C2 {ms['c2']:.4g}, min {ms['min']:.4g}, max {ms['max']:.4g}")
     if s.get("mesh_stiffness_given"):
         print(f"{indent}plant stiffness        {s['plant_stiffness']:.5g} N/m (given in the file; the computed mean "
               "above is not used)")
     how = "given in the file" if s.get("damping_coefficient_given") else \
-        ("eq 38, consistent form" + (", on the equivalent mass with the shafts"
-                                     if abs(shafts - s["equivalent_mass"]) > 1e-9 * shafts else ""))
+        ("eq 38, consistent form" + (", on the equivalent mass with the shafts" if with_shafts else ""))
     print(f"{indent}damping coefficient    {s['damping_coefficient']:.5g} N s/m ({how})")
     print(f"{indent}Yang-Sun stiffness     {s['yang_sun_stiffness']:.5g} N/m (eq 39)")
     print(f"{indent}backlash                {s['backlash'] * 1e6:.4g} um along the line of action")
