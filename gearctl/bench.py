@@ -149,7 +149,8 @@ def _row(run: Run) -> dict[str, Any]:
         m = res.metrics.as_dict()
         health = m.pop("health")
         out.update({"name": res.controller.get("name"), "Ts": res.controller.get("Ts"),
-                    "preview": res.controller.get("preview", 1), **m, "warnings": list(health["warnings"])})
+                    "preview": res.controller.get("preview", 1), **m, "warnings": list(health["warnings"]),
+                    "design_notes": list(res.controller.get("design_notes", ()))})
     if res.ok:
         out.update({"trace_t": res.trace_t.tolist(), "trace_error": res.trace_error.tolist()})
     return out

@@ -1017,6 +1017,7 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
                  f"motion in one gap at the output, the stages' series stiffness; Plant.equivalent_pair). " + notes)
     return {
         "model": gm.name, "controller": ctrl.name, "feedback": ctrl.feedback, "sample_time": ctrl.Ts,
+        "design_notes": list(ctrl.design_notes),
         "backlash": plant.backlash, "stages": train.n_stages, "prediction": pred, "impact_prediction": imp,
         "simulation": sim, "agreement": agreement, "verdict": verdict,
         "gap_loop": None if gap is None else {"growth_rate": gap[0], "frequency_hz": gap[1]},

@@ -477,3 +477,91 @@ def test_cli_track_backlash_zero(capsys: pytest.CaptureFixture[str],
     out = json.loads(capsys.readouterr().out)
     assert out["backlash"] == 0.0 and out["impacts"] == 0
     assert out["rms_error"] == rms(free_runs["deadzone_inverse"])  # --backlash 0 = build_plant(backlash=0)
+
+
+# --- the PID design keeps the motor alone stable in the gap ---------------------------------------------------------
+
+def _light_motor_servo(tmp_path: Path) -> Path:
+    """shing1993_servo with a motor ten times lighter (2e-5 kg m^2): the rigid train is 17x the motor shaft."""
+    path = Path(__file__).parent / "data" / "light_motor_servo.toml"
+    assert load_model(path).servo.motor_inertia == 2e-5
+    assert load_model(path).pair == load_model("shing1993_servo").pair
+    return path
+
+
+def _free_motor_poles(info, gains: PIDGains, Ts: float) -> float:
+    """Independent oracle (python-control): the largest |z| of the motor alone under the sampled PID."""
+    import control as ct
+
+    shaft = info.nominal.shafts[0]
+    s = ct.tf("s")
+    G = ct.c2d(ct.ss(1 / (info.N * (shaft.J * s**2 + shaft.d * s))), Ts, "zoh")
+    return float(np.max(np.abs(ct.feedback(gains.sampled_tf(Ts) * G, 1).poles())))
+
+
+def test_pid_design_keeps_the_motor_alone_stable_in_the_gap(tmp_path: Path) -> None:
+    from gearctl.design.pid import design_pid, gap_limited_bandwidth, gap_loop_stable
+
+    info = loop_info(build_plant(load_model(_light_motor_servo(tmp_path))))
+    assert info.J_eq / info.nominal.shafts[0].J == pytest.approx(16.8, rel=0.01)
+    # at the catalog's 20 Hz the motor alone is unstable (python-control's poles, not gearctl's polynomial)
+    g20, _ = design_pid(info, bandwidth_hz=20.0, Ts=1e-3)
+    assert _free_motor_poles(info, g20, 1e-3) > 1.0 and not gap_loop_stable(info, g20, 1e-3)
+    # the search: 8.4 Hz measured; stable there with the gain 6 dB up, not both a step above
+    bw = gap_limited_bandwidth(info, bandwidth_hz=20.0, Ts=1e-3, gain_margin_db=6.0)
+    assert 7.0 < bw < 10.0
+    g, _ = design_pid(info, bandwidth_hz=bw, Ts=1e-3)
+    k = 10 ** (6 / 20)  # 6 dB
+    g2 = dataclasses.replace(g, kp=k * g.kp, ki=k * g.ki, kd=k * g.kd)
+    assert _free_motor_poles(info, g, 1e-3) < 1.0 and _free_motor_poles(info, g2, 1e-3) < 1.0
+    g_up, _ = design_pid(info, bandwidth_hz=1.01 * bw, Ts=1e-3)
+    assert not (gap_loop_stable(info, g_up, 1e-3) and gap_loop_stable(info, g_up, 1e-3, gain=k))
+    # the catalog files say so and design at that bandwidth; gap_gain_margin_db = 0 keeps the file's 20 Hz
+    pid = load_controller("pid", build_plant(load_model(_light_motor_servo(tmp_path))))
+    assert pid.gains == g and len(pid.design_notes) == 1
+    assert "bandwidth_hz = 20 lowered to 8.4 Hz" in pid.design_notes[0]
+    assert pid.describe()["design_notes"] == list(pid.design_notes)
+    # the benchmark servo (motor shaft 0.26 of the train) keeps its design to the last bit, and says nothing
+    bench = load_controller("pid", build_plant(load_model("shing1993_servo")))
+    info_b = loop_info(build_plant(load_model("shing1993_servo")))
+    assert bench.gains == design_pid(info_b, bandwidth_hz=20.0, Ts=1e-3)[0] and bench.design_notes == ()
+    assert gap_limited_bandwidth(info_b, bandwidth_hz=20.0) == 20.0
+
+
+def test_light_motor_loop_does_not_rattle_and_the_inverse_beats_the_pid(tmp_path: Path) -> None:
+    from gearctl.catalog import resolve
+    from gearctl.runs import execute, make_run
+
+    model = _light_motor_servo(tmp_path)
+    off = tmp_path / "pid_20hz.toml"
+    off.write_text(resolve("pid", "controllers").read_text().replace(
+        "bandwidth_hz = 20.0", "bandwidth_hz = 20.0\ngap_gain_margin_db = 0.0"))
+    m = {}
+    for name, ctrl, ref in (("pid", "pid", "sine"), ("pid_20hz", off, "sine"), ("inverse", "deadzone_inverse", "sine"),
+                            ("pid_move", "pid", "move"), ("inverse_move", "deadzone_inverse", "move")):
+        res = execute(make_run(model, ctrl, reference_kind=ref))
+        assert res.ok
+        m[name] = res.metrics
+    # at 20 Hz the motor hammers the flanks every sample (measured 2968 impacts in 3 s): a limit cycle at the
+    # Nyquist frequency, whose dither happens to centre the load (RMS 2.9e-5 rad)
+    assert m["pid_20hz"].health.limit_cycle and m["pid_20hz"].impacts > 2000
+    # the lowered design rests on a flank (measured 176 impacts in 3 s, no limit cycle; RMS 6.8e-4 rad, half the
+    # lost motion), and the inverse compensates it: measured 2.9x on the sine, 88x on the move
+    assert not m["pid"].health.limit_cycle and m["pid"].impacts < 400
+    assert not m["inverse"].health.limit_cycle
+    assert m["pid"].rms_error / m["inverse"].rms_error > 2.0
+    assert m["pid_move"].rms_error / m["inverse_move"].rms_error > 20.0
+
+
+def test_cli_prints_the_design_note(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    model = _light_motor_servo(tmp_path)
+    assert main(["track", str(model), "pid", "--duration", "0.2", "--json"]) == 0
+    out = capsys.readouterr()
+    notes = [line for line in out.err.splitlines() if line.startswith("gearctl track: note: ")]
+    assert len(notes) == 1 and "lowered to 8.4 Hz" in notes[0] and "gap_gain_margin_db = 0" in notes[0]
+    assert json.loads(out.out)["controller"]["design_notes"] == [notes[0].removeprefix("gearctl track: note: ")]
+    bad = tmp_path / "bad.toml"
+    bad.write_text('kind = "pid"\n[design]\ngap_gain_margin_db = 50\n[source]\nnotes = "x"\n')
+    assert main(["track", str(model), str(bad), "--duration", "0.2"]) == 2
+    err = capsys.readouterr().err
+    assert "gap_gain_margin_db = 50 is out of range: expected 0 <= value <= 40 [dB]" in err

@@ -391,7 +391,8 @@ def test_unhealthy_loop_warns_and_flags(server, tmp_path: Path) -> None:
     pid200 = tmp_path / "pid_200hz.toml"
     text = gearctl.catalog.resolve("pid", "controllers").read_text()
     assert "bandwidth_hz = 20.0" in text
-    pid200.write_text(text.replace("bandwidth_hz = 20.0", "bandwidth_hz = 200.0"))
+    # with the gap check off: the check would lower 200 Hz to what the motor alone stands in the gap (a note)
+    pid200.write_text(text.replace("bandwidth_hz = 20.0", "bandwidth_hz = 200.0\ngap_gain_margin_db = 0.0"))
     bad_csv, good_csv = tmp_path / "bad.csv", tmp_path / "good.csv"
     bad, good = capped(server, [
         ["track", "shing1993_servo", str(pid200), "--duration", "1", "--json", "--csv", str(bad_csv)],

@@ -183,10 +183,10 @@ class progress_bar:  # noqa: N801 (a context manager used like a function)
             self.bar.close()
 
 
-def warn(command: str, warnings: Iterable[str]) -> None:
-    """Print each warning of an unhealthy loop on stderr, one line each."""
+def warn(command: str, warnings: Iterable[str], *, kind: str = "warning") -> None:
+    """Print each warning of an unhealthy loop (or, ``kind="note"``, each design note) on stderr, one line each."""
     for w in warnings:
-        print(f"gearctl {command}: warning: {w}", file=sys.stderr)
+        print(f"gearctl {command}: {kind}: {w}", file=sys.stderr)
 
 
 def separated_past_flank(plant: Any, s: Any, mode: Any) -> float:

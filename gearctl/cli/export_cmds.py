@@ -25,7 +25,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
     summary = {"model": model.name, "controller": ctrl.name, "kind": info.kind, "out": str(info.path),
                "files": info.files, "table_bytes": info.table_bytes, "vector_steps": info.vector_steps,
                "Ts": ctrl.Ts, "preview": ctrl.preview, "uses_load_encoder": ctrl.uses_load_encoder,
-               "prefix": info.prefix, "warnings": list(info.warnings)}
+               "prefix": info.prefix, "warnings": list(info.warnings),
+               "design_notes": list(ctrl.describe().get("design_notes", ()))}
+    warn("export", summary["design_notes"], kind="note")
     warn("export", info.warnings)
     if args.json:
         print(dump_json(summary))

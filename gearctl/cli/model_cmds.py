@@ -351,6 +351,7 @@ def _cmd_describe(args: argparse.Namespace) -> int:
     from ..describe import describe
 
     d = describe(args.model, args.controller, duration=args.duration)
+    warn("describe", d["design_notes"], kind="note")
     if args.json:
         print(dump_json(d))
         return 0

@@ -18,6 +18,8 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from ..controller import ReferenceLike
 from ..errors import InputError
 from ..files import Binding, Layout, build_dataclass, spec_values
@@ -28,7 +30,7 @@ if TYPE_CHECKING:
     import control as ct
 
 __all__ = ["PIDGains", "PIDDesign", "LoopSettings", "PID", "design_pid", "KIND", "LAYOUT", "build",
-           "LOOP_KEYS", "PID_TABLES", "pid_from_values", "restate"]
+           "LOOP_KEYS", "PID_TABLES", "pid_from_values", "restate", "gap_loop_stable", "gap_limited_bandwidth"]
 
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "pid"
@@ -105,6 +107,9 @@ class PIDDesign:
     phase_margin_deg: float = quantity(unit="deg", doc="phase margin", low=1.0, high=79.0, default=50.0)
     integral_ratio: float = quantity(unit="1", doc="integral zero over the crossover", low=0.0, high=1.0,
                                      default=0.1)
+    gap_gain_margin_db: float = quantity(unit="dB", doc="gain margin the motor alone keeps under a motor-side PID "
+                                         "when the load lets go in the gap (0: not checked)", low=0.0, high=40.0,
+                                         default=6.0)
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -174,6 +179,81 @@ def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float =
                          f"[servo] motor_inertia, load_inertia; gear ratio {info.N:.4g}): expected a lower "
                          f"bandwidth_hz or a lighter train", field="bandwidth_hz") from None
     return gains, sampled_margins(info, gains, Ts)
+
+
+def _lead_lag(info: LoopInfo, bandwidth_hz: float, phase_margin_deg: float, integral_ratio: float,
+              Ts: float) -> PIDGains | None:
+    """:func:`design_pid`'s gains by complex arithmetic alone (no python-control, no margins): the bandwidth
+    search of :func:`gap_limited_bandwidth` (None for gains out of range)."""
+    wc = 2 * math.pi * bandwidth_hz
+    wi = integral_ratio * wc
+    phi = min(math.radians(phase_margin_deg) + math.atan(wi / wc) + wc * Ts / 2, math.radians(80.0))
+    alpha = (1 + math.sin(phi)) / (1 - math.sin(phi))
+    z, p = wc / math.sqrt(alpha), wc * math.sqrt(alpha)
+    s = 1j * wc
+    L = (s + wi) / s * (1 + s / z) / (1 + s / p) / (info.N * info.J_eq * s * s + info.N * info.d_eq * s)
+    K = 1.0 / abs(L)
+    ki, Tf = K * wi, 1 / p
+    kp = K * (1 + wi / z) - ki * Tf
+    kd = K / z - kp * Tf
+    try:
+        return PIDGains(kp=kp, ki=ki, kd=max(kd, 0.0), derivative_filter_hz=p / (2 * math.pi))
+    except InputError:
+        return None
+
+
+def gap_loop_stable(info: LoopInfo, gains: PIDGains, Ts: float, *, gain: float = 1.0) -> bool:
+    """Whether the motor alone, the load let go in the gap, is stable under the sampled motor-side PID with its
+    gains times ``gain``.
+
+    The motor shaft alone (the nominal plant's shaft 0: its inertia and viscous friction; on a train the first
+    stage's gap is the one that lets it go) under :meth:`PIDGains.sampled_tf` on ``theta1 / N``, with the exact
+    zero-order hold: every closed-loop pole inside the unit circle. A PID designed on the rigid train has
+    ``J_eq / J_motor`` times the loop gain on the motor alone: on a light motor (a load-dominated servo) the
+    loop that is well damped in contact is unstable in the gap, and it rattles between the flanks at the
+    Nyquist frequency (``gearctl describe`` shows that cycle).
+    """
+    import scipy.linalg
+    import scipy.signal
+
+    shaft = info.nominal.shafts[0]
+    J, d, N = shaft.J, shaft.d, info.N
+    M = np.zeros((3, 3))
+    M[0, 1], M[1, 1], M[1, 2] = 1.0, -d / J, 1.0 / J
+    E = scipy.linalg.expm(M * Ts)
+    num, den = scipy.signal.ss2tf(E[:2, :2], E[:2, 2:], np.array([[1.0 / N, 0.0]]), np.zeros((1, 1)))
+    kp, kiT, kdT, a = gains.discrete(Ts)
+    Dc = np.polymul([1.0, -1.0], [1.0, -a])
+    Nc = kp * Dc + np.polyadd(kiT * np.array([0.0, 1.0, -a]), kdT * np.polymul([1.0, -1.0], [1.0, -1.0]))
+    char = np.polyadd(np.polymul(Dc, den), gain * np.polymul(Nc, np.atleast_1d(np.squeeze(num))))
+    return bool(np.max(np.abs(np.roots(char))) < 1.0)
+
+
+def gap_limited_bandwidth(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float = 50.0,
+                          integral_ratio: float = 0.1, Ts: float = 1e-3, gain_margin_db: float = 6.0) -> float:
+    """The largest crossover up to ``bandwidth_hz`` [Hz] whose :func:`design_pid` gains leave the motor alone
+    (the load let go in the gap) stable with ``gain_margin_db`` of gain margin (:func:`gap_loop_stable` with
+    the gains and with them times the margin): ``bandwidth_hz`` itself when it does.
+
+    Found by bisection on a logarithmic scale down to a hundredth of ``bandwidth_hz`` (to 0.1 %); below that the
+    hundredth is returned, and the design there is checked by the caller like any other.
+    """
+    k = 10.0 ** (gain_margin_db / 20.0)
+
+    def ok(bw: float) -> bool:
+        g = _lead_lag(info, bw, phase_margin_deg, integral_ratio, Ts)
+        return g is not None and gap_loop_stable(info, g, Ts) and gap_loop_stable(info, g, Ts, gain=k)
+
+    if ok(bandwidth_hz):
+        return bandwidth_hz
+    lo, hi = bandwidth_hz / 100.0, bandwidth_hz
+    while hi / lo > 1.001:
+        mid = math.sqrt(lo * hi)
+        if ok(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 def sampled_margins(info: LoopInfo, gains: PIDGains, Ts: float, *, feedback: str = "motor") -> dict[str, float]:
@@ -259,6 +339,11 @@ class PID(Controller):
     reversal offset) calls :meth:`reference_acceleration` once per sample and :meth:`torque` with its own
     target and, where the model is not the rigid train, its own feedforward and feedback scale.
     """
+
+    #: What the design changed of what the file asked, one sentence each (a bandwidth lowered so that the motor
+    #: alone stays stable in the gap: :func:`gap_limited_bandwidth`); ``track``, ``precision`` and ``bench`` print
+    #: them
+    design_notes: tuple[str, ...] = ()
 
     def __init__(self, info: LoopInfo, gains: PIDGains, *, Ts: float = 1e-3, feedback: str = "motor",
                  feedforward: bool = True, friction_feedforward: bool = True, name: str = "pid") -> None:
@@ -376,7 +461,7 @@ class PID(Controller):
         """Gains and settings."""
         return {"name": self.name, "kind": "pid", "Ts": self.Ts, "feedback": self.feedback,
                 "feedforward": self.feedforward, "friction_feedforward": self.friction_feedforward,
-                **dataclasses.asdict(self.gains)}
+                **dataclasses.asdict(self.gains), "design_notes": list(self.design_notes)}
 
 
 # --- the controller file ---------------------------------------------------------------------------------
@@ -429,13 +514,29 @@ def pid_from_values(path: Path, values: dict[type, Values], info: LoopInfo, loop
         gains = build_dataclass(path, PIDGains, values[PIDGains])
     else:
         design = build_dataclass(path, PIDDesign, values.get(PIDDesign, {}))
+        bw, notes = design.bandwidth_hz, ()
         try:
-            gains, _ = design_pid(info, bandwidth_hz=design.bandwidth_hz, phase_margin_deg=design.phase_margin_deg,
+            if loop.feedback == "motor" and design.gap_gain_margin_db > 0.0 and 0.0 < bw < 0.5 / Ts:
+                bw = gap_limited_bandwidth(info, bandwidth_hz=bw, phase_margin_deg=design.phase_margin_deg,
+                                           integral_ratio=design.integral_ratio, Ts=Ts,
+                                           gain_margin_db=design.gap_gain_margin_db)
+                if bw < design.bandwidth_hz:
+                    shaft = info.nominal.shafts[0]
+                    notes = (f"{name}: bandwidth_hz = {design.bandwidth_hz:g} lowered to {bw:.3g} Hz. Designed on "
+                             f"the rigid train, the PID has {info.J_eq / shaft.J:.3g}x the loop gain on the motor "
+                             f"shaft alone ({shaft.J:.3g} kg m^2), which the load leaves in the gap; above "
+                             f"{bw:.3g} Hz that loop is unstable, or within gap_gain_margin_db = "
+                             f"{design.gap_gain_margin_db:g} dB of it, and the motor rattles between the flanks. "
+                             f"Set gap_gain_margin_db = 0 in [design] to keep {design.bandwidth_hz:g} Hz",)
+            gains, _ = design_pid(info, bandwidth_hz=bw, phase_margin_deg=design.phase_margin_deg,
                                   integral_ratio=design.integral_ratio, Ts=Ts)
         except InputError as exc:
             raise restate(path, exc, values) from None
-    return PID(info, gains, Ts=Ts, feedback=loop.feedback, feedforward=loop.feedforward,
-               friction_feedforward=loop.friction_feedforward, name=name)
+    pid = PID(info, gains, Ts=Ts, feedback=loop.feedback, feedforward=loop.feedforward,
+              friction_feedforward=loop.friction_feedforward, name=name)
+    if PIDGains not in values:
+        pid.design_notes = notes
+    return pid
 
 
 def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str, backlash: float | None = None) -> PID:
