@@ -92,26 +92,47 @@ def plot_simulation(results: dict[str, Any], *, title: str = "") -> Figure:
     """
     fig = Figure(figsize=(11, 10), layout="constrained")
     axs = fig.subplots(3, 2)
+    first = next(iter(results.values()))
+    n = first.plant.n_stages
+    w = n + 1  # shafts: 0 the motor, n the load
+    # a train: the motor and the load shafts, each stage's gap over its backlash and its mesh force
+    one, last = ("1", "2") if n == 1 else ("0", str(n))
+    motor, load = ("gear 1", "gear 2") if n == 1 else ("the motor shaft", "the load shaft")
     panels = [
-        (axs[0, 0], lambda r: r.x[0], r"$\theta_1$ [rad]", "Angular displacement of gear 1"),
-        (axs[0, 1], lambda r: r.x[1], r"$\theta_2$ [rad]", "Angular displacement of gear 2"),
-        (axs[1, 0], lambda r: r.x[2], r"$\dot\theta_1$ [rad/s]", "Angular velocity of gear 1"),
-        (axs[1, 1], lambda r: r.x[3], r"$\dot\theta_2$ [rad/s]", "Angular velocity of gear 2"),
-        (axs[2, 0], lambda r: r.s * 1e3, "s [mm]", "Relative displacement along the line of action"),
-        (axs[2, 1], lambda r: r.force, "F [N]", "Contact force (front flank positive)"),
+        (axs[0, 0], lambda r: r.x[0], rf"$\theta_{one}$ [rad]", f"Angular displacement of {motor}"),
+        (axs[0, 1], lambda r: r.x[w - 1], rf"$\theta_{last}$ [rad]", f"Angular displacement of {load}"),
+        (axs[1, 0], lambda r: r.x[w], rf"$\dot\theta_{one}$ [rad/s]", f"Angular velocity of {motor}"),
+        (axs[1, 1], lambda r: r.x[2 * w - 1], rf"$\dot\theta_{last}$ [rad/s]", f"Angular velocity of {load}"),
     ]
     styles = ["-", "--", ":", "-."]
     for (label, res), ls in zip(results.items(), styles * 4, strict=False):
         for ax, get, ylabel, name in panels:
             ax.plot(res.t * 1e3, get(res), ls, label=label, lw=1.2)
             ax.set(xlabel="t [ms]", ylabel=ylabel, title=name)
-    first = next(iter(results.values()))
-    b = first.plant.backlash * 1e3
+        s_all, f_all = np.atleast_2d(res.s), np.atleast_2d(res.force)
+        for i in range(n):
+            tag = label if n == 1 else f"{label}, stage {i + 1}"
+            if n == 1:
+                axs[2, 0].plot(res.t * 1e3, s_all[i] * 1e3, ls, label=tag, lw=1.2)
+            else:
+                b_i = res.plant.backlashes[i]
+                axs[2, 0].plot(res.t * 1e3, s_all[i] / b_i if b_i > 0 else s_all[i] * 0.0, ls, label=tag, lw=1.2)
+            axs[2, 1].plot(res.t * 1e3, f_all[i], ls, label=tag, lw=1.2)
+    if n == 1:
+        axs[2, 0].set(xlabel="t [ms]", ylabel="s [mm]", title="Relative displacement along the line of action")
+        lim = first.plant.backlash * 1e3
+    else:
+        axs[2, 0].set(xlabel="t [ms]", ylabel="$s_i / b_i$",
+                      title="Each stage's relative displacement over its backlash")
+        lim = 1.0
+    axs[2, 1].set(xlabel="t [ms]", ylabel="F [N]", title="Contact force (front flank positive)")
     for sgn in (1, -1):
-        axs[2, 0].axhline(sgn * b, color="k", lw=0.6, ls=":")
-    for ax, *_ in panels:
+        axs[2, 0].axhline(sgn * lim, color="k", lw=0.6, ls=":")
+    for ax in axs.flat:
         ax.grid(True, alpha=0.3)
     axs[0, 0].legend()
+    if n > 1:
+        axs[2, 0].legend(fontsize=8)
     if title:
         fig.suptitle(title)
     return fig
@@ -131,18 +152,28 @@ def plot_tracking(results: dict[str, Any], *, title: str = "") -> Figure:
     axs = fig.subplots(4, 1, sharex=True)
     first = next(iter(results.values()))
     axs[0].plot(first.t, first.reference, "k", lw=2, label="reference")
+    n = first.plant.n_stages
     for label, r in results.items():
-        axs[0].plot(r.t, r.x[1], label=label)
+        axs[0].plot(r.t, r.x[r.plant.n_stages], label=label)  # the load shaft (shaft n)
         axs[1].plot(r.t, r.error * 1e3, label=label)
         axs[2].step(r.t, r.torque, where="post", label=label)
-        axs[3].plot(r.t, r.s * 1e6, label=label)
-    b = first.plant.backlash * 1e6
+        s_all = np.atleast_2d(r.s)
+        if r.plant.n_stages == 1:
+            axs[3].plot(r.t, s_all[0] * 1e6, label=label)
+        else:  # each stage over its own backlash
+            for i, b_i in enumerate(r.plant.backlashes):
+                axs[3].plot(r.t, s_all[i] / b_i if b_i > 0 else s_all[i] * 0.0, label=f"{label}, stage {i + 1}")
+    lim = first.plant.backlash * 1e6 if n == 1 else 1.0
     for sgn in (1, -1):
-        axs[3].axhline(sgn * b, color="k", lw=0.6, ls=":")
-    axs[0].set(ylabel=r"load angle $\theta_2$ [rad]", title="Reference and load angle")
-    axs[1].set(ylabel="error [mrad]", title=r"Tracking error $r - \theta_2$")
+        axs[3].axhline(sgn * lim, color="k", lw=0.6, ls=":")
+    load = r"$\theta_2$" if n == 1 else rf"$\theta_{n}$"
+    axs[0].set(ylabel=f"load angle {load} [rad]", title="Reference and load angle")
+    axs[1].set(ylabel="error [mrad]", title=f"Tracking error r - {load}")
     axs[2].set(ylabel="motor torque [N m]", title="Motor torque")
-    axs[3].set(ylabel=r"s [$\mu$m]", xlabel="t [s]", title="Gap state: relative displacement (contact beyond ±b)")
+    if n == 1:
+        axs[3].set(ylabel=r"s [$\mu$m]", xlabel="t [s]", title="Gap state: relative displacement (contact beyond ±b)")
+    else:
+        axs[3].set(ylabel="$s_i / b_i$", xlabel="t [s]", title="Gap state of each stage (contact beyond ±1)")
     for ax in axs:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc="upper right")

@@ -620,3 +620,26 @@ def test_random_trains_run_every_command_or_refuse_in_one_line(seed: int, tmp_pa
             assert err.count("\n") == 1, (argv, err)
         if argv[0] == "info":  # the generator keeps clear of the undercut limit: a valid train
             assert rc == 0, err
+
+
+def test_plots_draw_a_train(tmp_path: Path) -> None:
+    """`simulate --plot` and `track --plot` on a train: the load shaft and every stage's gap over its backlash (the
+    pair's plots took x[1] and one s, and a train ended in a matplotlib traceback: a reviewer's battery)."""
+    from gearctl.plots import plot_simulation, plot_tracking
+
+    three = build_plant(load_model("servo_3stage_quanser_srv02"))
+    sim = report_case(three, "free", 0.005)
+    fig = plot_simulation({"improved": sim})
+    gap_axis = fig.axes[4]
+    assert len(gap_axis.get_lines()) == 3 + 2  # a line per stage and the two +-1 flank lines
+    for i, line in enumerate(gap_axis.get_lines()[:3]):
+        assert_allclose(line.get_ydata(), sim.s[i] / three.backlashes[i])
+    assert_allclose(fig.axes[1].get_lines()[0].get_ydata(), sim.x[3])  # the load shaft, shaft 3
+    out, res = execute(make_run("servo_3stage_quanser_srv02", "pid", duration=0.05), keep=True)
+    fig = plot_tracking({"pid": res})
+    assert_allclose(fig.axes[0].get_lines()[1].get_ydata(), res.x[3])
+    assert_allclose(res.reference - fig.axes[0].get_lines()[1].get_ydata(), res.error, atol=1e-15)
+    for argv in (["simulate", "servo_2stage_phm09", "--plot", str(tmp_path / "s.png")],
+                 ["track", "servo_2stage_phm09", "pid", "--duration", "0.1", "--plot", str(tmp_path / "t.png")]):
+        assert main(argv) == 0
+    assert (tmp_path / "s.png").stat().st_size > 10_000 and (tmp_path / "t.png").stat().st_size > 10_000
