@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from .catalog import GearModel, load_controller, load_model
 from .closedloop import ClosedLoopResult, simulate_closed_loop
 from .design.base import Controller
-from .design.pid import PID, PIDGains
+from .design.pid import PID, PIDGains, gap_loop_pole
 from .errors import InputError
 from .modes import contact_mode_model
 from .params import ContactLaw, Sensors
@@ -1007,8 +1007,9 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
         "impact_frequency_ratio": _ratio(imp[0]["frequency_hz"], sim["frequency_hz"]) if have and imp else None,
     }
     gains, Ts, feedback = _pid_parts(ctrl, None, None)
-    # the motor alone under a motor-side PID, the load let go (a spring 1e-12 k): a loop of its own in the gap
-    gap = _dominant_pole(plant, gains, Ts, feedback, plant.k * 1e-12, 0.0) if feedback == "motor" else None
+    # the motor alone under a motor-side PID, the load let go: a loop of its own in the gap (the design's own test,
+    # free of the rounding a spring of 1e-12 k left: +0.03 /s on a stable loop)
+    gap = gap_loop_pole(ctrl.info, gains, Ts) if feedback == "motor" else None
     notes = _notes(plant, ctrl, pred, imp, sim)
     verdict = _verdict(plant, ctrl, pred, sim, gap)
     notes += " " + verdict

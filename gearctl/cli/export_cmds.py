@@ -27,7 +27,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
                "Ts": ctrl.Ts, "preview": ctrl.preview, "uses_load_encoder": ctrl.uses_load_encoder,
                "prefix": info.prefix, "warnings": list(info.warnings),
                "design_notes": list(ctrl.describe().get("design_notes", ()))}
-    warn("export", summary["design_notes"], kind="note")
+    warn("export", [f"{ctrl.name}: {n}" for n in summary["design_notes"]], kind="note")
     warn("export", info.warnings)
     if args.json:
         print(dump_json(summary))

@@ -69,7 +69,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         c = res.counts
         summary["impacts_per_stage"] = [int(c["impacts_front"][i] + c["impacts_back"][i] + c["plastic_front"][i]
                                             + c["plastic_back"][i]) for i in range(n)]
-    warn("track", ctrl.get("design_notes", ()), kind="note")
+    warn("track", [f"{ctrl['name']}: {n}" for n in ctrl.get("design_notes", ())], kind="note")
     warn("track", m.health.warnings)
     hold = plant.gear_ratio * plant.torque_limit  # the most torque the motor puts on the load [N m]
     dist = abs(getattr(run.reference, "disturbance", 0.0))
@@ -160,7 +160,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
         "impacts": res.run.impact_count,
         "health": health.as_dict(),
     }
-    warn("precision", out["controller"].get("design_notes", ()), kind="note")
+    warn("precision", [f"{ctrl.name}: {n}" for n in out["controller"].get("design_notes", ())], kind="note")
     warn("precision", health.warnings)
     if args.plot:
         from ..plots import plot_precision
@@ -220,7 +220,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     print(text, end="")
     print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
                                           f"on {result['jobs']} process(es)"))
-    warn("bench", dict.fromkeys(n for r in result["runs"] for n in r.get("design_notes", ())), kind="note")
+    warn("bench", dict.fromkeys(f"{r['model']}, {r['controller']}: {n}" for r in result["runs"]
+                                for n in r.get("design_notes", ())), kind="note")
     warn("bench", _grouped_warnings(result["runs"]))
     if args.json:
         try:

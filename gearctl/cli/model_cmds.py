@@ -351,7 +351,7 @@ def _cmd_describe(args: argparse.Namespace) -> int:
     from ..describe import describe
 
     d = describe(args.model, args.controller, duration=args.duration)
-    warn("describe", d["design_notes"], kind="note")
+    warn("describe", [f"{d['controller']}: {n}" for n in d["design_notes"]], kind="note")
     if args.json:
         print(dump_json(d))
         return 0
@@ -427,7 +427,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--bode", metavar="FILE", help="write the Bode diagram of all modes on common axes")
     p.add_argument("--step", metavar="FILE", help="write the contact-mode step response (s)")
 
-    p = sub.add_parser("describe", help="describing-function limit cycle of a PID loop vs simulation")
+    p = sub.add_parser("describe", help="describing-function limit cycle of a PID loop vs simulation (models "
+                                        "with viscous friction only: Coulomb friction is refused by name)")
     p.add_argument("model", help="model (e.g. shing1993_servo)")
     p.add_argument("controller", help="a pid controller (e.g. pid_load: load-side feedback)")
     p.add_argument("--duration", type=dur, default=2.0, help="simulated time [s] (default 2)")

@@ -188,6 +188,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
     if args.out:
         _write_out(result, Path(args.out))
+    design = result.settings.get("design", {})
+    warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
     print("\n".join(_text(result)))
     if result.summary["failed"]:
         warn("sweep", [f"{result.summary['failed']} of {result.summary['runs']} runs failed: see their message "
@@ -217,7 +219,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--duration", type=spec_arg(DURATION), help="simulated time of each run [s] (default per "
                                                                "reference)")
     p.add_argument("--seed", type=spec_arg(SEED), default=0, help="seed of the draws and the sensor noise (default 0)")
-    p.add_argument("--workers", type=spec_arg(_WORKERS), help="processes of the local cluster (default: all cores)")
+    p.add_argument("--workers", "--jobs", dest="workers", type=spec_arg(_WORKERS),
+                   help="processes of the local cluster (default: all cores; --jobs as in bench)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler, tcp://HOST:PORT (default DASK_SCHEDULER_ADDRESS, else a local "
                         "cluster)")
