@@ -58,7 +58,8 @@ _struct("gcx_inv_p", [("pid", "gcx_pid_p"), ("plant", "gcx_plant_p"), ("obs", "g
                       ("crossing_time", "double"), ("disturbance_threshold", "double"), ("backlash", "double"),
                       ("a_limit", "double"), ("jump_den", "double"), ("jump_floor", "double"),
                       ("rattle_decay", "double"),
-                      ("rattle_level", "double"), ("rattle_gain", "double"), ("contact_lag", "double"),
+                      ("rattle_level", "double"), ("rattle_gain", "double"), ("rattle_max_error", "double"),
+                      ("contact_lag", "double"),
                       ("take_up_acceleration", "double")])
 _struct("gcx_ada_p", [("inv", "gcx_inv_p"), ("rb1", "double"), ("rb2", "double"), ("k", "double"),
                       ("window", "int")] + [(f, "double") for f in (
@@ -188,6 +189,7 @@ def _inv_values(inv: DeadzoneInverse) -> dict[str, Any]:
             "disturbance_threshold": inv.disturbance_threshold, "backlash": inv.backlash, "a_limit": inv._a_limit,
             "jump_den": inv._jump_den, "jump_floor": inv.jump_floor, "rattle_decay": deadzone.RATTLE_DECAY,
             "rattle_level": deadzone.RATTLE_LEVEL, "rattle_gain": deadzone.RATTLE_GAIN,
+            "rattle_max_error": deadzone.RATTLE_MAX_ERROR,
             "contact_lag": inv._contact_lag, "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION}
 
 

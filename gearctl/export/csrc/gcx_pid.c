@@ -490,9 +490,12 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
             gcx_inv_start_take_up(P, S, t, r, rd);
             gcx_inv_take_up(P, S, t, lag);
         }
-        double scale = S->rattling ? P->rattle_gain * pl->J1 / P->pid.J_eq : 1.0;
+        double err = r - lag[0] + off[0] - y_motor / P->pid.N;
+        /* rattling softens the feedback, but never against an error beyond rattle_max_error lost motions */
+        int rattle = S->rattling && fabs(err) < P->rattle_max_error * 2.0 * S->offset;
+        double scale = rattle ? P->rattle_gain * pl->J1 / P->pid.J_eq : 1.0;
         u = gcx_offset_torque(&P->pid, &S->pid, pl, r - lag[0], rd - lag[1], a - lag[2], off, y_motor, y_load, has_yl,
-                              0, scale, gcx_inv_one_way(P, S, t, rd, rdd, rdd_prev, r - lag[0] + off[0] - y_motor / P->pid.N));
+                              0, scale, gcx_inv_one_way(P, S, t, rd, rdd, rdd_prev, err));
     }
     S->u_hist[0] = S->u_hist[1], S->u_hist[1] = u;
     if (P->has_observer) { /* the train model does not hold while the motor crosses, nor just after a landing */
