@@ -145,8 +145,8 @@ def test_zero_backlash_energy(compiled: bool) -> None:
 
 def test_zero_backlash_closed_loop_on_every_plant() -> None:
     """The servo with b = 0 under the catalog PID: the three plants give the same tracking error (measured RMS
-    9.46e-7, 9.57e-7 and 9.45e-7 rad, within 1.2 %; Yang–Sun's open loop from 50 rad/s ended in NaN at 3.8 ms, the review's
-    v17, which :func:`test_zero_backlash_energy` holds)."""
+    9.46e-7, 9.57e-7 and 9.45e-7 rad, within 1.2 %; Yang–Sun's open loop from 50 rad/s ended in NaN at 3.8 ms,
+    the review's v17, which :func:`test_zero_backlash_energy` holds)."""
     rms = {}
     for kind in ("improved", "yang-sun", "tvms"):
         out = execute(make_run("shing1993_servo", "pid", plant=kind, backlash=0.0, duration=1.0))
