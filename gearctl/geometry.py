@@ -231,8 +231,51 @@ def _shift_field(pair: GearPair, j: int | None = None) -> str:
 
 
 def _input_error(pair: GearPair, field: str, rule: str) -> InputError:
-    """The one-line error ``"<field> = <value> <rule>"`` (the shape the catalog loader restates)."""
+    """The one-line error ``"<field> = <value> <rule>"`` (the shape the catalog loader restates); for a profile
+    shift, with the range that passes when the other keys stay as given (:func:`_shift_limit`)."""
+    if field in ("x1", "x2") and not _SEARCHING:
+        limit = _shift_limit(pair, field)
+        if limit is not None:
+            side = "at most" if getattr(pair, field) > limit else "at least"
+            rule += f" (with the other keys as given: {side} {limit:g})"
     return InputError(f"{field} = {getattr(pair, field):g} {rule}", field=field, rule=rule)
+
+
+#: Set while :func:`_shift_limit` builds its trial pairs (their errors need no range of their own).
+_SEARCHING = False
+
+
+def _shift_limit(pair: GearPair, field: str) -> float | None:
+    """The profile shift nearest to the given one at which the pair passes every check with the other keys as given,
+    rounded away from the given one to 1e-4: bisection on the whole validation from 0 or, below the undercut limit,
+    that limit's shift (None when neither passes)."""
+    x = getattr(pair, field)
+
+    def passes(v: float) -> bool:
+        global _SEARCHING
+        _SEARCHING = True  # the trial pairs' own errors do not search again
+        try:
+            dataclasses.replace(pair, **{field: v})
+        except InputError:
+            return False
+        finally:
+            _SEARCHING = False
+        return True
+
+    j = field[1]
+    x_min = math.ceil(minimum_profile_shift(getattr(pair, f"teeth{j}"), pair.pressure_angle,
+                                            pair.addendum_coefficient) * 1e4) / 1e4  # the undercut limit's shift
+    start = next((v for v in (0.0, x_min) if (v - x) * (0.0 - x) >= 0.0 and v != x and passes(v)), None)
+    if start is None:
+        return None
+    lo, hi = start, x  # passes at lo, fails at hi
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if passes(mid):
+            lo = mid
+        else:
+            hi = mid
+    return (math.floor(lo * 1e4) if x > lo else math.ceil(lo * 1e4)) / 1e4
 
 
 def _check_undercut(pair: GearPair) -> None:

@@ -399,3 +399,19 @@ def test_report_pair_numbers_unchanged(shing) -> None:
     assert_allclose(g.contact_ratio, 1.69129, rtol=0, atol=5e-6)
     # Table 1 mean 1.3868e8 N/m; gearctl's documented reading gives 1.3854e8 (-0.10 %), see mesh_stiffness Notes
     assert_allclose(mesh_stiffness(shing.pair).mean, 1.3868e8, rtol=1.5e-3)
+
+
+def test_a_shift_refused_names_the_range_that_passes() -> None:
+    """A reviewer's 17-tooth CNC pinion with x1 = 1.4 is refused for interference; the message gives the largest
+    shift that passes with the other keys as given (1.0613, found by bisection on the whole validation, rounded
+    towards the passing side): that value is accepted, the next 1e-4 refused."""
+    base = dict(teeth1=17, teeth2=119, module=0.004, pressure_angle=math.radians(20.0), face_width=0.03,
+                backlash=5e-6, young_modulus=2.07e11, poisson_ratio=0.3, density=7850.0)
+    with pytest.raises(InputError, match="interference") as err:
+        GearPair(**base, x1=1.4)
+    assert err.value.field == "x1"
+    limit = float(re.search(r"with the other keys as given: at most ([0-9.]+)\)", str(err.value)).group(1))
+    assert limit == pytest.approx(1.0613, abs=1e-4)
+    GearPair(**base, x1=limit)
+    with pytest.raises(InputError):
+        GearPair(**base, x1=limit + 1e-4)
