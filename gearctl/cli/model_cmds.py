@@ -237,6 +237,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                                   f"{j[0]:.3g} and {j[1]:.3g} kg m^2; for this model choose smaller --omega1, "
                                   "--torque1, --torque2", result=exc.result) from None
     summary = _simulate_summary(model, plant, args, res)
+    from ..simulate import CASES
+
+    tq = {k: v if (v := getattr(args, k, None)) is not None else CASES[args.case][k] for k in ("torque1", "torque2")}
+    limit = plant.torque_limit
+    if math.isfinite(limit) and (abs(tq["torque1"]) > limit or abs(tq["torque2"]) > plant.gear_ratio * limit):
+        warn("simulate", [f"the {args.case} case's torques ({tq['torque1']:g} N m on the motor, {tq['torque2']:g} N m "
+                          f"on the load) exceed what this servo's motor gives ([servo] torque_limit = {limit:g} N m, "
+                          f"{plant.gear_ratio * limit:.3g} N m at the load): the run is the report's open-loop "
+                          "experiment, not the servo's; choose --torque1, --torque2 to match"])
     module = min(sm.pair.module for sm in model.stages)
     if res.max_penetration > PENETRATION_WARNING * module:  # a tooth deflects a few um at its rated load
         warn("simulate", [f"the teeth interpenetrate by up to {res.max_penetration * 1e6:.4g} um, "
