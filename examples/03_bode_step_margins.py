@@ -42,8 +42,10 @@ def main(argv: list[str] | None = None) -> None:
     save(plot_step({"contact": modes.contact}, output="force", T=T), args.out / "step_force.png")
 
     # --- margins of the catalog PID (motor feedback, scaled to load units) in each mode -------------------
+    # the controller that runs (PIDGains.sampled_tf: PID.step's own difference equation), as a state-space model:
+    # a TF times a many-state mode model is multiplied out into a badly conditioned high-order TF
     pid = load_controller("pid", plant)
-    C = ct.c2d(pid.gains.tf(), pid.Ts, "tustin")
+    C = ct.ss(pid.gains.sampled_tf(pid.Ts))
     for name in ("contact", "separation"):
         G = ct.c2d(ct.ss(modes.mode(name)[0, 0]) / plant.gear_ratio, pid.Ts, "zoh")
         m = loop_margins(C * G)

@@ -378,9 +378,11 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
 
     Notes
     -----
-    python-control's ``stability_margins`` picks one crossing among several and, for discrete loops
-    with double integrators, falls back to an inaccurate method; the gear servo's loops (type 2 with a
-    mesh resonance) are exactly that case, so gearctl reads the margins off ``frequency_response``.
+    python-control's ``stability_margins`` reports one crossing among several: on these conditionally stable
+    type-2 loops with a mesh resonance, the lower crossing as the gain margin. gearctl reads every margin off
+    ``frequency_response``. Pass the loop as a state-space product (``ct.ss(C) * G``): a transfer function times
+    a many-state mode model (a train's eight) multiplies out into a badly conditioned transfer function whose
+    low-frequency response is wrong (a lower gain margin of -64.7 dB for 22.3 on ``servo_3stage_quanser_srv02``).
     """
     if omega is None:
         wmax = math.pi / loop.dt if loop.dt else 1e6
