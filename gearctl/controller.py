@@ -48,6 +48,9 @@ class Controller(abc.ABC):
         and results are deterministic for a seed).
     overruns : int
         Solves that took longer than the budget.
+    design_notes : tuple of str
+        What the design changed of what the controller file asked, one sentence each (a PID's bandwidth lowered
+        so that the motor alone stays stable in the gap); empty for most designs. ``describe()`` carries it.
     """
 
     name: str = "controller"
@@ -55,6 +58,7 @@ class Controller(abc.ABC):
     uses_load_encoder: bool = False
     realtime: bool = False
     preview: int = 1
+    design_notes: tuple[str, ...] = ()
 
     def __init__(self) -> None:
         self.solve_times: list[float] = []

@@ -521,6 +521,12 @@ def test_pid_design_keeps_the_motor_alone_stable_in_the_gap(tmp_path: Path) -> N
     assert pid.gains == g and len(pid.design_notes) == 1
     assert "bandwidth_hz = 20 lowered to 8.4 Hz" in pid.design_notes[0]
     assert pid.describe()["design_notes"] == list(pid.design_notes)
+    light = build_plant(load_model(_light_motor_servo(tmp_path)))
+    for kind in ("deadzone_inverse", "reversal_offset", "adaptive_inverse"):  # the wrappers carry their PID's note
+        ctrl = load_controller(kind, light)
+        assert ctrl.design_notes == pid.design_notes and ctrl.describe()["design_notes"] == list(pid.design_notes)
+    mpc = load_controller("mpc", light)
+    assert mpc.design_notes == () and mpc.describe()["design_notes"] == []
     # the benchmark servo (motor shaft 0.26 of the train) keeps its design to the last bit, and says nothing
     bench = load_controller("pid", build_plant(load_model("shing1993_servo")))
     info_b = loop_info(build_plant(load_model("shing1993_servo")))

@@ -265,6 +265,11 @@ class AdaptiveInverse(Controller):
         self._u = u
         return u
 
+    @property
+    def design_notes(self) -> tuple[str, ...]:  # type: ignore[override]
+        """The wrapped PID's design notes (:attr:`gearctl.design.pid.PID.design_notes`)."""
+        return self.inner.design_notes
+
     def describe(self) -> dict[str, Any]:
         """The inverse's settings, the law's, and the estimate's history."""
         st = self.settings

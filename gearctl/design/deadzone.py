@@ -779,6 +779,11 @@ class DeadzoneInverse(Controller):
             T = max(T, (4.0 * abs(dd0) + math.sqrt(16.0 * dd0 * dd0 + 24.0 * abs(d0) * a_lim)) / (2.0 * a_lim))
         self._lag = (d0, dd0, t, T) if abs(d0) + T * abs(dd0) < self._offset else None
 
+    @property
+    def design_notes(self) -> tuple[str, ...]:  # type: ignore[override]
+        """The wrapped PID's design notes (:attr:`gearctl.design.pid.PID.design_notes`)."""
+        return self.pid.design_notes
+
     def describe(self) -> dict[str, Any]:
         """Settings of the inverse and of the PID."""
         return {**self.pid.describe(), "name": self.name, "kind": "deadzone_inverse", "preview": self.preview,

@@ -1742,4 +1742,5 @@ class MPC(Controller):
         return {"name": self.name, "kind": "mpc", "Ts": self.Ts, "preview": self.preview, **d,
                 "qp_solver": self._qp.plugin, "compiled": self._qp.compiled, "solver_note": self._qp.note,
                 "crossing_samples": self.n_cross, "patterns": len(self._patterns),
-                "gap_model": "rigid" if self._rigid else "gap", "rigid_reason": self.rigid_reason}
+                "gap_model": "rigid" if self._rigid else "gap", "rigid_reason": self.rigid_reason,
+                "design_notes": list(self.design_notes)}

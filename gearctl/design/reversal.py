@@ -159,6 +159,11 @@ class ReversalOffset(Controller):
         o, do, _ = self._ramp.at(t)
         return offset_torque(self.pid, t, r, rd, a, (o, do, 0.0), y_motor, y_load)
 
+    @property
+    def design_notes(self) -> tuple[str, ...]:  # type: ignore[override]
+        """The wrapped PID's design notes (:attr:`gearctl.design.pid.PID.design_notes`)."""
+        return self.pid.design_notes
+
     def describe(self) -> dict[str, Any]:
         """Settings of the reversal offset and of the PID."""
         return {**self.pid.describe(), "name": self.name, "kind": KIND, "preview": self.preview,
