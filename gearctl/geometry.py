@@ -11,6 +11,7 @@ All lengths are in metres, angles in radians. Profile shift follows ISO 21771 (D
 
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import math
 from typing import Any
@@ -233,7 +234,7 @@ def _shift_field(pair: GearPair, j: int | None = None) -> str:
 def _input_error(pair: GearPair, field: str, rule: str) -> InputError:
     """The one-line error ``"<field> = <value> <rule>"`` (the shape the catalog loader restates); for a profile
     shift, with the range that passes when the other keys stay as given (:func:`_shift_limit`)."""
-    if field in ("x1", "x2") and not _SEARCHING:
+    if field in ("x1", "x2") and not _SEARCHING.get():
         limit = _shift_limit(pair, field)
         if limit is not None:
             side = "at most" if getattr(pair, field) > limit else "at least"
@@ -241,8 +242,9 @@ def _input_error(pair: GearPair, field: str, rule: str) -> InputError:
     return InputError(f"{field} = {getattr(pair, field):g} {rule}", field=field, rule=rule)
 
 
-#: Set while :func:`_shift_limit` builds its trial pairs (their errors need no range of their own).
-_SEARCHING = False
+#: True while :func:`_shift_limit` builds its trial pairs (their errors need no range of their own); a context
+#: variable, so that threads validating pairs at once do not see each other's search.
+_SEARCHING: contextvars.ContextVar[bool] = contextvars.ContextVar("gearctl_shift_search", default=False)
 
 
 def _shift_limit(pair: GearPair, field: str) -> float | None:
@@ -252,14 +254,13 @@ def _shift_limit(pair: GearPair, field: str) -> float | None:
     x = getattr(pair, field)
 
     def passes(v: float) -> bool:
-        global _SEARCHING
-        _SEARCHING = True  # the trial pairs' own errors do not search again
+        token = _SEARCHING.set(True)  # the trial pairs' own errors do not search again
         try:
             dataclasses.replace(pair, **{field: v})
         except InputError:
             return False
         finally:
-            _SEARCHING = False
+            _SEARCHING.reset(token)
         return True
 
     j = field[1]

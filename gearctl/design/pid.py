@@ -157,22 +157,13 @@ def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float =
                          f"[deg]", field="phase_margin_deg")
     import control as ct
 
-    wc = 2 * math.pi * bandwidth_hz
-    wi = integral_ratio * wc
-    phi = math.radians(phase_margin_deg) + math.atan(wi / wc) + wc * Ts / 2
-    phi = min(phi, math.radians(80.0))
-    alpha = (1 + math.sin(phi)) / (1 - math.sin(phi))
-    z, p = wc / math.sqrt(alpha), wc * math.sqrt(alpha)
+    wc, wi, z, p = _lead_lag(bandwidth_hz, phase_margin_deg, integral_ratio, Ts)
     s = ct.tf("s")
     G = 1 / (info.N * info.J_eq * s**2 + info.N * info.d_eq * s)
     shape = (s + wi) / s * (1 + s / z) / (1 + s / p)
-    K = 1.0 / abs(complex((shape * G)(1j * wc)))
-    ki = K * wi
-    Tf = 1 / p
-    kp = K * (1 + wi / z) - ki * Tf
-    kd = K / z - kp * Tf
+    kp, ki, kd, fd = _parallel(1.0 / abs(complex((shape * G)(1j * wc))), wi, z, p)
     try:
-        gains = PIDGains(kp=kp, ki=ki, kd=max(kd, 0.0), derivative_filter_hz=p / (2 * math.pi))
+        gains = PIDGains(kp=kp, ki=ki, kd=max(kd, 0.0), derivative_filter_hz=fd)
     except InputError as exc:  # a designed gain out of range: name the design keys and the model's inertia
         raise InputError(f"bandwidth_hz = {bandwidth_hz:g} (phase_margin_deg = {phase_margin_deg:g}) needs "
                          f"{exc.field} = {dict(kp=kp, ki=ki, kd=kd)[exc.field]:.4g}, {exc.rule.removeprefix('is ')}, "
@@ -182,23 +173,35 @@ def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float =
     return gains, sampled_margins(info, gains, Ts)
 
 
-def _lead_lag(info: LoopInfo, bandwidth_hz: float, phase_margin_deg: float, integral_ratio: float,
-              Ts: float) -> PIDGains | None:
-    """:func:`design_pid`'s gains by complex arithmetic alone (no python-control, no margins): the bandwidth
-    search of :func:`gap_limited_bandwidth` (None for gains out of range)."""
+def _lead_lag(bandwidth_hz: float, phase_margin_deg: float, integral_ratio: float,
+              Ts: float) -> tuple[float, float, float, float]:
+    """:func:`design_pid`'s loop shape: the crossover, the integral zero and the lead's zero and pole [rad/s]."""
     wc = 2 * math.pi * bandwidth_hz
     wi = integral_ratio * wc
-    phi = min(math.radians(phase_margin_deg) + math.atan(wi / wc) + wc * Ts / 2, math.radians(80.0))
+    phi = math.radians(phase_margin_deg) + math.atan(wi / wc) + wc * Ts / 2
+    phi = min(phi, math.radians(80.0))
     alpha = (1 + math.sin(phi)) / (1 - math.sin(phi))
-    z, p = wc / math.sqrt(alpha), wc * math.sqrt(alpha)
+    return wc, wi, wc / math.sqrt(alpha), wc * math.sqrt(alpha)
+
+
+def _parallel(K: float, wi: float, z: float, p: float) -> tuple[float, float, float, float]:
+    """The loop shape of gain ``K`` in parallel form: ``(kp, ki, kd, derivative_filter_hz)`` (kd unclipped)."""
+    ki = K * wi
+    Tf = 1 / p
+    kp = K * (1 + wi / z) - ki * Tf
+    return kp, ki, K / z - kp * Tf, p / (2 * math.pi)
+
+
+def _search_gains(info: LoopInfo, bandwidth_hz: float, phase_margin_deg: float, integral_ratio: float,
+                  Ts: float) -> PIDGains | None:
+    """:func:`design_pid`'s gains with the crossover gain by complex arithmetic (no python-control, no margins; equal
+    to the last bits or so): the bandwidth search of :func:`gap_limited_bandwidth` (None for gains out of range)."""
+    wc, wi, z, p = _lead_lag(bandwidth_hz, phase_margin_deg, integral_ratio, Ts)
     s = 1j * wc
     L = (s + wi) / s * (1 + s / z) / (1 + s / p) / (info.N * info.J_eq * s * s + info.N * info.d_eq * s)
-    K = 1.0 / abs(L)
-    ki, Tf = K * wi, 1 / p
-    kp = K * (1 + wi / z) - ki * Tf
-    kd = K / z - kp * Tf
+    kp, ki, kd, fd = _parallel(1.0 / abs(L), wi, z, p)
     try:
-        return PIDGains(kp=kp, ki=ki, kd=max(kd, 0.0), derivative_filter_hz=p / (2 * math.pi))
+        return PIDGains(kp=kp, ki=ki, kd=max(kd, 0.0), derivative_filter_hz=fd)
     except InputError:
         return None
 
@@ -271,7 +274,7 @@ def gap_limited_bandwidth(info: LoopInfo, *, bandwidth_hz: float, phase_margin_d
     k = 10.0 ** (gain_margin_db / 20.0)
 
     def ok(bw: float) -> bool:
-        g = _lead_lag(info, bw, phase_margin_deg, integral_ratio, Ts)
+        g = _search_gains(info, bw, phase_margin_deg, integral_ratio, Ts)
         return g is not None and gap_loop_stable(info, g, Ts) and gap_loop_stable(info, g, Ts, gain=k)
 
     if ok(bandwidth_hz):
@@ -376,11 +379,6 @@ class PID(Controller):
     reversal offset) calls :meth:`reference_acceleration` once per sample and :meth:`torque` with its own
     target and, where the model is not the rigid train, its own feedforward and feedback scale.
     """
-
-    #: What the design changed of what the file asked, one sentence each (a bandwidth lowered so that the motor
-    #: alone stays stable in the gap: :func:`gap_limited_bandwidth`); ``track``, ``precision`` and ``bench`` print
-    #: them
-    design_notes: tuple[str, ...] = ()
 
     def __init__(self, info: LoopInfo, gains: PIDGains, *, Ts: float = 1e-3, feedback: str = "motor",
                  feedforward: bool = True, friction_feedforward: bool = True, name: str = "pid") -> None:
@@ -545,13 +543,14 @@ def pid_from_values(path: Path, values: dict[type, Values], info: LoopInfo, loop
                     name: str) -> PID:
     """The PID of a file's ``[design]`` or ``[gains]`` (shared by every PID-based kind)."""
     Ts = loop.sample_time
+    notes: tuple[str, ...] = ()  # what the design changed of what the file asked (Controller.design_notes)
     if PIDGains in values and PIDDesign in values:
         raise InputError(f"{path}: give either [gains] or [design], not both", field="gains")
     if PIDGains in values:
         gains = build_dataclass(path, PIDGains, values[PIDGains])
     else:
         design = build_dataclass(path, PIDDesign, values.get(PIDDesign, {}))
-        bw, notes = design.bandwidth_hz, ()
+        bw = design.bandwidth_hz
         gap_check = loop.feedback == "motor" and design.gap_gain_margin_db > 0.0 and 0.0 < bw < 0.5 / Ts
         try:
             if gap_check:
@@ -580,8 +579,7 @@ def pid_from_values(path: Path, values: dict[type, Values], info: LoopInfo, loop
                      f"{design.bandwidth_hz:g} Hz",)
     pid = PID(info, gains, Ts=Ts, feedback=loop.feedback, feedforward=loop.feedforward,
               friction_feedforward=loop.friction_feedforward, name=name)
-    if PIDGains not in values:
-        pid.design_notes = notes
+    pid.design_notes = notes
     return pid
 
 
