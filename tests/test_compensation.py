@@ -18,7 +18,7 @@ controller                  shing1993_servo         shing1993_servo_friction
 ==========================  ======================  ========================
 pid                         1440 / 1319 / 1346      1690 / 1502 / 1520
 pid, backlash-free plant    1.4 / 1.0 / 1.4         7.6 / 4.8 / 5.4
-deadzone_inverse            208 / 46 / 128          12.6 / 4.2 / 6.9
+deadzone_inverse            208 / 46 / 141          12.6 / 4.2 / 6.9
 reversal_offset             2670 / 2644 / 2670      189 / 88 / 101
 mpc                         312 / 139 / 241         9.1 / 3.7 / 9.1
 ==========================  ======================  ========================
@@ -62,7 +62,7 @@ class _Runs:
     """ISO 230-2 statistics per (model, controller, estimate factor), computed on first use."""
 
     def __init__(self) -> None:
-        self._cache: dict[tuple[str, str, float], dict[str, float]] = {}
+        self._cache: dict[tuple[str, str, float, int], dict[str, float]] = {}
         self._models = {m: load_model(m) for m in (SERVO, FRICTION)}
 
     def plant(self, model: str, backlash: float | None = None):  # noqa: ANN201 - a Plant
@@ -71,10 +71,11 @@ class _Runs:
     def lost_motion(self, model: str) -> float:
         return self.plant(model).lost_motion
 
-    def iso(self, model: str, controller: str, factor: float = 1.0) -> dict[str, float]:
+    def iso(self, model: str, controller: str, factor: float = 1.0, seed: int = 0) -> dict[str, float]:
         """``accuracy``, ``reversal_value``, ``repeatability`` [rad]; controller ``"free"``: the catalog PID on
-        the backlash-free plant; ``factor``: the backlash estimate over the model's."""
-        key = (model, controller, factor)
+        the backlash-free plant; ``factor``: the backlash estimate over the model's; ``seed``: the test's
+        (its targets' offsets)."""
+        key = (model, controller, factor, seed)
         if key not in self._cache:
             m = self._models[model]
             if controller == "free":
@@ -84,7 +85,7 @@ class _Runs:
                 plant = self.plant(model)
                 b = None if factor == 1.0 else factor * plant.backlash
                 ctrl = load_controller(controller, plant, backlash=b)
-            st = precision_test(plant, ctrl, sensors=m.sensors).stats
+            st = precision_test(plant, ctrl, sensors=m.sensors, seed=seed).stats
             self._cache[key] = {k: st[k] for k in ("accuracy", "reversal_value", "repeatability")}
         return self._cache[key]
 
@@ -149,25 +150,53 @@ def test_inverse_cuts_reversal_and_repeatability(runs: _Runs, model: str, gain: 
 # --- 3. a backlash estimate off by +-20 % ---------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("model", "factor"), [
-    (FRICTION, 1.2),
-    (FRICTION, 0.8),
-    pytest.param(SERVO, 0.8, marks=pytest.mark.slow),
-    pytest.param(SERVO, 1.2, marks=pytest.mark.slow),
-])
-def test_wrong_backlash_estimate_keeps_reversal_down(runs: _Runs, model: str, factor: float) -> None:
+@pytest.mark.parametrize("factor", [1.2, 0.8])
+def test_wrong_backlash_estimate_keeps_reversal_down(runs: _Runs, factor: float) -> None:
     # measured on shing1993_servo_friction against the PID's B = 1502 urad: with 1.2 b, B = 56 urad (27x: the
-    # crossing ends where the motor meets the load, short of the estimate's flank); with 0.8 b, B = 294 urad
-    # (5.1x: the offset error 2 x 0.2 b / r_b2 = 266 urad, the motor stops short of the flank). The issue asks
-    # for >= 3x; kept, and >= 4x (margins 6.8x and 1.3x on the measurements). On the frictionless
-    # shing1993_servo against the PID's 1318 urad: B = 318 urad with 0.8 b (4.1x), 270 urad with 1.2 b (4.9x)
-    B = runs.iso(model, "deadzone_inverse", factor)["reversal_value"]
-    B_pid = runs.iso(model, "pid")["reversal_value"]
-    print(f"\n{model}, estimate {factor} b: inverse B {B * 1e6:.1f} urad, PID {B_pid * 1e6:.1f} urad, "
+    # crossing ends where the motor meets the load, short of the estimate's flank); with 0.8 b, B = 296 urad
+    # (5.1x: the offset error 2 x 0.2 b / r_b2 = 266 urad, the motor stops short of the flank). Seeds 0-7 (the
+    # targets' offsets) give 52.5-57.3 and 293.3-295.8 urad. The issue asks for >= 3x; kept, and >= 4x (margins
+    # 6.8x and 1.3x on the measurements)
+    B = runs.iso(FRICTION, "deadzone_inverse", factor)["reversal_value"]
+    B_pid = runs.iso(FRICTION, "pid")["reversal_value"]
+    print(f"\n{FRICTION}, estimate {factor} b: inverse B {B * 1e6:.1f} urad, PID {B_pid * 1e6:.1f} urad, "
           f"ratio {B_pid / B:.2f}")
-    assert B_pid >= 3.0 * B
-    if model == FRICTION:  # the frictionless servo's 4.1x would leave no margin
-        assert B_pid >= 4.0 * B
+    assert B_pid >= 4.0 * B
+
+
+#: Seeds of the frictionless servo's test with a wrong estimate: its B moves with the targets' offsets.
+WRONG_ESTIMATE_SEEDS = range(8)
+
+
+def _frictionless_wrong_estimate(runs: _Runs, factor: float) -> tuple[np.ndarray, float]:
+    B = np.array([runs.iso(SERVO, "deadzone_inverse", factor, seed)["reversal_value"] for seed in WRONG_ESTIMATE_SEEDS])
+    B_pid = runs.iso(SERVO, "pid")["reversal_value"]
+    print(f"\n{SERVO}, estimate {factor} b, seeds 0-{len(B) - 1}: inverse B {np.round(B * 1e6, 1)} urad, "
+          f"median {np.median(B) * 1e6:.1f}, PID {B_pid * 1e6:.1f} urad")
+    return B, B_pid
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("factor", [0.8, 1.2])
+def test_wrong_backlash_estimate_frictionless_median(runs: _Runs, factor: float) -> None:
+    # on the frictionless shing1993_servo the inverse's B with a wrong estimate depends on where the targets fall
+    # (the load coasts off its flank at each stop and lands where its bounces leave it). Seeds 0-7 against the
+    # PID's 1319 urad: 0.8 b 299-576 urad, median 384 (3.4x); 1.2 b 147-571 urad, median 300 (4.4x). The median
+    # meets the issue's 3x; kept at 3x (margins 1.14x and 1.46x)
+    B, B_pid = _frictionless_wrong_estimate(runs, factor)
+    assert B_pid >= 3.0 * np.median(B)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("factor", [0.8, 1.2])
+@pytest.mark.xfail(strict=True, reason=(
+    "issue 12 claim not met on every seed of the frictionless servo: with the estimate 20 % off the inverse's B "
+    "exceeds a third of the PID's 1319 urad on 3 of 8 seeds at 0.8 b (worst 576 urad, 2.3x) and 2 of 8 at 1.2 b "
+    "(worst 571 urad, 2.3x). The frictionless load leaves its flank at each stop and lands where its bounces "
+    "leave it; the friction servo meets the claim on every seed"))
+def test_wrong_backlash_estimate_frictionless_every_seed(runs: _Runs, factor: float) -> None:
+    B, B_pid = _frictionless_wrong_estimate(runs, factor)
+    assert B_pid >= 3.0 * B.max()
 
 
 @pytest.mark.parametrize("factor", [0.9, pytest.param(1.1, marks=pytest.mark.xfail(strict=True, reason=(
@@ -669,3 +698,24 @@ def test_the_inverse_defaults_scale_with_the_servo() -> None:
     assert rms["deadzone_inverse"] <= rms["pid"] / 4, rms
     servo = load_controller("deadzone_inverse", build_plant(load_model("shing1993_servo")))
     assert (servo.width, servo.disturbance_threshold) == (5e-4, 0.02)
+
+
+def test_the_inverse_predicts_a_light_viscous_load_stably() -> None:
+    """The free load's prediction during a crossing took its viscous friction in an explicit step: on a load whose
+    viscous time constant J2 / d2 (0.46 ms here) is below half the sample, each step flipped and grew the predicted
+    speed (x -1.15), the crossing chased it and the loop diverged (|omega| > 1e6 rad/s after 1.1 s of the sine). The
+    speed now decays exactly. Checked: the predicted free load's speed decays monotonically as exp(-d2 t / J2), and
+    the sine runs to its end (measured max error 1.6e-2 rad, RMS 5.7e-3; the PID's RMS 1.4e-3: the backlash, 1 um,
+    is 3e-5 of this motor encoder's count, so the inverse has nothing to invert; bound: no divergence, max 0.05)."""
+    m = load_model(Path(__file__).parent / "data" / "speedup_light_load.toml")
+    plant = build_plant(m)
+    ctrl = load_controller("deadzone_inverse", plant, sensors=m.sensors)
+    a = plant.d2 / plant.J2
+    assert a * ctrl.Ts > 2.0  # the case: an explicit step is unstable
+    ctrl._free = [0.0, 1.0]
+    speeds = [ctrl._free_load()[1] for _ in range(6)] + [ctrl._free[1]]
+    assert all(0.0 < w1 < w0 for w0, w1 in zip(speeds, speeds[1:], strict=False))
+    assert speeds[-1] == pytest.approx(math.exp(-a * 6 * ctrl.Ts), rel=1e-9)
+    res = simulate_closed_loop(plant, ctrl, reference("sine"), 3.0, sensors=m.sensors)
+    assert res.success, res.message
+    assert np.abs(res.error).max() < 0.05

@@ -169,11 +169,12 @@ def test_observer_tracks_the_true_state_open_loop(servo) -> None:
 
 @pytest.mark.parametrize("kind", ["improved", "yang-sun"])
 def test_mpc_tracks_better_than_the_deadzone_inverse(sine_runs, kind: str) -> None:
-    # measured: improved 2.86e-6 vs 3.80e-6 rad (ratio 0.75: the inverse's gap crossing aimed at the load closes
+    # measured: improved 2.86e-6 vs 3.74e-6 rad (ratio 0.76: the inverse's gap crossing aimed at the load closes
     # most of the distance); Yang-Sun 6.96e-5 vs 7.60e-5 (0.92). The Yang-Sun loop (about 3000 impacts in 3 s,
     # restitution) is chaotic: the last bit of the arithmetic moves it between 1.42e-5 (0.19, the QP gradient
     # summed by numpy's BLAS), 5.20e-5 (0.68, index order) and 6.96e-5 (0.92, the QP's angles taken from the
-    # reference at t), so there the bound is only "not worse"
+    # reference at t), so there the bound is only "not worse". On the improved plant the comparison holds from the
+    # centre of the gap only: see test_mpc_sine_from_other_starts
     runs = sine_runs[kind]
     rms_mpc, rms_dz = _rms_after_settle(runs["mpc"]), _rms_after_settle(runs["deadzone"])
     assert rms_mpc <= (0.9 if kind == "improved" else 1.0) * rms_dz, (rms_mpc, rms_dz)
@@ -493,3 +494,21 @@ def test_cli_track_with_backlash_zero(capsys: pytest.CaptureFixture[str]) -> Non
     assert free["backlash"] == 0.0 and free["controller"]["backlash"] == 0.0 and with_b["backlash"] > 0.0
     assert free["impacts"] == 0
     assert free["rms_error"] < with_b["rms_error"], (free["rms_error"], with_b["rms_error"])
+
+
+@pytest.mark.parametrize("offset", [1e-6, 5e-6, 1e-4])
+def test_mpc_sine_from_other_starts(offset: float) -> None:
+    # started with motor and load turned together by a few urad (still mid-gap), the MPC's sine on the frictionless
+    # servo is not its 2.86e-6 rad RMS from zero: one reversal in a few ends in a 0.1 s train of bounces of up to
+    # 2e-4 rad (found by a C harness started off zero). Measured RMS after 0.5 s: 8.1e-6, 2.5e-5, 3.2e-5 rad (the
+    # inverse 3.7e-6 from each); kept: at least 15x below the PID's 6.47e-4 (measured 20-80x)
+    m = load_model("shing1993_servo")
+    plant = build_plant(m)
+    x0 = np.zeros(4)
+    x0[0], x0[1] = offset * plant.gear_ratio, offset
+    res = simulate_closed_loop(plant, load_controller("mpc", plant, sensors=m.sensors), reference("sine"), 3.0,
+                               sensors=m.sensors, x0=x0)
+    e = res.error[res.t >= 0.5]
+    rms = float(np.sqrt(np.mean(e**2)))
+    print(f"\nstart {offset:g} rad: MPC sine RMS {rms:.3g} rad")
+    assert rms <= 6.47e-4 / 15.0

@@ -429,7 +429,7 @@ def test_inverse_contact_check_is_a_pairs(tmp_path: Path, three: Plant) -> None:
 
 
 @pytest.mark.xfail(strict=True, reason="issue 17 asks for the same kind of factor as on the pair: the inverse beats "
-                   "the PID 170x on shing1993_servo (6.47e-4 / 3.80e-6 rad) but 8.4x on the three-stage train "
+                   "the PID 173x on shing1993_servo (6.47e-4 / 3.74e-6 rad) but 8.4x on the three-stage train "
                    "(9.87e-4 / 1.17e-4; 21x with a 5 ms crossing, 3x worse with 6 ms: chaotic): the crossing flings "
                    "the light intermediate shafts (restitution ~0.85), and through them the load, ahead of a motor "
                    "24x the reflected load; with the last stage's backlash alone the inverse gives 37x. The one-gap "

@@ -232,7 +232,13 @@ runs on it and the step is reported in :attr:`~gearctl.design.base.Controller.fa
 fallback). A reading rejected on more than 4 samples in a row (:data:`_GATE_PERSIST`) is taken as the truth: the
 estimate restarts from it as on the first sample. A load reading not finite or beyond :data:`INPUT_LIMIT` is a
 missing one (the motor encoder alone, as with ``feedback = "motor"``), also reported; such a motor reading is a
-missed sample, as in the exported API (zero torque, the estimate and plan unchanged, reported). Before, one reading
+missed sample, as in the exported API (zero torque, the estimate and plan unchanged, reported). So is a load reading
+that puts the encoders' gap ``rb1 y_motor - rb2 y_load`` beyond :attr:`MPC.gap_limit` (2.5 b, four times the mesh's
+static deflection under the torque limit and the load torque, and the contact tolerance: 1.3e-4 m on
+``shing1993_servo``, 2.5 b; none with a backlash estimate of 0): no gap the gear allows explains it, so the load
+encoder is wrong, or zeroed off the motor's. Before, a load encoder that read 0.1 rad for 50 samples restarted the
+estimate from it, the plan drove the motor to close the "gap" and the fault latched with the load 0.69 rad away;
+one zeroed 10 mrad off the motor's sent the load 0.2-0.9 rad away with no fallback reported. Before, one reading
 of 1e300 rad drove the estimate off and the load 116 rad away within a second (the exported C: 455 rad in 2 s).
 
 *A fault.* Three restarts of the estimate within 1000 samples (:data:`_FAULT_RESTARTS`, :data:`_FAULT_WINDOW`)
@@ -878,6 +884,8 @@ _STANDSTILL_RELEASE = 3.0  # a hold lasts while a slow load stays within this ma
 _HANDS_OFF_TORQUE = 0.01  # holding, no torque while the load torque estimate is below this share of N x limit
 _HANDS_OFF_LET_GO = 1e-3  # ... and once the plan's torque has come down to this share of the limit
 _GATE_PERSIST = 4  # a reading beyond the gate on more samples in a row than this is taken as the truth
+_GAP_LIMIT_SHARE = 2.5  # a load reading that puts the gap beyond this many b (plus deflection) is a wrong one ...
+_GAP_LIMIT_DEFLECTION = 4.0  # ... plus this many times the mesh's static deflection at the torque limit
 _FAULT_RESTARTS = 3  # this many restarts of the estimate within _FAULT_WINDOW samples latch a fault (zero torque)
 _FAULT_WINDOW = 1000
 _BRAKE_TIME = 0.02  # after a fault the motor is braked to rest with this time constant [s], then the torque is zero
@@ -952,6 +960,9 @@ class MPC(Controller):
     reading_gate : tuple of float
         The largest distance [rad] of a motor and of a load encoder reading from the shaft angle predicted
         for it that the observer accepts (see *Readings* in the module docstring).
+    gap_limit : float
+        The largest gap [m] between the motor and load encoders' readings that the observer takes the load
+        reading with (``inf``: no limit); beyond it the motor encoder alone is used (see *Readings*).
     n_cross : int
         Samples a planned crossing of the gap lasts (0 without backlash: nothing to cross).
     rigid_reason : str
@@ -1034,6 +1045,11 @@ class MPC(Controller):
         # by the whole gap, at an impact, and the backlash estimate by its size); on each shaft [rad]
         gate = self._a_max * Ts * Ts + 4.0 * self._b
         self.reading_gate = (gate / p.rb1, gate / p.rb2)
+        # the gap the two encoders may show (see *Readings*): a few times b, the mesh's deflection under the torque
+        # limit and the load torque, and the contact tolerance; none with a backlash estimate of 0 or no torque limit
+        deflection = (self._mesh_torque_max() + abs(self._tau_load)) / (p.rb2 * p.k) if p.k > 0.0 else math.inf
+        self.gap_limit = (_GAP_LIMIT_SHARE * self._b + _GAP_LIMIT_DEFLECTION * deflection + self._tol
+                          if self._b > 0.0 else math.inf)
         # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
         self.n_p = 8 + 2 * n
@@ -1293,6 +1309,10 @@ class MPC(Controller):
         if load and not abs(y_load) <= INPUT_LIMIT:  # a missing load reading (also NaN): the motor encoder alone
             load, note = False, "load reading missing (not finite or beyond 1e12 rad): motor encoder alone"
         s_m = float(self._rb1 * y_motor - self._rb2 * y_load) if load else 0.0
+        if load and not abs(s_m) <= self.gap_limit:  # the encoders disagree beyond any gap: the load reading is wrong
+            note = (f"load reading inconsistent with the motor's (a gap of {s_m:.3g} m beyond gap_limit "
+                    f"{self.gap_limit:.3g} m): motor encoder alone")
+            load, s_m = False, 0.0
         if self._z is None:  # first sample: at rest, the gap from the encoders (mid-gap without them)
             self._inn = [0.0, 0.0]
             phi_m = y_motor - m.kappa1 * s_m

@@ -74,8 +74,8 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
     S->gate[1] = gate / P->rb2;
 }
 
-/* MPC._observe: z = [phi, omega, s, v, d] from the encoders. A non-finite load reading is a missing one (the
- * motor encoder alone); a reading farther from its predicted shaft angle than the gate is rejected (the
+/* MPC._observe: z = [phi, omega, s, v, d] from the encoders. A non-finite load reading, or one that puts the gap
+ * beyond gap_limit, is a missing one (the motor encoder alone); a reading farther from its predicted shaft angle than the gate is rejected (the
  * prediction alone), and one rejected on more than GCX_GATE_PERSIST samples in a row restarts the estimate.
  * Returns 1 when a reading was missing or rejected (the step reports a fallback), else 0. */
 GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, double y_load) {
@@ -83,6 +83,9 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
     int load = P->uses_load && fabs(y_load) <= GEARCTL_INPUT_LIMIT; /* else missing (also NaN) */
     int note = P->uses_load && !load;
     double s_m = load ? P->rb1 * y_motor - P->rb2 * y_load : 0.0;
+    if (load && !(fabs(s_m) <= P->gap_limit)) { /* the encoders disagree beyond any gap: the load reading is wrong */
+        load = 0, note = 1, s_m = 0.0;
+    }
     if (!S->z_set) { /* first sample: at rest, the gap from the encoders (mid-gap without them) */
         S->inn[0] = S->inn[1] = 0.0;
         double phi_m = y_motor - P->kappa1 * s_m;

@@ -347,7 +347,8 @@ GCX_FN void gcx_inv_free_load(const gcx_inv_p *P, gcx_inv_s *S, double out[3]) {
     }
     double f = copysign(pl->tc2, om != 0.0 ? om : tau);
     double alpha = (tau - f) / J2;
-    double om_new = om + Ts * alpha;
+    double a = pl->d2 / J2; /* the speed exactly over the sample (see the Python) */
+    double om_new = a == 0.0 ? om + Ts * alpha : om - alpha * expm1(-a * Ts) / a;
     if (om != 0.0 && om_new * om < 0.0 && fabs(tau) <= pl->tc2) {
         om_new = 0.0;
         alpha = -om / Ts;
