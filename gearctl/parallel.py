@@ -8,15 +8,19 @@ and returns the results in order. ``gearctl bench`` and ``gearctl sweep`` both g
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
+import time
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
 from typing import Any
 
 from .errors import InputError
 
-__all__ = ["Engine", "map_tasks", "default_workers", "local_cluster", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
+__all__ = ["Engine", "map_tasks", "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
+           "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
 
 #: Seconds to reach a scheduler, and for its first worker to join.
 CONNECT_TIMEOUT, WORKER_TIMEOUT = 10.0, 60.0
@@ -30,10 +34,87 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
-def _worker_version() -> str:
-    from . import __version__
+def code_id() -> str:
+    """This gearctl's version and a hash of its code (the package's Python and C sources), e.g.
+    ``0.1.0+3f2a9c1e0b7d``: workers that run the same version string on other code (an edited checkout, a worker
+    started before an edit) give other numbers, so they are refused as another version is."""
+    global _CODE_ID
+    if _CODE_ID is None:
+        from . import __version__
 
-    return __version__
+        root = Path(__file__).resolve().parent
+        h = hashlib.sha256()
+        for f in sorted(root.rglob("*")):
+            if f.is_file() and f.suffix in (".py", ".c", ".h") and "__pycache__" not in f.parts:
+                h.update(f.relative_to(root).as_posix().encode())
+                h.update(f.read_bytes())
+        _CODE_ID = f"{__version__}+{h.hexdigest()[:12]}"
+    return _CODE_ID
+
+
+_CODE_ID: str | None = None
+
+
+def _worker_version() -> str:
+    return code_id()
+
+
+#: Dask's address schemes a scheduler may be given with.
+_SCHEMES = ("tcp", "tls", "ucx", "inproc", "ws", "wss")
+
+
+def probe_scheduler(address: str, timeout: float | None = None) -> None:
+    """Check that ``address`` is a Dask scheduler that answers, within ``timeout`` seconds in all, before a client
+    is opened on it: a malformed address, a closed port, a host that does not answer, or a server that speaks
+    another protocol (a dashboard's HTTP port hung ``distributed.Client`` past its own timeout; a server that sent a
+    banner made it allocate exabytes) is an :class:`~gearctl.InputError` naming ``scheduler``. ``timeout``: default
+    :data:`CONNECT_TIMEOUT`."""
+    import asyncio
+
+    from distributed.comm import connect
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    timeout = CONNECT_TIMEOUT if timeout is None else timeout
+
+    def refuse(why: str) -> InputError:
+        return InputError(f"cannot reach the Dask scheduler at {address}: {why}; expected the address of a running "
+                          f"Dask scheduler, tcp://HOST:PORT", field="scheduler")
+
+    try:
+        scheme, loc = parse_address(address, strict=True)
+        if scheme not in _SCHEMES:
+            raise ValueError(f"unknown scheme {scheme!r}")
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            parse_host_port(loc)
+    except (ValueError, TypeError) as exc:
+        raise refuse(str(exc)) from None
+
+    if scheme == "tcp":  # a closed port or an unknown host fails at once here (Dask's connect retries to its timeout)
+        import socket
+
+        host, port = parse_host_port(loc)
+        try:
+            socket.create_connection((host, port), timeout=timeout).close()
+        except OSError as exc:
+            raise refuse(f"cannot connect: {exc}") from None
+
+    async def identity() -> Any:
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(identity(), timeout))
+    except TimeoutError:
+        raise refuse(f"no Dask answer within {timeout:g} s") from None
+    except (Exception, MemoryError) as exc:  # another protocol's bytes, a connection dropped
+        raise refuse(f"the server there does not answer as a Dask scheduler ({type(exc).__name__}: "
+                     f"{str(exc)[:120]})") from None
+    if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
+        raise refuse(f"the server there is not a Dask scheduler (it says it is {str(reply)[:80]})")
 
 
 def local_cluster(workers: int) -> Any:
@@ -65,7 +146,10 @@ class Engine:
         ``tcp://HOST:PORT`` of a running scheduler (default the ``DASK_SCHEDULER_ADDRESS`` environment
         variable, else a local cluster). Its workers must run the same gearctl version.
     client : distributed.Client, optional
-        An open client to use as is (not closed here).
+        An open client to use as is (not closed here). Without it, a scheduler, or ``DASK_SCHEDULER_ADDRESS``,
+        dask's default client (one a script opened) is used if there is one, else a local cluster. A scheduler's
+        address is checked first (:func:`probe_scheduler`), and its workers must run this gearctl
+        (:func:`code_id`).
     """
 
     def __init__(self, *, workers: int | None = None, scheduler: str | None = None, client: Any = None) -> None:
@@ -74,10 +158,17 @@ class Engine:
         self.cluster = None
         self.own = client is None
         address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+        if client is None and not address:  # a client the script opened as the default (dask's convention)
+            try:
+                client = distributed.default_client()
+            except ValueError:
+                client = None
+            self.own = client is None
         if client is not None:
             self.client = client
             self.where = str(getattr(client.scheduler, "address", "client"))
         elif address:
+            probe_scheduler(address)
             try:
                 self.client = distributed.Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
             except (OSError, TimeoutError) as exc:
@@ -98,18 +189,17 @@ class Engine:
             self.client = distributed.Client(self.cluster, set_as_default=False)
             self.where = f"local cluster ({n} process{'es' if n > 1 else ''})"
         if self.cluster is None:
-            from . import __version__
-
             try:
                 versions = set(self.client.run(_worker_version).values())
             except Exception as exc:  # the workers' environment, not gearctl: say it in one line
                 self.close()
                 raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",
                                  field="scheduler") from None
-            if versions - {__version__}:
+            if versions - {code_id()}:
                 self.close()
                 raise InputError(f"the workers of {self.where} run gearctl {', '.join(sorted(versions))}, this is "
-                                 f"{__version__}: install the same version on every worker", field="scheduler")
+                                 f"{code_id()} (version+code hash): install the same gearctl on every worker, and "
+                                 f"restart workers started before an edit", field="scheduler")
 
     @property
     def workers(self) -> int:
@@ -127,6 +217,63 @@ class Engine:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+#: Seconds between checks, while no task finishes, that the cluster still has workers.
+POLL = 1.0
+
+
+def completed(client: Any, futures: Sequence[Any], *,
+              where: str = "the cluster") -> Iterator[tuple[Any, Any, BaseException | None]]:
+    """``(future, result, None)`` or ``(future, None, exception)`` for each future as it finishes
+    (``distributed.as_completed`` on ``client``'s loop), its result fetched here. A cluster left without workers for
+    :data:`WORKER_TIMEOUT` seconds is an :class:`~gearctl.InputError`: with every worker killed a sweep waited
+    forever, for the tasks left and for a finished task's result that only the dead worker held. While nothing
+    arrives, the cluster's workers are counted every :data:`POLL` seconds."""
+    from distributed import as_completed
+
+    ac = as_completed(list(futures), loop=client.loop)
+    checked = time.monotonic()
+    alone_since: float | None = None
+
+    def watch(left: int) -> None:
+        nonlocal checked, alone_since
+        now = time.monotonic()
+        if now - checked < POLL:
+            return
+        checked = now
+        if client.scheduler_info(n_workers=-1)["workers"]:
+            alone_since = None
+        elif alone_since is None:
+            alone_since = now
+        elif now - alone_since > WORKER_TIMEOUT:
+            raise InputError(f"{where} has had no worker for {WORKER_TIMEOUT:g} s with {left} task(s) unfinished: "
+                             f"the workers died or left; start some with `dask worker ADDRESS --nthreads 1` and run "
+                             f"again", field="scheduler")
+
+    while not ac.is_empty():
+        if not ac.has_ready():
+            time.sleep(_NAP)
+            watch(ac.count())
+            continue
+        batch = ac.next_batch(block=False)
+        for k, fut in enumerate(batch):
+            while True:
+                try:
+                    got = fut.result(timeout=POLL)
+                except TimeoutError:  # finished, but its result is on a worker that is gone: recomputed, or none left
+                    watch(ac.count() + len(batch) - k)
+                    continue
+                except Exception as exc:  # the task's own error, for the caller to raise or record
+                    yield fut, None, exc
+                else:
+                    yield fut, got, None
+                break
+            alone_since = None
+
+
+#: Seconds between looks for finished tasks (a task takes tens of ms at least: batches, see gearctl.sweep).
+_NAP = 0.01
 
 
 def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | None = None,
@@ -163,15 +310,15 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
             if progress:
                 progress(i + 1, n)
         return out
-    from distributed import as_completed
-
     results: list[Any] = [None] * n
     with Engine(workers=min(workers or default_workers(), n), scheduler=scheduler) as eng:
         tag = uuid.uuid4().hex[:12]
         futures = {eng.client.submit(fn, x, key=f"{name}-{tag}-{k}", pure=False): k for k, x in enumerate(items)}
         try:
-            for done, fut in enumerate(as_completed(list(futures), loop=eng.client.loop), start=1):
-                results[futures[fut]] = fut.result()
+            for done, (fut, got, exc) in enumerate(completed(eng.client, list(futures), where=eng.where), start=1):
+                if exc is not None:
+                    raise exc
+                results[futures[fut]] = got
                 fut.release()
                 if progress:
                     progress(done, n)

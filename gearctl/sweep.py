@@ -70,7 +70,7 @@ from .export.batch import BATCH_KINDS, run_compiled
 from .model import GearModel
 from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, stage_values
 from .overrides import perturb_model as _perturb
-from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, default_workers, local_cluster
+from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, completed, default_workers, local_cluster
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
 from .runs import Design, Run, RunResult, controller_spec, design_controller
@@ -828,7 +828,7 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         return rows, info  # type: ignore[return-value]
     if engine != "dask":
         raise InputError(f"engine = {engine!r}: expected 'dask' or 'serial'", field="engine")
-    from distributed import KilledWorker, as_completed
+    from distributed import KilledWorker
 
     eng = Engine(workers=workers, scheduler=scheduler, client=client)
     try:
@@ -842,13 +842,13 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
             fut = eng.client.submit(sweep_task, plan.context, part, key=f"gearctl-sweep-{tag}-{b}", pure=False)
             futures[fut] = part
         try:
-            for fut in as_completed(list(futures), loop=eng.client.loop):
+            for fut, got, exc in completed(eng.client, list(futures), where=eng.where):
                 part = futures.pop(fut)
-                try:
-                    got = fut.result()
-                except KilledWorker as exc:  # the batch killed its workers again and again: record, go on
+                if isinstance(exc, KilledWorker):  # the batch killed its workers again and again: record, go on
                     got = [_row(plan.context, j, None, None, None, message=f"the batch killed its worker "
                                 f"({exc.__class__.__name__})") for j in part]
+                elif exc is not None:
+                    raise exc
                 fut.release()
                 for r in got:
                     if rows[r["index"]] is not None:

@@ -13,6 +13,7 @@ import io
 import json
 import math
 import os
+import re
 import shlex
 import signal
 import subprocess
@@ -486,6 +487,117 @@ def test_an_unreachable_scheduler_is_one_line(monkeypatch: pytest.MonkeyPatch) -
     rc, _, err = _cli(["sweep", MODEL, "pid", "--vary", "backlash=1x", "--scheduler", "tcp://127.0.0.1:9",
                        "--quiet"])
     assert rc == 2 and err.count("\n") == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err
+
+
+@contextlib.contextmanager
+def _server(reply: bytes | None) -> Iterator[str]:
+    """A TCP server on a free local port that answers every connection with ``reply`` (None: accepts, says nothing,
+    as an HTTP server waiting for a request does); its tcp:// address."""
+    import socket
+    import threading
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(8)
+    conns: list[socket.socket] = []
+
+    def serve() -> None:
+        with contextlib.suppress(OSError):
+            while True:
+                c, _ = srv.accept()
+                conns.append(c)
+                if reply is not None:
+                    c.sendall(reply)
+
+    threading.Thread(target=serve, daemon=True).start()
+    try:
+        yield f"tcp://127.0.0.1:{srv.getsockname()[1]}"
+    finally:
+        srv.close()
+        for c in conns:
+            c.close()
+
+
+@pytest.mark.parametrize(("kind", "said"), [("garbage", "Invalid url scheme"), ("http", "unknown scheme 'http'"),
+                                            ("no port", "missing port"), ("banner", "does not answer as a Dask"),
+                                            ("silent", "no Dask answer within 1 s")])
+def test_an_address_that_is_no_dask_scheduler_is_one_line(monkeypatch: pytest.MonkeyPatch, kind: str,
+                                                          said: str) -> None:
+    # a review against a real cluster: "garbage" and http://... gave a ValueError traceback and a 20 s hang in
+    # Client.__del__; a server sending an SSH banner made the client allocate 2.8 EiB (a traceback); the
+    # dashboard's HTTP port hung past the 10 s connect timeout for minutes. Now each is one line, exit 2
+    import gearctl.parallel
+
+    monkeypatch.setattr(gearctl.parallel, "CONNECT_TIMEOUT", 1.0)
+    with contextlib.ExitStack() as stack:
+        address = {"garbage": "garbage", "http": "http://127.0.0.1:8786", "no port": "tcp://127.0.0.1"}.get(kind)
+        if address is None:
+            address = stack.enter_context(_server(b"SSH-2.0-OpenSSH_9.6\r\n" * 100 if kind == "banner" else None))
+        t0 = time.monotonic()
+        rc, _, err = _cli(["sweep", MODEL, "pid", "--vary", "backlash=1x", "--scheduler", address, "--quiet"])
+    assert rc == 2 and err.count("\n") == 1 and said in err, err
+    assert f"cannot reach the Dask scheduler at {address}" in err
+    assert time.monotonic() - t0 < 10.0
+
+
+def test_workers_running_other_code_are_refused(monkeypatch: pytest.MonkeyPatch, cluster: str) -> None:
+    # workers started before an edit ran other code under the same version string: their runs differed in the
+    # last digits from this process's (found by a review against a real cluster). The check compares the version
+    # and a hash of the package's sources
+    from distributed import Client
+
+    import gearctl.parallel
+
+    assert re.fullmatch(r"\d+\.\d+\.\d+.*\+[0-9a-f]{12}", gearctl.parallel.code_id())
+    with Client(cluster, set_as_default=False) as client:
+        gearctl.parallel.Engine(client=client).close()  # the same code: accepted, the client left open
+        monkeypatch.setattr(gearctl.parallel, "_CODE_ID", "0.1.0+000000000000")
+        with pytest.raises(InputError, match=r"run gearctl .*\+[0-9a-f]{12}, this is 0\.1\.0\+000000000000"):
+            gearctl.parallel.Engine(client=client)
+
+
+def test_a_default_client_is_used(cluster: str) -> None:
+    # a script that opened a Client (dask's default) and called sweep() without it got a local cluster of its own
+    from distributed import Client
+
+    import gearctl.parallel
+
+    with Client(cluster) as client:  # set as the default
+        eng = gearctl.parallel.Engine()
+        assert eng.client is client and not eng.own and eng.cluster is None
+        eng.close()
+        assert client.status == "running"
+
+
+@pytest.mark.slow
+def test_a_cluster_left_without_workers_ends_with_one_line(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    # every worker killed mid-sweep: the sweep waited with no message until interrupted (a review). Now it ends
+    # after WORKER_TIMEOUT seconds without a worker (2 s here), naming the tasks left
+    import gearctl.parallel
+
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 2.0)
+    monkeypatch.setattr(gearctl.parallel, "POLL", 0.2)
+    with _cluster(tmp_path, 1) as (address, workers):
+        def progress(done: int, total: int) -> None:
+            if done == 1:
+                os.killpg(workers[0].pid, signal.SIGKILL)
+
+        t0 = time.monotonic()
+        with pytest.raises(InputError, match=r"has had no worker for 2 s with \d+ task\(s\) unfinished"):
+            sweep(MODEL, "pid", vary=["backlash=0.5x:2x"], runs=12, duration=0.3, scheduler=address, batch=1,
+                  progress=progress)
+        assert time.monotonic() - t0 < 60.0
+
+
+def test_ctrl_c_is_one_line_and_the_sigint_code(monkeypatch: pytest.MonkeyPatch) -> None:
+    import gearctl.sweep
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(gearctl.sweep, "sweep", interrupted)
+    rc, out, err = _cli(["sweep", MODEL, "pid", "--vary", "backlash=1x", "--quiet"])
+    assert rc == 130 and err == "gearctl sweep: interrupted\n" and out == ""
 
 
 # --- grids, comparison, the example ---------------------------------------------------------------------

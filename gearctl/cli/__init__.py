@@ -47,7 +47,7 @@ def _parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Nam
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``gearctl`` command line; return the exit code (0 success, 2 bad input)."""
+    """Run the ``gearctl`` command line; return the exit code (0 success, 2 bad input, 130 interrupted)."""
     parser, commands = _parser()
     try:
         args = parser.parse_args(argv)
@@ -65,6 +65,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         except OSError:
             pass
         return 0
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's code for SIGINT (128 + 2), no traceback
+        print(f"gearctl {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

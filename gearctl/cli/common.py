@@ -121,7 +121,7 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
         with open(p, "w", newline="") as fh:
-            w = csv.writer(fh)
+            w = csv.writer(fh, lineterminator="\n")  # Unix lines: `cut` and `awk` see no \r
             w.writerow(header)
             for i0 in range(0, n, chunk):
                 cols = columns(i0, min(i0 + chunk, n))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -125,7 +126,7 @@ def _write_csv(result: Any, path: Path) -> None:
         return repr(v) if isinstance(v, float) else v  # repr: the exact double, read back bit for bit
 
     with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
+        w = csv.writer(fh, lineterminator="\n")  # Unix lines: `cut` and `awk` see no \r
         w.writerow(head)
         for r in rows:
             w.writerow([cell(v) for v in r])
@@ -159,8 +160,9 @@ def _write_out(result: Any, out: Path) -> None:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from ..sweep import sweep
 
-    if args.scheduler and args.workers:
-        warn("sweep", ["--workers sizes the local cluster; with --scheduler the cluster's own workers run the sweep"])
+    if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.workers:
+        warn("sweep", ["--workers sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the "
+                       "cluster's own workers run the sweep"])
     bar = None
     if not args.quiet:
         from tqdm import tqdm
