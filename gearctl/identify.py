@@ -111,7 +111,7 @@ def _fail(path: Path, where: str, what: str, field: str | None = None) -> InputE
     return InputError(f"{path}: {where}: {what}" if where else f"{path}: {what}", field=field)
 
 
-def read_log(path: str | Path) -> EncoderLog:
+def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
     """Read a servo log (CSV, see :class:`EncoderLog`), checking every line.
 
     The file may start with a UTF-8 byte-order mark and ``#`` comment lines; then a header row naming the
@@ -125,6 +125,8 @@ def read_log(path: str | Path) -> EncoderLog:
     ----------
     path : str or Path
         The file.
+    load_encoder : bool
+        Read ``theta2``; False (``identify --encoders motor``) ignores the column, whatever it holds.
 
     Returns
     -------
@@ -181,7 +183,8 @@ def read_log(path: str | Path) -> EncoderLog:
     # a comma-separated log; a header without a comma but with semicolons or tabs sets that delimiter
     delim = "," if "," in head else (";" if ";" in head else ("\t" if "\t" in head else ","))
     names = [c.strip() for c in next(csv.reader([head], delimiter=delim))]
-    wanted = [c for c in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if c in names]
+    optional = OPTIONAL_COLUMNS if load_encoder else ()
+    wanted = [c for c in REQUIRED_COLUMNS + optional if c in names]
     for c in wanted:
         if names.count(c) > 1:
             raise _fail(path, f"line {header_line}", f"column {c!r} appears twice in the header", c)
@@ -1846,6 +1849,9 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
              f"samples at {result.sample_time:g} s, {result.switches} gap crossings): backlash {result.backlash:.6g} m "
              f"(95 % CI {result.backlash_ci[0]:.6g} - {result.backlash_ci[1]:.6g} m), RMS residual "
              f"{result.rms_residual:.3g} rad. Method: {result.method}. Model before identification: {mdl.name}"
+             + (". Not identified from this log (the fit's best value, kept): "
+                + "; ".join(f"{k} ({why})" for k, why in result.not_identified.items()) if result.not_identified
+                else "")
              + (f"; its notes: {src['notes']}" if src.get("notes") else ""))
     doc["source"] = {"citation": f"gearctl identify ({result.log}) on {mdl.name}: {src.get('citation', '')}",
                      **({"table": src["table"]} if "table" in src else {}), "notes": notes}
@@ -1912,8 +1918,10 @@ def write_identified_model(path: str | Path, result: Identification, model: Any)
         raise InputError(f"{result.log}: not writing {path}: the backlash is not identified from this log "
                          f"({result.not_identified['backlash']})", field="backlash")
     doc = identified_model(result, model)
+    unid = tuple(f"Not identified from this log (the fit's best value, kept: it holds the sums the log sees): "
+                 f"{k}: {why}" for k, why in result.not_identified.items())
     text = toml_dumps(doc, header=(f"{path.stem}: written by gearctl identify from {result.log}.",
-                                    "SI units, radians inside; degrees only in keys ending _deg."))
+                                    "SI units, radians inside; degrees only in keys ending _deg.", *unid))
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".toml", dir=path.parent)
         with os.fdopen(fd, "w") as fh:

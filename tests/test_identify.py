@@ -390,6 +390,26 @@ def test_identify_cli_writes_a_model_that_tracks_like_the_true_one(logs: Callabl
                                                                                      mine[key], true[key])
 
 
+def test_motor_encoder_alone_ignores_a_load_column_it_does_not_use(logs: Callable, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    # a logger that writes NaN where no load encoder is fitted: `--encoders motor` refused the column it never reads
+    # (a reviewer's own logs); with both encoders it is still an error naming the column
+    path, b = logs("identify", 1.0)
+    lines = path.read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    col = lines[k].split(",").index("theta2")
+    rows = [line.split(",") for line in lines[k + 1:]]
+    for r in rows:
+        r[col] = "nan"
+    nan_log = tmp_path / "no_load_encoder.csv"
+    nan_log.write_text("\n".join(lines[:k + 1] + [",".join(r) for r in rows]) + "\n")
+    js = _figures(capsys, ["identify", str(nan_log), "--model", START_MODEL, "--encoders", "motor", "--json"])
+    lo, hi = js["backlash_ci"]
+    assert js["encoders"] == "motor" and lo <= b <= hi
+    assert main(["identify", str(nan_log), "--model", START_MODEL]) == 2
+    assert "column theta2 = nan is not a finite number" in capsys.readouterr().err
+
+
 def test_design_on_the_identified_model_performs_on_the_true_plant(results: Callable, tmp_path: Path) -> None:
     """The engineering use: design the inverse on the identified model, run it on the true plant."""
     from gearctl import build_plant
@@ -398,6 +418,11 @@ def test_design_on_the_identified_model_performs_on_the_true_plant(results: Call
 
     res, _ = results("identify", 1.0, "motor")  # the harder case: the motor encoder alone
     model_path = ident.write_identified_model(tmp_path / "m.toml", res, START_MODEL)
+    # what the log does not identify is written at the fit's best value and said so, in the header and [source]
+    text = model_path.read_text()
+    assert res.not_identified and all(f"Not identified from this log (the fit's best value, kept: it holds the sums "
+                                      f"the log sees): {k}:" in text for k in res.not_identified)
+    assert all(k in load_model(model_path).source["notes"] for k in res.not_identified)
     truth = load_model(TRUE_MODEL)
     true_plant = build_plant(truth)
     spec, label = controller_spec("deadzone_inverse")

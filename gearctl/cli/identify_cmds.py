@@ -51,7 +51,7 @@ def _cmd_excite(args: argparse.Namespace) -> int:
 def _cmd_identify(args: argparse.Namespace) -> int:
     from ..identify import identify, read_log, write_identified_model
 
-    log = read_log(args.log)
+    log = read_log(args.log, load_encoder=args.encoders != "motor")
     with progress_bar("gearctl identify", expected_s=3.0 if args.encoders == "motor" else 0.5):
         res = identify(log, args.model, encoders=args.encoders)
     warn("identify", res.warnings)
