@@ -878,9 +878,15 @@ def _gap_column(p: _Problem) -> str:
 
 def _no_switch(p: _Problem, found: int, what: str) -> InputError:
     col = _gap_column(p)
+    m = p.m
+    w = m.w[_Encoder.moving(m.w, m.v_thr, p.W)]
+    reversals = int(np.count_nonzero(np.sign(w[1:]) != np.sign(w[:-1])))
+    advice = ("record a motion that reverses (moves back and forth, a sine)" if reversals < MIN_SWITCHES else
+              f"the motor reversed {reversals} times, but the load never rested on a flank long enough to be seen "
+              f"there (a loop that hunts or rattles, or a sample rate too low for the crossings): record slower "
+              f"reversals with a calmer loop, or at a higher rate")
     return InputError(f"{p.log.name}: column {col}: {found} gap crossing(s) found ({what}); identification needs at "
-                      f"least {MIN_SWITCHES}: record a motion that reverses (moves back and forth, a sine)",
-                      field=col)
+                      f"least {MIN_SWITCHES}: {advice}", field=col)
 
 
 def _check_motion(p: _Problem) -> None:
@@ -923,6 +929,8 @@ def _unit_hint(ratio: float, hints: tuple[tuple[float, str], ...]) -> str:
 INERTIA_HINTS = ((math.pi / 180, "theta1 in degrees"), (2 * math.pi, "theta1 in revolutions"), (1e3, "torque in mN m"),
                  (1e6, "t in ms"), (1e-6, "t in us"), (2 * math.pi / 2**20, "theta1 in counts of a 2^20 encoder"),
                  (2 * math.pi / 2**16, "theta1 in counts of a 2^16 encoder"))
+#: An encoder column whose values are all whole numbers reaching this far [its unit] holds counts, not radians.
+COUNTS_MIN = 100.0
 #: Likely causes of a load encoder moving this factor from theta1 / N.
 RATIO_HINTS = ((1 / (2 * math.pi), "theta2 in revolutions"), (180 / math.pi, "theta2 in degrees"))
 
@@ -955,6 +963,11 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
         raise InputError(f"{name}: column torque: |torque| reaches {u_max:.4g} N m, beyond the model's torque_limit "
                          f"{torque_limit:g} N m (allowed up to {TORQUE_MARGIN:g}x, "
                          f"{TORQUE_MARGIN * torque_limit:g} N m){hint}", field="torque")
+    for col, v in (("theta1", lg.theta1), ("theta2", lg.theta2 if p.l is not None else None)):
+        if v is not None and float(np.max(np.abs(v))) >= COUNTS_MIN and bool(np.all(v == np.round(v))):
+            raise InputError(f"{name}: column {col}: every value is a whole number (up to "
+                             f"{float(np.max(np.abs(v))):.6g}): encoder counts? expected radians (counts times "
+                             f"2 pi / counts per revolution)", field=col)
     m = p.m
     mv = _Encoder.moving(m.w, m.v_thr, p.W)
     pl = p.nominal
@@ -981,7 +994,8 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
         if J <= 0.0:
             raise InputError(f"{name}: column torque: does not drive the motion (the torque balance u = J theta1'' + "
                              f"d theta1' + T sgn theta1' gives J = {J:.3g} kg m^2; expected about the model's "
-                             f"{J_model:.3g}): a negated torque, or not the motor's", field="torque")
+                             f"{J_model:.3g}): a negated torque or theta1 (an encoder counting against the "
+                             f"torque), or not the motor's torque", field="torque")
         ratio = J / J_model
         if not 1 / INERTIA_FACTOR <= ratio <= INERTIA_FACTOR:
             hint = _unit_hint(ratio, INERTIA_HINTS)

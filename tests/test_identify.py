@@ -410,6 +410,34 @@ def test_motor_encoder_alone_ignores_a_load_column_it_does_not_use(logs: Callabl
     assert "column theta2 = nan is not a finite number" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("change", "said"), [
+    ("counts", "column theta1: every value is a whole number (up to"),
+    ("negated theta1", "a negated torque or theta1 (an encoder counting against the torque)")])
+def test_a_log_in_counts_or_with_theta1_negated_is_named(logs: Callable, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str], change: str,
+                                                         said: str) -> None:
+    # a reviewer's logs: counts were blamed on swapped columns (2^20 / 2^16 counts happen to be the N^2 = 16 of
+    # swapped columns), a negated theta1 on the torque alone
+    path, _ = logs("identify", 1.0)
+    lines = path.read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    head = lines[k].split(",")
+    i1, i2 = head.index("theta1"), head.index("theta2")
+    rows = [line.split(",") for line in lines[k + 1:]]
+    for r in rows:
+        if change == "counts":
+            r[i1] = str(round(float(r[i1]) * 2**16 / (2 * math.pi)))
+            r[i2] = str(round(float(r[i2]) * 2**20 / (2 * math.pi)))
+        else:
+            r[i1] = repr(-float(r[i1]))
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines[:k + 1] + [",".join(r) for r in rows]) + "\n")
+    encoders = ["--encoders", "motor"] if change != "counts" else []
+    assert main(["identify", str(bad), "--model", START_MODEL, *encoders]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and said in err, err
+
+
 def test_design_on_the_identified_model_performs_on_the_true_plant(results: Callable, tmp_path: Path) -> None:
     """The engineering use: design the inverse on the identified model, run it on the true plant."""
     from gearctl import build_plant
@@ -486,6 +514,16 @@ def test_bad_log_is_one_line_and_exit_2(name: str, fragment: str, capsys: pytest
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith(f"gearctl identify: error: {path}: ") and fragment in err, err
+
+
+def test_a_log_that_reverses_but_never_rests_says_so(capsys: pytest.CaptureFixture[str]) -> None:
+    # an external reviewer's simulator at 500 Hz: the motor reverses 20 times, the load never rests on a flank long
+    # enough; the message said "record a motion that reverses"
+    path = DATA / "other_sim_hunting_500hz.csv"
+    model = Path(__file__).parent / "data" / "small_servo_20x80.toml"
+    assert main(["identify", str(path), "--model", str(model)]) == 2
+    err = capsys.readouterr().err
+    assert "the motor reversed 20 times, but the load never rested on a flank" in err, err
 
 
 def test_bad_logs_raise_input_error_with_the_column() -> None:
