@@ -177,6 +177,14 @@ def test_coarse_encoders_fault_and_brake_to_rest(tmp_path: Path, ref: str) -> No
     speed = np.abs(res.x[2, last])
     assert np.max(speed) < 0.2 and np.max(np.abs(res.torque[last])) < 1e-3
     assert out.metrics.max_error < 1.0, out.metrics.max_error
+    # once the motor's reading has stood still for 0.1 s the torque is exactly zero (a C harness saw brake torques of
+    # a few uN m for seconds, decaying as 1/n, and -0.0), and never -0.0
+    y, u = res.y_motor, res.torque
+    still = np.array([k >= 100 and bool(np.all(y[k - 100:k + 1] == y[k])) for k in range(y.size)])
+    t_fault = ctrl.fallbacks[next(i for i, f in enumerate(ctrl.fallbacks) if f["reason"].startswith("fault"))]["t"]
+    rest = still & (res.t >= t_fault + 0.2)
+    assert rest.any() and np.all(u[rest] == 0.0)
+    assert not np.any((u == 0.0) & np.signbit(u))
 
 
 @needs_cc

@@ -889,6 +889,7 @@ _GAP_LIMIT_DEFLECTION = 4.0  # ... plus this many times the mesh's static deflec
 _FAULT_RESTARTS = 3  # this many restarts of the estimate within _FAULT_WINDOW samples latch a fault (zero torque)
 _FAULT_WINDOW = 1000
 _BRAKE_TIME = 0.02  # after a fault the motor is braked to rest with this time constant [s], then the torque is zero
+_BRAKE_REST = 0.1  # ... exactly zero once the motor's reading has not changed for this long [s] (at rest within a count)
 _RIGID_SAMPLES = 2.0  # a gap crossed within this many samples (at _CROSS_SHARE of the limit) is designed rigid
 _GAP_NOISE_TOL = 3.0  # the contact tolerance is at least this many times the measured gap's noise std
 _FRICTION_NOISE = 10.0  # the plan ramps the motor's Coulomb friction in over this many noise stds per sample
@@ -1420,10 +1421,12 @@ class MPC(Controller):
         elif y_motor != y0:  # a change in the direction of the last one: a speed; else it turned at an edge
             w = (y_motor - y0) / ((n - k0) * self.Ts) if (y_motor - y0) * dy > 0.0 else 0.0
             dy, y0, k0 = y_motor - y0, y_motor, n
+        elif (n - k0) * self.Ts >= _BRAKE_REST:  # still for _BRAKE_REST: at rest (a 1/n tail of uN m lasted seconds)
+            w = 0.0
         else:  # what the braking leaves of it, and at most the last change over the samples since
             w = math.copysign(min(abs(w) * (1.0 - self.Ts / _BRAKE_TIME), abs(dy) / ((n - k0) * self.Ts)), w)
         self._brake[:] = (y0, k0, dy, w)
-        return min(max(-self.info.J_eq * w / _BRAKE_TIME, -self._umax), self._umax)
+        return min(max(-self.info.J_eq * w / _BRAKE_TIME, -self._umax), self._umax) + 0.0  # + 0.0: never -0.0
 
     def _planned_load_friction(self, i: int) -> float:
         """The load's Coulomb friction over the horizon [N m] (see *Friction*): the mean of ``-T_c2 sgn`` over the

@@ -33,6 +33,7 @@
 #define GCX_GATE_PERSIST 4    /* mpc.py: _GATE_PERSIST */
 #define GCX_FAULT_WINDOW 1000 /* mpc.py: _FAULT_WINDOW (GCX_FAULT_RESTARTS: gcx_mpc_state.h) */
 #define GCX_BRAKE_TIME 0.02   /* mpc.py: _BRAKE_TIME */
+#define GCX_BRAKE_REST 0.1    /* mpc.py: _BRAKE_REST */
 #define GCX_STALL_SAMPLES 5   /* mpc.py: _STALL_SAMPLES */
 #define GCX_STALL_SHARE 0.25  /* mpc.py: _STALL_SHARE */
 
@@ -183,7 +184,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
 }
 
 /* MPC._brake_torque: after a fault, the motor's speed from the changes of its reading alone, braked with the
- * time constant GCX_BRAKE_TIME; zero once the reading stops changing */
+ * time constant GCX_BRAKE_TIME; zero once the reading has not changed for GCX_BRAKE_REST */
 GCX_FN double gcx_mpc_brake_torque(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor) {
     double y0 = S->brake_y, dy = S->brake_dy, w = S->brake_w;
     int64_t k0 = S->brake_k, n = S->n_obs;
@@ -192,11 +193,13 @@ GCX_FN double gcx_mpc_brake_torque(const gcx_mpc_p *P, gcx_mpc_s *S, double y_mo
     } else if (y_motor != y0) { /* a change in the direction of the last one: a speed; else it turned round */
         w = (y_motor - y0) * dy > 0.0 ? (y_motor - y0) / ((double)(n - k0) * P->Ts) : 0.0;
         dy = y_motor - y0, y0 = y_motor, k0 = n;
+    } else if ((double)(n - k0) * P->Ts >= GCX_BRAKE_REST) { /* still that long: at rest */
+        w = 0.0;
     } else {
         w = copysign(gcx_min(fabs(w) * (1.0 - P->Ts / GCX_BRAKE_TIME), fabs(dy) / ((double)(n - k0) * P->Ts)), w);
     }
     S->brake_y = y0, S->brake_k = k0, S->brake_dy = dy, S->brake_w = w;
-    return gcx_min(gcx_max(-P->J_eq * w / GCX_BRAKE_TIME, -P->umax), P->umax);
+    return gcx_min(gcx_max(-P->J_eq * w / GCX_BRAKE_TIME, -P->umax), P->umax) + 0.0; /* + 0.0: never -0.0 */
 }
 
 /* MPC._holding: the previewed reference rests, the load is slow and within the deadband of it (once holding:
