@@ -592,7 +592,41 @@ def test_gap_check_judges_slow_loops_exactly_and_refuses_a_motor_too_light(tmp_p
     assert main(["track", str(heavy), "pid", "--duration", "0.2"]) == 2
     err = capsys.readouterr().err
     assert "no crossover down to 0.2 Hz leaves the motor shaft alone" in err and "gap_gain_margin_db" in err
-    assert "Traceback" not in err
+    assert "Traceback" not in err and "viscous time constant" not in err
+    # a motor heavier than the rest of the train, but a load whose viscous friction (7.2e-3 N m s/rad on 1.5e-7
+    # kg m^2, through a speed-up) makes the rigid train's time constant 0.15 ms: the gains follow that damping,
+    # which the motor alone lacks. The refusal says so (a fuzzed model: "a heavier motor" alone misled)
+    damped = tmp_path / "damped.toml"
+    damped.write_text("""
+[source]
+citation = "drawn by tests/test_fuzz.py (issue 11)"
+[gear1]
+teeth = 46
+[gear2]
+teeth = 20
+[pair]
+module = 0.0005544147528434302
+pressure_angle_deg = 25.0
+face_width = 0.1
+backlash = 1.4945636241603612e-06
+addendum_coefficient = 1.1290772685150599
+dedendum_coefficient = 1.2735665642327385
+[material]
+young_modulus = 74684264832.4174
+poisson_ratio = 0.2691416958517084
+density = 1005.3581843444107
+[dynamics]
+damping_ratio = 0.023671561777889278
+mesh_stiffness = 10163928.72365215
+[servo]
+load_inertia = 1.4920377374531587e-07
+viscous_friction2 = 0.007180091056286156
+coulomb_friction2 = 0.31087076004164665
+torque_limit = 2.051907625495541
+""")
+    assert main(["track", str(damped), "pid", "--duration", "0.2"]) == 2
+    err = capsys.readouterr().err
+    assert "1/1.38 of the rigid train" in err and "viscous time constant J_eq / d_eq = 0.151 ms" in err, err
 
 
 def test_rattle_guard_never_softens_the_loop_against_an_error_beyond_the_gap() -> None:

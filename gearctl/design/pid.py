@@ -282,10 +282,13 @@ def gap_limited_bandwidth(info: LoopInfo, *, bandwidth_hz: float, phase_margin_d
     lo, hi = bandwidth_hz / 100.0, bandwidth_hz
     if not ok(lo):
         J = info.nominal.shafts[0].J
+        tau = info.J_eq / info.d_eq if info.d_eq > 0.0 else math.inf
+        why = (f"; the rigid train's viscous time constant J_eq / d_eq = {tau * 1e3:.3g} ms is under two samples, so "
+               f"the gains follow its damping, which the motor alone lacks" if tau < 2.0 * Ts else "")
         raise InputError(f"bandwidth_hz = {bandwidth_hz:g}: no crossover down to {lo:.3g} Hz leaves the motor shaft "
                          f"alone ({J:.3g} kg m^2, 1/{info.J_eq / J:.3g} of the rigid train) stable in the gap with "
-                         f"gap_gain_margin_db = {gain_margin_db:g} dB: expected feedback = \"load\", a heavier motor, "
-                         f"or gap_gain_margin_db = 0 to accept a loop that rattles between the flanks",
+                         f"gap_gain_margin_db = {gain_margin_db:g} dB{why}: expected feedback = \"load\", a heavier "
+                         f"motor, or gap_gain_margin_db = 0 to accept a loop that rattles between the flanks",
                          field="gap_gain_margin_db")
     while hi / lo > 1.001:
         mid = math.sqrt(lo * hi)
