@@ -1835,6 +1835,12 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
 # --- the identified model as a model file ------------------------------------------------------------------------
 
 
+def _unidentified(result: Identification) -> list[str]:
+    """One line per quantity the log did not identify, for the written model's header and ``[source]`` notes."""
+    return [f"Not identified from this log (the fit's best value, kept: it holds the sums the log sees): {k}: {why}"
+            for k, why in result.not_identified.items()]
+
+
 def identified_model(result: Identification, model: Any) -> dict[str, dict[str, Any]]:
     """A complete model document (the tables of a model file): ``model`` with the identified values.
 
@@ -1863,9 +1869,7 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
              f"samples at {result.sample_time:g} s, {result.switches} gap crossings): backlash {result.backlash:.6g} m "
              f"(95 % CI {result.backlash_ci[0]:.6g} - {result.backlash_ci[1]:.6g} m), RMS residual "
              f"{result.rms_residual:.3g} rad. Method: {result.method}. Model before identification: {mdl.name}"
-             + (". Not identified from this log (the fit's best value, kept): "
-                + "; ".join(f"{k} ({why})" for k, why in result.not_identified.items()) if result.not_identified
-                else "")
+             + "".join(f". {line}" for line in _unidentified(result))
              + (f"; its notes: {src['notes']}" if src.get("notes") else ""))
     doc["source"] = {"citation": f"gearctl identify ({result.log}) on {mdl.name}: {src.get('citation', '')}",
                      **({"table": src["table"]} if "table" in src else {}), "notes": notes}
@@ -1932,10 +1936,9 @@ def write_identified_model(path: str | Path, result: Identification, model: Any)
         raise InputError(f"{result.log}: not writing {path}: the backlash is not identified from this log "
                          f"({result.not_identified['backlash']})", field="backlash")
     doc = identified_model(result, model)
-    unid = tuple(f"Not identified from this log (the fit's best value, kept: it holds the sums the log sees): "
-                 f"{k}: {why}" for k, why in result.not_identified.items())
     text = toml_dumps(doc, header=(f"{path.stem}: written by gearctl identify from {result.log}.",
-                                    "SI units, radians inside; degrees only in keys ending _deg.", *unid))
+                                    "SI units, radians inside; degrees only in keys ending _deg.",
+                                    *_unidentified(result)))
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".toml", dir=path.parent)
         with os.fdopen(fd, "w") as fh:

@@ -55,10 +55,6 @@ def code_id() -> str:
 _CODE_ID: str | None = None
 
 
-def _worker_version() -> str:
-    return code_id()
-
-
 #: Dask's address schemes a scheduler may be given with.
 _SCHEMES = ("tcp", "tls", "ucx", "inproc", "ws", "wss")
 
@@ -190,7 +186,7 @@ class Engine:
             self.where = f"local cluster ({n} process{'es' if n > 1 else ''})"
         if self.cluster is None:
             try:
-                versions = set(self.client.run(_worker_version).values())
+                versions = set(self.client.run(code_id).values())
             except Exception as exc:  # the workers' environment, not gearctl: say it in one line
                 self.close()
                 raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",

@@ -76,8 +76,9 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
 }
 
 /* MPC._observe: z = [phi, omega, s, v, d] from the encoders. A non-finite load reading, or one that puts the gap
- * beyond gap_limit, is a missing one (the motor encoder alone); a reading farther from its predicted shaft angle than the gate is rejected (the
- * prediction alone), and one rejected on more than GCX_GATE_PERSIST samples in a row restarts the estimate.
+ * beyond gap_limit, is a missing one (the motor encoder alone); a reading farther from its predicted shaft angle
+ * than the gate is rejected (the prediction alone), and one rejected on more than GCX_GATE_PERSIST samples in a
+ * row restarts the estimate.
  * Returns 1 when a reading was missing or rejected (the step reports a fallback), else 0. */
 GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, double y_load) {
     double b = P->b, tol = P->tol;
