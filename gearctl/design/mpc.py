@@ -234,9 +234,11 @@ estimate restarts from it as on the first sample. A load reading not finite or b
 missing one (the motor encoder alone, as with ``feedback = "motor"``), also reported; such a motor reading is a
 missed sample, as in the exported API (zero torque, the estimate and plan unchanged, reported). So is a load reading
 that puts the encoders' gap ``rb1 y_motor - rb2 y_load`` beyond :attr:`MPC.gap_limit` (2.5 b, four times the mesh's
-static deflection under the torque limit and the load torque, and the contact tolerance: 1.3e-4 m on
-``shing1993_servo``, 2.5 b; none with a backlash estimate of 0): no gap the gear allows explains it, so the load
-encoder is wrong, or zeroed off the motor's. Before, a load encoder that read 0.1 rad for 50 samples restarted the
+static deflection under the torque limit and the load torque, the contact tolerance, and a count and six noise
+stds of each encoder: 1.3e-4 m on ``shing1993_servo``, 2.6 b; none with a backlash estimate of 0): no gap the gear
+allows explains it, so the load encoder is wrong, or zeroed off the motor's. (Without the encoders' term a train
+with a 1024-count load encoder, 6.1e-3 rad a count, had 99 % of its load readings refused, and the sine ran at 0.08
+rad RMS on the motor encoder alone.) Before, a load encoder that read 0.1 rad for 50 samples restarted the
 estimate from it, the plan drove the motor to close the "gap" and the fault latched with the load 0.69 rad away;
 one zeroed 10 mrad off the motor's sent the load 0.2-0.9 rad away with no fallback reported. Before, one reading
 of 1e300 rad drove the estimate off and the load 116 rad away within a second (the exported C: 455 rad in 2 s).
@@ -529,8 +531,13 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         # within the key's range: a reading error over 1 rad (a 4-count encoder, a noise of radians) is 1 rad
         vals["measurement_noise"] = (None, min(max(MEASUREMENT_NOISE_FLOOR, sensors.reading_std("motor")), 1.0))
     settings = build_dataclass(path, MPCSettings, vals)
+    reading_error = None
+    if sensors is not None:  # a count and the noise of each encoder (the gap the readings may show: gap_limit)
+        reading_error = tuple(2.0 * math.pi / cpr + _NOISE_SIGMAS * noise if cpr else _NOISE_SIGMAS * noise
+                              for cpr, noise in ((sensors.motor_encoder_cpr, sensors.motor_noise),
+                                                 (sensors.load_encoder_cpr, sensors.load_noise)))
     try:
-        return MPC(info, settings, Ts=Ts, name=name)
+        return MPC(info, settings, Ts=Ts, name=name, reading_error=reading_error)
     except InputError as exc:
         raise InputError(f"{path}: {exc}", field=exc.field) from None
 
@@ -886,6 +893,8 @@ _HANDS_OFF_LET_GO = 1e-3  # ... and once the plan's torque has come down to this
 _GATE_PERSIST = 4  # a reading beyond the gate on more samples in a row than this is taken as the truth
 _GAP_LIMIT_SHARE = 2.5  # a load reading that puts the gap beyond this many b (plus deflection) is a wrong one ...
 _GAP_LIMIT_DEFLECTION = 4.0  # ... plus this many times the mesh's static deflection at the torque limit
+_COUNT_PER_STD = math.sqrt(12.0)  # ... plus each reading's error: a count (sqrt(12) quantisation stds) ...
+_NOISE_SIGMAS = 6.0  # ... and this many noise stds (a false rejection once in 5e8 readings)
 _FAULT_RESTARTS = 3  # this many restarts of the estimate within _FAULT_WINDOW samples latch a fault (zero torque)
 _FAULT_WINDOW = 1000
 _BRAKE_TIME = 0.02  # after a fault the motor is braked to rest with this time constant [s], then the torque is zero
@@ -945,6 +954,10 @@ class MPC(Controller):
     inject_failures : set of int, optional
         Sample indices (counted from :meth:`reset`) at which the solve is reported failed, to exercise
         the fallback.
+    reading_error : tuple of float, optional
+        The largest error of a motor and of a load encoder reading [rad], which :attr:`gap_limit` allows for:
+        a count and six noise stds of each encoder (:func:`build_mpc` gives them from the model's sensors);
+        default: a count of an encoder whose quantisation is ``measurement_noise`` (``sqrt(12)`` of it) each.
 
     Attributes
     ----------
@@ -985,7 +998,8 @@ class MPC(Controller):
     """
 
     def __init__(self, info: LoopInfo, settings: MPCSettings | None = None, *, Ts: float = 1e-3,
-                 name: str = "mpc", compiled: bool | None = None, inject_failures: set[int] | None = None) -> None:
+                 name: str = "mpc", compiled: bool | None = None, inject_failures: set[int] | None = None,
+                 reading_error: tuple[float, float] | None = None) -> None:
         super().__init__()
         st = settings if settings is not None else MPCSettings(backlash=info.plant.backlash)
         if not (Ts > 0 and math.isfinite(Ts)):
@@ -1043,14 +1057,17 @@ class MPC(Controller):
         self.n_lead = self.n_cross // 2
         # the readings' gate: along the line of action, what the torque limit can move the motor in one sample
         # (from full torque one way to full the other) plus twice the lost motion (the gap prediction may be off
-        # by the whole gap, at an impact, and the backlash estimate by its size); on each shaft [rad]
+        # by the whole gap, at an impact, and the backlash estimate by its size); on each shaft [rad], plus twice the
+        # reading's own error (a count and the noise: two readings' innovations differ by up to that)
         gate = self._a_max * Ts * Ts + 4.0 * self._b
-        self.reading_gate = (gate / p.rb1, gate / p.rb2)
+        e_m, e_l = reading_error if reading_error is not None else (_COUNT_PER_STD * st.measurement_noise,) * 2
+        self.reading_gate = (gate / p.rb1 + 2.0 * e_m, gate / p.rb2 + 2.0 * e_l)
         # the gap the two encoders may show (see *Readings*): a few times b, the mesh's deflection under the torque
-        # limit and the load torque, and the contact tolerance; none with a backlash estimate of 0 or no torque limit
+        # limit and the load torque, the contact tolerance and what the readings' own errors add (a count and the
+        # noise of each); none with a backlash estimate of 0
         deflection = (self._mesh_torque_max() + abs(self._tau_load)) / (p.rb2 * p.k) if p.k > 0.0 else math.inf
         self.gap_limit = (_GAP_LIMIT_SHARE * self._b + _GAP_LIMIT_DEFLECTION * deflection + self._tol
-                          if self._b > 0.0 else math.inf)
+                          + p.rb1 * e_m + p.rb2 * e_l if self._b > 0.0 else math.inf)
         # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
         self.n_p = 8 + 2 * n

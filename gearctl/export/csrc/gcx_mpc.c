@@ -69,10 +69,9 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
     S->fault = 0;
     S->brake_y = 0.0, S->brake_k = 0, S->brake_dy = 0.0, S->brake_w = 0.0;
     /* the readings' gate (MPC.reading_gate): along the line of action, a sample of full torque and twice the
-     * lost motion, on each shaft [rad] */
-    double gate = P->a_max * P->Ts * P->Ts + 4.0 * P->b;
-    S->gate[0] = gate / P->rb1;
-    S->gate[1] = gate / P->rb2;
+     * lost motion, on each shaft, plus twice each reading's own error [rad] */
+    S->gate[0] = P->gate_motor;
+    S->gate[1] = P->gate_load;
 }
 
 /* MPC._observe: z = [phi, omega, s, v, d] from the encoders. A non-finite load reading, or one that puts the gap
