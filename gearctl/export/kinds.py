@@ -59,7 +59,7 @@ _struct("gcx_inv_p", [("pid", "gcx_pid_p"), ("plant", "gcx_plant_p"), ("obs", "g
                       ("a_limit", "double"), ("jump_den", "double"), ("jump_floor", "double"),
                       ("rattle_decay", "double"),
                       ("rattle_level", "double"), ("rattle_gain", "double"), ("rattle_max_error", "double"),
-                      ("contact_lag", "double"),
+                      ("contact_lag", "double"), ("free_load_reach", "double"),
                       ("take_up_acceleration", "double")])
 _struct("gcx_ada_p", [("inv", "gcx_inv_p"), ("rb1", "double"), ("rb2", "double"), ("k", "double"),
                       ("window", "int")] + [(f, "double") for f in (
@@ -191,7 +191,8 @@ def _inv_values(inv: DeadzoneInverse) -> dict[str, Any]:
             "jump_den": inv._jump_den, "jump_floor": inv.jump_floor, "rattle_decay": deadzone.RATTLE_DECAY,
             "rattle_level": deadzone.RATTLE_LEVEL, "rattle_gain": deadzone.RATTLE_GAIN,
             "rattle_max_error": deadzone.RATTLE_MAX_ERROR,
-            "contact_lag": inv._contact_lag, "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION}
+            "contact_lag": inv._contact_lag, "free_load_reach": deadzone.FREE_LOAD_REACH,
+            "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION}
 
 
 def kind_spec(controller: Controller) -> KindSpec:

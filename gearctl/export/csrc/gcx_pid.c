@@ -271,6 +271,7 @@ GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     S->has_lag = 0;
     S->lag[0] = S->lag[1] = S->lag[2] = S->lag[3] = 0.0;
     S->contacts = 0;
+    S->free_load_exits = 0;
     S->y_hist[0] = S->y_hist[1] = 0.0, S->y_hist_n = 0;
     S->u_hist[0] = S->u_hist[1] = 0.0;
     S->rattle = 0.0, S->rattling = 0;
@@ -477,10 +478,23 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     }
     double friction = (pl->tc2 > 0.0 && rd != 0.0) ? copysign(pl->tc2, rd) : 0.0;
     int free = t < S->cross_end;
-    double u;
-    if (free) { /* the motor lands on where the load is predicted to be */
-        double c[3];
+    double u, c[3];
+    if (free) {
         gcx_inv_free_load(P, S, c);
+        /* where the load is against the motor now, and a sample on if the motor keeps its speed */
+        double rel = y_motor / P->pid.N - c[0], reach = P->free_load_reach * S->offset;
+        if (!(fabs(rel) <= reach && fabs(rel - 0.5 * P->pid.Ts * (S->free[1] - c[1])) <= reach)) {
+            /* the predicted load left the gap: it met a flank of the motor; the crossing ends here, the load taken
+             * on the new flank at the reference's speed */
+            S->free[0] = y_motor / P->pid.N - S->sigma * S->offset, S->free[1] = rd;
+            S->cross_end = t;
+            gcx_ramp_reset(&S->ramp, S->sigma * S->offset);
+            gcx_ramp_at(&S->ramp, S->ramp_shape, t, off);
+            S->free_load_exits += 1;
+            free = 0;
+        }
+    }
+    if (free) { /* the motor lands on where the load is predicted to be */
         S->was_free = 1;
         double a_c = (S->free[1] - c[1]) / P->pid.Ts; /* the free load's mean acceleration over the sample */
         u = gcx_offset_torque(&P->pid, &S->pid, pl, c[0], c[1], a_c, off, y_motor, y_load, has_yl, 1, 1.0, 0.0);

@@ -39,7 +39,7 @@ typedef struct {
     double crossing_time; /* set_crossing_time: the crossing time and ramp shape now (init: the parameters') */
     double jump_threshold; /* set_backlash: the rattle guard's motor speed jump, b / jump_den */
     int ramp_shape;
-    int was_free, moving_ref, has_lag, contacts, y_hist_n, rattling, trusted;
+    int was_free, moving_ref, has_lag, contacts, free_load_exits, y_hist_n, rattling, trusted;
     int stopped, one_way_prev; /* at rest with the push-back withheld; withheld at the last step (_one_way) */
 } gcx_inv_s;
 
