@@ -43,10 +43,11 @@ How a flank change is made, and how a move is finished
   their impacts make it lag its ramp as a too large estimate would.
 - *A prediction outside the gap.* The load cannot be farther from the motor than half the lost motion (plus the
   mesh's deflection): where the predicted free load is more than :data:`FREE_LOAD_REACH` half lost motions from
-  the motor, now or a sample on (with the motor at its speed), it met a flank in truth, and the crossing ends there, on the new flank, the contact control taking
-  over (counted in ``free_load_exits``). Why: on a fuzzed train whose load is 1.7e-10 kg m^2 the observer's
-  disturbance of a few mN m accelerated the predicted load at 1e7 rad/s^2; it was predicted 6.6 rad away within a
-  sample, the motor chased it at the torque limit and the sine ran at 154 rad RMS (the PID: 6.7e-3).
+  the motor, now or a sample on (with the motor at its speed), it met a flank in truth, and the crossing ends
+  there, on the new flank, the contact control taking over (counted in ``free_load_exits``). Why: on a fuzzed
+  train whose load is 1.7e-10 kg m^2 the observer's disturbance of a few mN m accelerated the predicted load at
+  1e7 rad/s^2; it was predicted 6.6 rad away within a sample, the motor chased it at the torque limit and the sine
+  ran at 154 rad RMS (the PID: 6.7e-3).
 - *The landing.* After a landing the load's lag behind the reference is taken up along a cubic over
   ``crossing_time``, or longer so that it asks at most :data:`TAKE_UP_ACCELERATION` of the load
   acceleration the torque limit gives; a lag larger than half the lost motion is no landing residual

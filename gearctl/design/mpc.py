@@ -244,13 +244,14 @@ one zeroed 10 mrad off the motor's sent the load 0.2-0.9 rad away with no fallba
 of 1e300 rad drove the estimate off and the load 116 rad away within a second (the exported C: 455 rad in 2 s).
 
 *A fault.* Three restarts of the estimate within 1000 samples (:data:`_FAULT_RESTARTS`, :data:`_FAULT_WINDOW`)
-mean that the readings follow no motion the model allows (encoders far too coarse for the torque limit, a broken
-one): :attr:`MPC.fault` latches until :meth:`MPC.reset`, every step is reported in ``fallbacks``, and the motor is
-braked to rest from its own reading's changes (the speed from two changes in the same direction, decaying as the
-braking takes it, time constant :data:`_BRAKE_TIME`), then the torque is zero. Why: with 16 and 4 counts per
-revolution the plan ran on predictions restarted at rest from the readings and drove the load 2.9 rad away (the
-review: 43 rad); zero torque at the fault let it coast 14.6 rad. Now it stops within 0.39 rad (0.43 with a
-measurement noise of 2e-6 rad). A load torque still moves a faulted drive (the brake is a damper, not a position
+mean that the readings follow no motion the model allows (a broken encoder, a loose connector): :attr:`MPC.fault`
+latches until :meth:`MPC.reset`, every step is reported in ``fallbacks``, and the motor is braked to rest from its own
+reading's changes (the speed from two changes in the same direction, decaying as the braking takes it, time constant
+:data:`_BRAKE_TIME`), then the torque is zero. Why: readings the plan restarted from at rest again and again (16- and
+4-count encoders, before the gate allowed for a count) drove the load 2.9 rad away (the review: 43 rad); zero torque
+at the fault let it coast 14.6 rad; braked, it stopped within 0.39 rad. Such encoders are now read as counts (largest
+error 0.24 rad on the sine, the PID's 0.15); a motor reading 0.5 rad off for 6 samples twice latches the fault
+(``tests/test_mpc_cases.py``). A load torque still moves a faulted drive (the brake is a damper, not a position
 hold).
 
 *Crossings.* A crossing still on its old flank (the gap has not left it) is re-decided every sample: the plan that
@@ -885,6 +886,8 @@ def _make_qp(n: int, m: int, solver: str, compiled: bool | None) -> _QP | _Gearc
 _INF = 1e20  # "no bound" for constraint rows (finite: some plugins reject inf)
 _CROSS_MARGIN = 2e-3  # a crossing must lower the plan's cost by this fraction (no flank change on a tie)
 _FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this much cheaper to land on
+_FREE_ACCELERATION = 1000.0  # rad/s^2 at the motor: without a torque limit, torques are weighed in shares of J_eq x
+# this (the catalog servos' torque limits give their trains 1.2e3 to 1.5e4 rad/s^2)
 _CROSS_SHARE = 0.25  # a planned crossing accelerates and decelerates the motor with this share of the torque limit
 _STANDSTILL_LANDING = 0.05  # at standstill, landings close at most this fraction of landing_velocity
 _STANDSTILL_RELEASE = 3.0  # a hold lasts while a slow load stays within this many standstill deadbands
@@ -1012,9 +1015,12 @@ class MPC(Controller):
         self.preview = n + 1  # reference samples a step reads: r(t) .. r(t + N Ts)
         self._b = st.backlash
         self._umax = min(info.torque_limit, 1e6)
-        # torques are weighed, and the observer's process noise is stated, as shares of the torque limit
+        # torques are weighed, and the observer's process noise is stated, as shares of the torque limit; without
+        # one, of the torque that accelerates the rigid train at _FREE_ACCELERATION (1 N m had a 14 kg m^2 motor's
+        # plan weigh its torque changes 1e8 times too heavily: it could not stop within the horizon and ran away)
         lim = info.torque_limit
-        self._u_scale = max(lim, 1e-9) if math.isfinite(lim) and lim > 0.0 else 1.0
+        self._u_scale = (max(lim, 1e-9) if math.isfinite(lim) and lim > 0.0
+                         else max(info.J_eq * _FREE_ACCELERATION, 1e-9))
         self._tau_load = p.load_torque
         # the motor's Coulomb friction, known from the model, and the speed over which the plan ramps it in: the
         # smooth law's own, and at least what the estimate's noise gives the speed (see *Friction*)
