@@ -136,9 +136,10 @@ def test_a_load_that_never_moves_does_not_follow(sine_run: ClosedLoopResult) -> 
 def test_a_rejected_load_disturbance_is_not_a_loss_of_tracking(tmp_path: Path) -> None:
     # the benchmark step (0.05 rad) with its 0.5 N m load step at 1 s on the three-stage servo: the inverse with the
     # 1 N m servo's disturbance threshold (0.02 N m, 3.7 % of what this train's motor puts on its load; the catalog's
-    # default now scales to 2.7e-3 and holds the step within 27 mrad) rejects it with a 0.16 rad error for about
-    # 0.3 s and returns to 0.03 mrad. By RMS the hold is worse than a load that stood still (1.19 measured); by the
-    # median the loop follows (0.04 measured)
+    # default now scales to 2.7e-3 and holds the step within 27 mrad) rejects it with an error of up to 0.08 rad
+    # (1.6x the step) and returns to 0.02 mrad; the median says the loop follows (tracking ratio 0.02 measured).
+    # (Before its crossings ended where the predicted free load left the gap, the error reached 0.16 rad for about
+    # 0.3 s and the RMS exceeded a load that stood still, 1.19x)
     from gearctl.catalog import resolve
     from gearctl.runs import execute, make_run
 
@@ -150,8 +151,8 @@ def test_a_rejected_load_disturbance_is_not_a_loss_of_tracking(tmp_path: Path) -
     out, res = execute(make_run("servo_3stage_quanser_srv02", ctrl, reference_kind="step"), keep=True)
     e, keep = res.error, res.t >= res.settle
     x = res.reference - res.load_angle[0]
-    assert np.sqrt(np.mean(e[keep] ** 2)) > np.sqrt(np.mean(x[keep] ** 2))
-    assert np.max(np.abs(e[keep])) > 2 * STEP.amplitude and abs(e[-1]) < 1e-3
+    assert np.sqrt(np.mean(e[keep] ** 2)) > 0.2 * np.sqrt(np.mean(x[keep] ** 2))
+    assert np.max(np.abs(e[keep])) > STEP.amplitude and abs(e[-1]) < 1e-3
     h = out.metrics.health
     assert h.tracking_ratio < 0.1 and not h.not_following and not h.growing
 
