@@ -160,9 +160,10 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
     more than half of the time". A load that never moves scores 1 on a sine or a step (``median |sin|`` is
     ``1/sqrt 2`` of the amplitude, as the RMS) and about 0.8 on the ISO 230-2 program; the catalog's
     healthy runs score at most 0.18 (track) and 0.031 (precision). The median, not the RMS: a load
-    disturbance the loop rejects puts a short error of its own size into a step's hold (0.16 rad for 0.3 s
-    on a 0.05 rad step, ``servo_3stage_quanser_srv02`` with ``deadzone_inverse``: RMS ratio 1.19, as bad as
-    standing still, while the loop is fine: median ratio 0.04). The final error is not used: one sample,
+    disturbance the loop rejects puts a short error of its own size into a step's hold (once 0.16 rad for 0.3 s
+    on a 0.05 rad step, ``servo_3stage_quanser_srv02`` with ``deadzone_inverse`` and an absolute disturbance
+    threshold: RMS ratio 1.19, as bad as standing still, while the loop was fine: median ratio 0.04; now 0.08 rad
+    at most). The final error is not used: one sample,
     it is large at the end of any run that ends while the reference moves.
 
     *Falling back* (``fallback_share``): fallbacks per controller step (``len(t) - 1`` steps); an

@@ -76,7 +76,7 @@ def _same_in_c(run, tmp_path: Path) -> None:  # noqa: ANN001 - a Run
 
 def test_a_train_holds_a_load_step_near_its_limit() -> None:
     # the 0.5 N m load step at 1.0 s against 0.54 N m at the load: measured 7.9e-3 rad largest error, 4.7e-7 rad
-    # final (before: 31 rad, still running). The error may reach 0.05 rad (the inverse's 0.16 rad for 0.3 s)
+    # final (before: 31 rad, still running). The error may reach 0.05 rad (the inverse's 0.08 rad)
     # and must be back within 1e-4 rad
     out = execute(make_run(QUANSER, "mpc", reference_kind="step"))
     m = out.metrics
