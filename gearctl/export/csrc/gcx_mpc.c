@@ -109,8 +109,10 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
     double om_p = k11 * om + kb1 * u + e1 * tau;
     /* the gate: how far the readings are from the shaft angles the prediction puts them at, against how far the
      * last accepted ones were (a drifting prediction moves the innovation a little; a wild reading at once) */
-    double inn1 = y_motor - (phi_p + P->kappa1 * s_p);
-    double inn2 = load ? y_load - (phi_p / P->ratio - P->kappa2 * s_p) : S->inn[1];
+    /* (the gap where the readings put it: within the flanks, and none for the rigid plan) */
+    double s_g = P->rigid ? 0.0 : fmin(fmax(s_p, -P->b), P->b);
+    double inn1 = y_motor - (phi_p + P->kappa1 * s_g);
+    double inn2 = load ? y_load - (phi_p / P->ratio - P->kappa2 * s_g) : S->inn[1];
     int bad = !(fabs(inn1 - S->inn[0]) <= S->gate[0]);
     if (load && !(fabs(inn2 - S->inn[1]) <= S->gate[1])) bad = 1;
     if (!bad) S->inn[0] = inn1, S->inn[1] = inn2;
