@@ -888,6 +888,7 @@ _CROSS_MARGIN = 2e-3  # a crossing must lower the plan's cost by this fraction (
 _FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this much cheaper to land on
 _FREE_ACCELERATION = 1000.0  # rad/s^2 at the motor: without a torque limit, torques are weighed in shares of J_eq x
 # this (the catalog servos' torque limits give their trains 1.2e3 to 1.5e4 rad/s^2)
+_CROSS_HORIZON_SHARE = 0.9  # a crossing must land within this share of the horizon (else the design is refused)
 _CROSS_SHARE = 0.25  # a planned crossing accelerates and decelerates the motor with this share of the torque limit
 _STANDSTILL_LANDING = 0.05  # at standstill, landings close at most this fraction of landing_velocity
 _STANDSTILL_RELEASE = 3.0  # a hold lasts while a slow load stays within this many standstill deadbands
@@ -1049,6 +1050,15 @@ class MPC(Controller):
                              f"measurement_noise) is over b / {2 * _GAP_NOISE_TOL:g}" if self._tol > 0.5 * st.backlash
                              else "")
         self._rigid = bool(self.rigid_reason)
+        if not self._rigid and t_cross > _CROSS_HORIZON_SHARE * n * Ts:
+            # a plan that cannot see a crossing through to its landing stays on the near flank and pushes: on a train
+            # whose gap takes 21 samples at this torque limit the load ran away (13.5 rad RMS, every step "ok")
+            need = math.ceil(t_cross / Ts / _CROSS_HORIZON_SHARE)
+            raise InputError(f"horizon = {n} samples is too short for this plant: a crossing of the lost motion takes "
+                             f"{t_cross / Ts:.3g} samples at {_CROSS_SHARE:g} x the torque limit, and the plan must "
+                             f"see it land within {_CROSS_HORIZON_SHARE:g} of the horizon; expected horizon >= {need} "
+                             f"(a controller file with a longer horizon, or a larger torque_limit; the "
+                             f"deadzone_inverse needs none)", field="horizon")
         # a flank is taken where the gap turns back only that far short of b: below the contact tolerance, and
         # on a train also below what the floating intermediate shafts alone leave it short by (the tolerance's
         # share beyond a pair's)
