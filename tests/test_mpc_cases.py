@@ -139,16 +139,25 @@ def test_a_watch_pair_tracks(tmp_path: Path) -> None:
 
 
 def test_a_smoothing_the_motor_cannot_give_is_refused(tmp_path: Path) -> None:
-    # with a 50 um gap (crossed in 3.8 samples) the plan is the gap model, whose landings must leave 2e-3 N m on
-    # the flank: the motor gives the load at most 3.7e-5 N m. (2^20-count encoders: with the watch's own 1024 and
-    # 4096 counts the default measurement noise, 1.8e-3 rad, leaves the gap unresolved and the plan rigid.)
+    # with a 50 um gap (crossed in 3.8 samples) the plan is the gap model, whose landings must leave `smoothing` on
+    # the flank: the motor gives the load at most 3.7e-5 N m. A file's 2e-3 N m is refused by name; without one the
+    # default is a quarter of that, 9.3e-6 N m (the catalog's 2e-3 refused every small servo's MPC before). (2^20-count
+    # encoders: with the watch's own 1024 and 4096 counts the default measurement noise, 1.8e-3 rad, leaves the gap
+    # unresolved and the plan rigid.)
+    from gearctl.catalog import resolve
+
     fine = WATCH.replace("motor_encoder_cpr = 1024", "motor_encoder_cpr = 1048576").replace(
         "load_encoder_cpr = 4096", "load_encoder_cpr = 1048576")
     assert fine.count("1048576") == 2
-    run = make_run(_model(tmp_path, "watch", fine), "mpc", backlash=5e-5)
+    model = _model(tmp_path, "watch", fine)
+    text = resolve("mpc", "controllers").read_text()
+    assert "\n# smoothing = 2e-3 " in text
+    ctrl = _model(tmp_path, "mpc_smooth", text.replace("\n# smoothing = 2e-3 ", "\nsmoothing = 2e-3   "))
     with pytest.raises(InputError, match=r"smoothing = 0\.002 N m .* expected <= 1\.87e-05 N m") as exc:
-        design_controller(run.design)
+        design_controller(make_run(model, ctrl, backlash=5e-5).design)
     assert exc.value.field == "smoothing"
+    mpc = design_controller(make_run(model, "mpc", backlash=5e-5).design)
+    assert not mpc._rigid and mpc.settings.smoothing == pytest.approx(0.25 * mpc._mesh_torque_max(), rel=1e-12)
 
 
 # --- 4. encoders too coarse, and a fault -------------------------------------------------------------------

@@ -325,6 +325,8 @@ KIND = "mpc"
 #: The least ``measurement_noise`` [rad] (the default without sensors): about one count of a 2^20-count encoder
 #: (6e-6 rad quantises to 1.7e-6 rad rms). A model's coarser or noisier encoders raise the default (build_mpc).
 MEASUREMENT_NOISE_FLOOR = 2e-6
+#: The default ``smoothing`` [N m] where the torque limit allows it (see :func:`build_mpc`).
+SMOOTHING = 2e-3
 
 #: QP solvers the MPC offers: gearctl's own exact dense solver (:class:`gearctl.qp.DenseQP`, the default:
 #: the exported C controller runs the same code) and CasADi conic plugins (``daqp`` and ``qrqp`` compiled).
@@ -420,7 +422,7 @@ class MPCSettings:
     max_solve_time: float = quantity(unit="s", doc="solve-time budget of a step", low=0.0, low_open=True, high=1.0,
                                      default=1e-3)
     smoothing: float = quantity(unit="N m", doc="mesh torque left on a flank after a landing", low=0.0, high=1e3,
-                                default=2e-3)
+                                default=SMOOTHING)
     process_noise: float = quantity(unit="1", doc="observer process noise, a share of the torque limit", low=0.0,
                                     low_open=True, high=1e3, default=1e-4)
     measurement_noise: float = quantity(unit="rad", doc="observer measurement noise", low=0.0, low_open=True,
@@ -492,7 +494,9 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         Backlash estimate overriding the file's ``backlash`` and the model's [m]; ``0 <= backlash < 0.01``,
         0 giving the backlash-free (rigid-train) MPC, e.g. on the benchmark's backlash-free plant.
     sensors : Sensors, optional
-        The model's encoders. Where the file does not set ``measurement_noise``, it is the motor encoder's
+        The model's encoders. (Where the file does not set ``smoothing``, it is :data:`SMOOTHING`, or a quarter
+        of the mesh torque the torque limit gives the load where that is less.) Where the file does not set
+        ``measurement_noise``, it is the motor encoder's
         reading error (:meth:`Sensors.reading_std`: quantisation and noise), at least
         :data:`MEASUREMENT_NOISE_FLOOR` and at most 1 rad (the key's range); without sensors, the floor. The
         load encoder's own is not used: it reads the output itself, while the motor encoder reads it through the
@@ -531,6 +535,10 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     if "measurement_noise" not in vals and sensors is not None:  # the motor encoder's (see the docstring)
         # within the key's range: a reading error over 1 rad (a 4-count encoder, a noise of radians) is 1 rad
         vals["measurement_noise"] = (None, min(max(MEASUREMENT_NOISE_FLOOR, sensors.reading_std("motor")), 1.0))
+    if "smoothing" not in vals:  # 2e-3 N m, or a quarter of the mesh torque the torque limit gives the load if less
+        pl, N, umax = info.plant, info.N, min(info.torque_limit, 1e6)
+        mesh_max = pl.J2 * N * umax / (N * N * pl.J1 + pl.J2)
+        vals["smoothing"] = (None, min(SMOOTHING, _SMOOTHING_DEFAULT_SHARE * mesh_max))
     settings = build_dataclass(path, MPCSettings, vals)
     reading_error = None
     if sensors is not None:  # a count and the noise of each encoder (the gap the readings may show: gap_limit)
@@ -908,6 +916,7 @@ _GAP_NOISE_TOL = 3.0  # the contact tolerance is at least this many times the me
 _FRICTION_NOISE = 10.0  # the plan ramps the motor's Coulomb friction in over this many noise stds per sample
 _STALL_SAMPLES = 5  # a landing due for this many samples more than a crossing lasts has stalled ...
 _STALL_SHARE = 0.25  # ... if the gap stopped within this share of the flank
+_SMOOTHING_DEFAULT_SHARE = 0.25  # without a smoothing in the file: at most this share of that mesh torque
 _SMOOTHING_SHARE = 0.5  # smoothing may be at most this share of the mesh torque the torque limit gives the load
 
 
