@@ -152,6 +152,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
         "repeatability_up": st["repeatability_up"], "repeatability_down": st["repeatability_down"],
         "accuracy": st["accuracy"], "mean_bidirectional_deviation": st["mean_bidirectional_deviation"],
         "systematic_deviation": st["systematic_deviation"], "mean_reversal": st["mean_reversal"],
+        "mean_deviation": st["mean_deviation"], "largest_deviation": st["largest_deviation"],
         "per_target": [
             {"target": float(P), "mean_up": float(st["mean_up"][i]), "mean_down": float(st["mean_down"][i]),
              "s_up": float(st["s_up"][i]), "s_down": float(st["s_down"][i]), "reversal": float(st["reversal"][i]),
@@ -177,6 +178,8 @@ def _cmd_precision(args: argparse.Namespace) -> int:
           f"R- {st['repeatability_down'] * 1e6:.3g})")
     print(f"  accuracy A             {st['accuracy'] * 1e6:.4g} urad")
     print(f"  mean bidirectional M   {st['mean_bidirectional_deviation'] * 1e6:.4g} urad")
+    print(f"  mean deviation         {st['mean_deviation'] * 1e6:.4g} urad (a constant offset, outside A, B, R; "
+          f"largest |deviation| {st['largest_deviation'] * 1e6:.4g} urad)")
     print("  target [rad]   mean+ [urad]  mean- [urad]  B_i [urad]")
     for row in out["per_target"]:
         print(f"  {row['target']:11.4f}  {row['mean_up'] * 1e6:12.2f}  {row['mean_down'] * 1e6:12.2f}  "
