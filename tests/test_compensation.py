@@ -759,3 +759,19 @@ def test_a_backlash_under_a_motor_count_is_not_inverted() -> None:
     np.testing.assert_array_equal(runs[0].torque, runs[1].torque)
     servo = load_model("shing1993_servo")
     assert load_controller("deadzone_inverse", build_plant(servo), sensors=servo.sensors).backlash > 0.0
+
+
+def test_the_reversal_offset_notes_a_load_torque_that_holds_one_flank(tmp_path: Path) -> None:
+    """A constant load torque (gravity) presses the load onto one flank; the reversal offset, acting on the command's
+    reversals, then takes up a lost motion the load does not cross (a review's gravity-loaded arm: B 1125 urad
+    against the PID's 1.4). The design says so; without a load torque it says nothing."""
+    from gearctl.catalog import resolve
+
+    text = resolve(SERVO, "models").read_text().replace("load_torque = 0.0 ", "load_torque = -0.5 ")
+    assert "load_torque = -0.5 " in text
+    path = tmp_path / "gravity.toml"
+    path.write_text(text)
+    notes = load_controller("reversal_offset", build_plant(load_model(path))).design_notes
+    assert any(n.startswith("load_torque: the model's -0.5 N m presses the load onto one flank") for n in notes), notes
+    assert not any("load_torque" in n for n in load_controller("reversal_offset", build_plant(load_model(SERVO)))
+                   .design_notes)

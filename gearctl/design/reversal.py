@@ -194,6 +194,14 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
         raise InputError(f"{path}: take_up_cycles = {settings.take_up_cycles!r} spans {take_up:g} s: expected at "
                          "most 1 s", field="take_up_cycles")
     pid = pid_from_values(path, values, info, loop, name + "/pid")
+    tl, J2 = info.plant.load_torque, info.plant.J2
+    if b > 0.0 and settings.gain > 0.0 and abs(tl) > info.plant.tc2:
+        # a constant load torque presses the load onto one flank: the command's reversals do not move it across
+        pid.design_notes = (*pid.design_notes, f"load_torque: the model's {tl:.3g} N m presses the load onto one "
+                            f"flank; it crosses the gap only where a move's acceleration exceeds {abs(tl) / J2:.3g} "
+                            f"rad/s^2 at the load, so the offset at each reversal of the command may take up a lost "
+                            f"motion the load did not cross (set gain = 0 for such an axis, or use the "
+                            f"deadzone_inverse, which sees the torque)")
     try:
         return ReversalOffset(pid, backlash=b, take_up_time=take_up, ramp=settings.ramp, gain=settings.gain,
                               name=name)
