@@ -231,7 +231,12 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
         warnings.append(f"saturated actuator: the motor torque is at its {torque_lim:g} N m limit {sat:.0%} of the "
                         f"time")
     if rate > lim["impact_rate"]:
-        warnings.append(f"impact rate {rate:.4g} per s, above {lim['impact_rate']:g} per s")
+        per_stage = ""
+        if res.plant.n_stages > 1 and after.size:  # which meshes rattle: a train's intermediate shafts float too
+            scale = rate / after.size
+            per_stage = " (" + ", ".join(f"stage {k + 1}: {np.count_nonzero(after['where'] == k) * scale:.3g}"
+                                         for k in range(res.plant.n_stages)) + ")"
+        warnings.append(f"impact rate {rate:.4g} per s, above {lim['impact_rate']:g} per s{per_stage}")
     if growing:
         beyond = f" and the reference's own change of {explained:.3g} rad" if explained > 0 else ""
         warnings.append(f"growing error: {last:.3g} rad in the last quarter against {early:.3g} rad in the "

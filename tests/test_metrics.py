@@ -197,3 +197,17 @@ def test_a_positioning_program_is_judged_against_its_own_excursion() -> None:
     h = loop_health(never_moved(res.run), settle=0.0)
     # standing still: the program dwells at targets spread over 0 .. 0.5 rad, median below RMS (0.79 measured)
     assert 0.6 < h.tracking_ratio <= 1.0 and h.not_following and not h.growing
+
+
+def test_a_trains_impact_rate_warning_names_the_stages() -> None:
+    # every train rattles its floating intermediate shafts: the warning says on which meshes (a reviewer could not
+    # tell the output's rattle from the intermediate stages'); the per-stage rates add up to the total
+    import re
+
+    from gearctl.runs import execute, make_run
+
+    out = execute(make_run("servo_3stage_quanser_srv02", "pid"))
+    (w,) = [w for w in out.metrics.health.warnings if w.startswith("impact rate")]
+    total = float(w.split()[2])
+    stages = [float(x) for x in re.findall(r"stage \d: ([0-9.e+-]+)", w)]
+    assert len(stages) == 3 and sum(stages) == pytest.approx(total, rel=0.01), w
