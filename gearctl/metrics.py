@@ -229,7 +229,8 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
                         f"flanks ({alternation:.0%} of consecutive impacts change flank)")
     if sat > lim["saturated_fraction"]:
         warnings.append(f"saturated actuator: the motor torque is at its {torque_lim:g} N m limit {sat:.0%} of the "
-                        f"time")
+                        f"time" + (f" after the start-up ({t0:.3g} s; saturated_fraction counts the whole run)"
+                                   if t0 > 0.0 else ""))
     if rate > lim["impact_rate"]:
         per_stage = ""
         if res.plant.n_stages > 1 and after.size:  # which meshes rattle: a train's intermediate shafts float too

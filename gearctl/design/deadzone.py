@@ -860,7 +860,7 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
         # the loop can resolve, and the crossings only disturb it (see "Below a count" in the module docstring)
         pid.design_notes = (*pid.design_notes, f"backlash: the lost motion, {lost:.3g} rad at the motor, is under one "
                             f"count of the motor encoder ({count:.3g} rad): nothing the loop can invert, the inverse "
-                            f"runs as its PID (a backlash in the file inverts it anyway)")
+                            f"runs as its PID (to invert it anyway, set backlash in the controller file)")
         b = 0.0
     try:
         return DeadzoneInverse(pid, backlash=b, rule=settings.rule, width=settings.width,

@@ -578,8 +578,8 @@ def pid_from_values(path: Path, values: dict[type, Values], info: LoopInfo, loop
                      f"the PID has {info.J_eq / shaft.J:.3g}x the loop gain on the motor shaft alone "
                      f"({shaft.J:.3g} kg m^2), which the load leaves in the gap; above {bw:.3g} Hz the motor-alone "
                      f"loop is unstable, or within gap_gain_margin_db = {design.gap_gain_margin_db:g} dB of it, and "
-                     f"the motor rattles between the flanks. Set gap_gain_margin_db = 0 in [design] to keep "
-                     f"{design.bandwidth_hz:g} Hz",)
+                     f"the motor rattles between the flanks. To keep {design.bandwidth_hz:g} Hz anyway, and "
+                     f"risk that rattle, set gap_gain_margin_db = 0 in [design]",)
     pid = PID(info, gains, Ts=Ts, feedback=loop.feedback, feedforward=loop.feedforward,
               friction_feedforward=loop.friction_feedforward, name=name)
     pid.design_notes = notes
