@@ -72,7 +72,7 @@ _struct("gcx_mpc_p", [
     *[(f, "double") for f in ("Ts", "b", "tol", "umax", "tau_load", "rb1", "rb2", "kappa1", "kappa2", "ratio",
                               "J_eq", "d_eq", "impact_innovation", "a_max", "v_land", "f_land", "deadband",
                               "cross_share", "learn_below", "tc1", "w_friction", "tc2", "gap_limit",
-                              "gate_motor", "gate_load")],
+                              "gate_motor", "gate_load", "c_centre")],
     ("gap_rows", "double[12]"), ("centre_rows", "double[7]"), ("Lc", "double[3]"), ("Lg_small", "double[2]"),
     ("Lg_big", "double[2]"),
     ("pat_index", "const int16_t *"), ("has_landing", "const int8_t *"), ("land_row", "const int16_t *"),

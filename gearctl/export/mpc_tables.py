@@ -109,7 +109,7 @@ def mpc_values(c: MPC) -> tuple[dict[str, Any], dict[str, int]]:
         "deadband": c.settings.standstill_deadband, "cross_share": _cross_share(),
         "learn_below": getattr(c, "_learn_below", c._b - c._tol), "tc1": c._tc1, "w_friction": c._w_friction,
         "tc2": c._tc2, "gap_limit": c.gap_limit,
-        "gate_motor": c.reading_gate[0], "gate_load": c.reading_gate[1],
+        "gate_motor": c.reading_gate[0], "gate_load": c.reading_gate[1], "c_centre": c._c_centre,
         "gap_rows": list(c._gap_rows), "centre_rows": list(c._centre_rows), "Lc": list(c._Lc),
         "Lg_small": list(c._Lg[0]), "Lg_big": list(c._Lg[1]),
         "pat_index": CArray("gcx_pat_index", "int16_t", pat_index),
