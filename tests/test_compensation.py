@@ -747,7 +747,7 @@ def test_a_free_load_predicted_outside_the_gap_ends_the_crossing() -> None:
 
 def test_a_backlash_under_a_motor_count_is_not_inverted() -> None:
     """tests/data/speedup_light_load.toml: the lost motion, 5.7e-4 rad at the motor, is a tenth of a count of its
-    4096-count motor encoder. The inverse moved the motor by less than the loop resolves and its crossings only
+    1024-count motor encoder. The inverse moved the motor by less than the loop resolves and its crossings only
     disturbed it: sine RMS 1.85e-3 rad against the PID's 1.43e-3. It now runs as its PID (the same torques, said in
     its design notes); the catalog servo's lost motion is 220 counts and is inverted."""
     m = load_model(Path(__file__).parent / "data" / "speedup_light_load.toml")

@@ -331,7 +331,7 @@ def test_a_horizon_that_cannot_hold_a_crossing_is_refused(tmp_path: Path) -> Non
 def test_a_load_encoder_too_coarse_for_the_gap_is_weighed_by_its_own_error() -> None:
     # tests/data/fine_gap_coarse_load_encoder.toml: a load count 29 times the 22 urad lost motion. Weighed as the
     # motor encoder's, the load reading put the MPC's ISO accuracy at 624 urad (the PID's 15) and the sine at 5.8e-5
-    # rad RMS. Measured now: A 23 urad, sine 1.45e-5 (the PID's 1.3e-4); kept: A within 2x the PID's, the sine below
+    # rad RMS. Measured now: A 14 urad, sine 1.5e-5 (the PID's 1.3e-4); kept: A within 2x the PID's, the sine below
     # the PID's, and the plan rigid with the centre of inertia from the motor encoder
     path = str(Path(__file__).parent / "data" / "fine_gap_coarse_load_encoder.toml")
     mpc = design_controller(make_run(path, "mpc").design)
@@ -402,3 +402,5 @@ def test_a_load_too_light_for_its_friction_is_refused_by_the_mpc(tmp_path: Path)
     assert "\nsmoothing = 1e-7 " in text
     mpc = design_controller(make_run(path, _model(tmp_path, "mpc_s", text)).design)
     assert mpc.settings.smoothing == 1e-7
+    # a rigid plan plans no landing: not refused (a reviewer's b = 0 variant of this train was)
+    assert design_controller(make_run(path, "mpc", backlash=0.0).design)._rigid

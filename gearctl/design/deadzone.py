@@ -43,11 +43,11 @@ How a flank change is made, and how a move is finished
   their impacts make it lag its ramp as a too large estimate would.
 - *A prediction outside the gap.* The load cannot be farther from the motor than half the lost motion (plus the
   mesh's deflection): where the predicted free load is more than :data:`FREE_LOAD_REACH` half lost motions from
-  the motor, now or a sample on (with the motor at its speed), it met a flank in truth, and the crossing ends
-  there, on the new flank, the contact control taking over (counted in ``free_load_exits``). Why: on a fuzzed
-  train whose load is 1.7e-10 kg m^2 the observer's disturbance of a few mN m accelerated the predicted load at
-  1e7 rad/s^2; it was predicted 6.6 rad away within a sample, the motor chased it at the torque limit and the sine
-  ran at 154 rad RMS (the PID: 6.7e-3).
+  the motor, now or a sample on (with the motor keeping pace with the load's present speed), it met a flank in
+  truth, and the crossing ends there, on the new flank, the contact control taking over (counted in
+  ``free_load_exits``). Why: on a fuzzed train whose load is 1.7e-10 kg m^2 the observer's disturbance of a few
+  mN m accelerated the predicted load at 1e7 rad/s^2; it was predicted 6.6 rad away within a sample, the motor
+  chased it at the torque limit and the sine ran at 154 rad RMS (the PID: 6.7e-3).
 - *Below a count.* Where the model's backlash gives a lost motion under one count of the motor encoder (at the
   motor), the offset would move the motor by less than the loop resolves, and the crossings only disturb it: the
   inverse runs as its PID and says so in its design notes (a ``backlash`` in the file, or given by the caller,
@@ -713,8 +713,8 @@ class DeadzoneInverse(Controller):
         free = t < self._cross_end
         if free:
             r_c, rd_c, _ = self._free_load()
-            # where the load is against the motor now, and a sample on if the motor keeps its speed (the load's own
-            # speed change over the sample moves it 0.5 Ts (omega_new - omega) against the motor)
+            # where the load is against the motor now, and a sample on if the motor keeps pace with the load's present
+            # speed (the load's own speed change over the sample moves it 0.5 Ts (omega_new - omega) against it)
             rel, reach = y_motor / self.pid.N - r_c, FREE_LOAD_REACH * self._offset
             if not (abs(rel) <= reach and abs(rel - 0.5 * self.Ts * (self._free[1] - rd_c)) <= reach):
                 # the predicted load left the gap: in truth it met a flank of the motor (see "The crossing"). The

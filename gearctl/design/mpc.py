@@ -223,7 +223,9 @@ Holding a free load exactly needs a preloaded (anti-backlash) train.
 *Readings.* A finite encoder reading whose innovation (its distance from the shaft angle the prediction puts it at)
 differs from the last accepted reading's by more than :attr:`MPC.reading_gate` (along the line of action, what the
 torque limit moves the motor in one sample, from full torque one way to full the other, plus twice the lost motion;
-0.015 rad at the motor and 3.8e-3 rad at the load on ``shing1993_servo``) is rejected. A wild reading moves the
+on each shaft, plus two counts and twelve noise stds of that encoder; 0.015 rad at the motor and 3.8e-3 rad at the
+load on ``shing1993_servo``) is rejected. The predicted angles take the gap within the flanks (and none for the
+rigid plan). A wild reading moves the
 innovation at once; a prediction that drifts off, as under a load step that a slow estimate (noisy encoders) has
 not yet followed, moves it a little every sample and is corrected. Gating the innovation itself took such a drift
 for broken encoders: 2e-4 rad of encoder noise and a 0.5 N m load step latched the fault and the load ran off (0.34
@@ -250,8 +252,9 @@ plan is then the rigid train's, the centre of inertia is measured by the motor e
 "motor"``): the motor's angle, through a gap far below a load count, places the load better than the load encoder
 does. Why: on two fuzzed trains with a 10 000-count load encoder (a count 29 times the 22 urad lost motion) the
 load reading, weighed as the motor's, put the ISO accuracy at 624 and 1078 urad against the PID's 15 and 17 (now
-23 and 24; the sine 4.6e-5 to 1.4e-5 rad RMS, the PID's 1.3e-4); on ``tests/data/coarse_encoders_train.toml`` (1024
-counts) ISO accuracy 3.6 mrad, now 0.17 (the PID's 0.87), and the sine 5.5e-4 to 4.6e-4 rad. More generally,
+14 and 15, the motor encoder's error counted with the gap it reads through; the sine 4.6e-5 to 1.5e-5 rad RMS, the
+PID's 1.3e-4); on ``tests/data/coarse_encoders_train.toml`` (1024 counts) ISO accuracy 3.6 mrad, now 0.23 (the PID's
+0.87), and the sine 5.5e-4 to 4.6e-4 rad. More generally,
 under a rigid plan (which does not track the gap) with encoders of different errors, the centre of inertia is
 measured as ``y1 - c s_m`` with the ``c`` of least error variance, the gap taken uniform within ``+-b``:
 ``c = (kappa1 b^2/3 + rb1 s1^2) / (b^2/3 + rb1^2 s1^2 + rb2^2 s2^2)`` (``kappa1``: the exact centre, gap-free;
@@ -557,17 +560,10 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     if "smoothing" not in vals:  # 2e-3 N m, or a quarter of the mesh torque the torque limit gives the load if less
         pl, N, umax = info.plant, info.N, min(info.torque_limit, 1e6)
         mesh_max = pl.J2 * N * umax / (N * N * pl.J1 + pl.J2)
-        smoothing = min(SMOOTHING, _SMOOTHING_DEFAULT_SHARE * mesh_max)
-        held = pl.tc2 + abs(pl.load_torque)
-        if smoothing < SMOOTHING and smoothing < held:
-            # a load this light for its friction: the landings' push could not move it (fuzzed trains with a
-            # 1.7e-10 kg m^2 load under 1 mN m of friction fell back on 83 % of their steps, ISO A 0.65 rad)
-            raise InputError(f"{path}: the MPC cannot plan landings on this plant: the torque limit gives the load "
-                             f"at most {mesh_max:.3g} N m of mesh torque as it accelerates the train, below the "
-                             f"load's friction and load torque ({held:.3g} N m); use the pid or the "
-                             f"deadzone_inverse (a smoothing set in a controller file, at most "
-                             f"{_SMOOTHING_SHARE * mesh_max:.3g} N m, runs it anyway)", field="smoothing")
-        vals["smoothing"] = (None, smoothing)
+        vals["smoothing"] = (None, min(SMOOTHING, _SMOOTHING_DEFAULT_SHARE * mesh_max))
+        scaled_smoothing = vals["smoothing"][1] < SMOOTHING
+    else:
+        scaled_smoothing = False
     settings = build_dataclass(path, MPCSettings, vals)
     reading_error = None
     if sensors is not None:  # a count and the noise of each encoder (the gap the readings may show: gap_limit)
@@ -584,7 +580,7 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
             load_noise = sl  # error (see *Coarse load encoders*)
     try:
         return MPC(info, settings, Ts=Ts, name=name, reading_error=reading_error, load_noise=load_noise,
-                   load_std=load_std)
+                   load_std=load_std, scaled_smoothing=scaled_smoothing)
     except InputError as exc:
         raise InputError(f"{path}: {exc}", field=exc.field) from None
 
@@ -934,6 +930,7 @@ _CROSS_MARGIN = 2e-3  # a crossing must lower the plan's cost by this fraction (
 _FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this much cheaper to land on
 _FREE_ACCELERATION = 1000.0  # rad/s^2 at the motor: without a torque limit, torques are weighed in shares of J_eq x
 # this (the catalog servos' torque limits give their trains 1.2e3 to 1.5e4 rad/s^2)
+_HORIZON_MAX = 200  # the horizon key's upper bound (MPCSettings.horizon)
 _CROSS_HORIZON_SHARE = 0.9  # a crossing must land within this share of the horizon (else the design is refused)
 _CROSS_SHARE = 0.25  # a planned crossing accelerates and decelerates the motor with this share of the torque limit
 _STANDSTILL_LANDING = 0.05  # at standstill, landings close at most this fraction of landing_velocity
@@ -1058,7 +1055,7 @@ class MPC(Controller):
     def __init__(self, info: LoopInfo, settings: MPCSettings | None = None, *, Ts: float = 1e-3,
                  name: str = "mpc", compiled: bool | None = None, inject_failures: set[int] | None = None,
                  reading_error: tuple[float, float] | None = None, load_noise: float | None = None,
-                 load_std: float | None = None) -> None:
+                 load_std: float | None = None, scaled_smoothing: bool = False) -> None:
         super().__init__()
         st = settings if settings is not None else MPCSettings(backlash=info.plant.backlash)
         if not (Ts > 0 and math.isfinite(Ts)):
@@ -1116,15 +1113,27 @@ class MPC(Controller):
             # a plan that cannot see a crossing through to its landing stays on the near flank and pushes: on a train
             # whose gap takes 21 samples at this torque limit the load ran away (13.5 rad RMS, every step "ok")
             need = math.ceil(t_cross / Ts / _CROSS_HORIZON_SHARE)
+            ask = (f"expected horizon >= {need} (a controller file with a longer horizon, or a larger torque_limit; "
+                   f"the deadzone_inverse needs none)" if need <= _HORIZON_MAX else
+                   f"it needs {need}, beyond the longest horizon ({_HORIZON_MAX}): a larger torque_limit, or the "
+                   f"deadzone_inverse, which needs none")
             raise InputError(f"horizon = {n} samples is too short for this plant: a crossing of the lost motion takes "
                              f"{t_cross / Ts:.3g} samples at {_CROSS_SHARE:g} x the torque limit, and the plan must "
-                             f"see it land within {_CROSS_HORIZON_SHARE:g} of the horizon; expected horizon >= {need} "
-                             f"(a controller file with a longer horizon, or a larger torque_limit; the "
-                             f"deadzone_inverse needs none)", field="horizon")
+                             f"see it land within {_CROSS_HORIZON_SHARE:g} of the horizon; {ask}", field="horizon")
         # a flank is taken where the gap turns back only that far short of b: below the contact tolerance, and
         # on a train also below what the floating intermediate shafts alone leave it short by (the tolerance's
         # share beyond a pair's)
         self._learn_below = st.backlash - self._tol - (self._tol - 0.02 * st.backlash)
+        held = p.tc2 + abs(p.load_torque)
+        if not self._rigid and scaled_smoothing and st.smoothing < held:
+            # a load this light for its friction: the landings' push could not move it (fuzzed trains with a
+            # 1.7e-10 kg m^2 load under 1 mN m of friction fell back on 83 % of their steps, ISO A 0.65 rad)
+            raise InputError(f"the MPC cannot plan landings on this plant: the torque limit gives the load at most "
+                             f"{self._mesh_torque_max():.3g} N m of mesh torque as it accelerates the train, below "
+                             f"the load's friction and load torque ({held:.3g} N m); use the pid or the "
+                             f"deadzone_inverse (a smoothing set in a controller file, at most "
+                             f"{_SMOOTHING_SHARE * self._mesh_torque_max():.3g} N m, runs it anyway)",
+                             field="smoothing")
         if not self._rigid and st.smoothing > _SMOOTHING_SHARE * self._mesh_torque_max():
             raise InputError(f"smoothing = {st.smoothing:.3g} N m is out of range for this plant: a landing must leave "
                              f"it on the flank, and the torque limit gives the load at most "
@@ -1308,8 +1317,10 @@ class MPC(Controller):
         a1, a2 = self.info.plant.J1 / self.info.J_eq, self.info.plant.J2 / (m.N * self.info.J_eq)
         sl = self._sigma_load
         self._c_centre = m.kappa1 if load and not self._centre_motor else 0.0
-        if not load or self._centre_motor:  # the motor encoder alone
+        if not load:  # the motor encoder alone
             r_phi = sm
+        elif self._centre_motor:  # the motor encoder alone, and the gap it reads through (uniform within +-b)
+            r_phi = math.sqrt(sm**2 + (m.kappa1 * self._b)**2 / 3.0)
         elif self._rigid and self._load_std is not None and self._load_std != sm:
             # the rigid plan does not track the gap: phi = y1 - c s_m with the c that minimises the error's variance
             # (the gap uniform within +-b, each encoder its own noise; c = kappa1 is the exact centre of inertia)

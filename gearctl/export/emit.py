@@ -125,8 +125,9 @@ def header_text(spec: KindSpec) -> str:
     else:
         load_rule = ", or such a y[1] (the load\n * encoder is used)"
     wild = (" * as missed: the clock k still advances). A finite reading whose distance from its predicted angle\n"
-            " * moves by more than the MPC's gate (one sample of full torque plus twice the lost motion) from the\n"
-            " * last accepted reading's is rejected: the step runs on the prediction, returns GEARCTL_STEP_FALLBACK;\n"
+            " * moves by more than the MPC's gate (one sample of full torque, twice the lost motion and two counts of\n"
+            " * the encoder, with its noise) from the last accepted reading's is rejected: the step runs on the\n"
+            " * prediction, returns GEARCTL_STEP_FALLBACK;\n"
             " * one that persists 5 samples restarts the estimate.\n"
             if spec.prefix == "mpc" else
             " * as missed: the clock k still advances). A wild reading within the limit is the caller's to\n"

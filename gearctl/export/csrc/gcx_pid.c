@@ -481,7 +481,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     double u, c[3];
     if (free) {
         gcx_inv_free_load(P, S, c);
-        /* where the load is against the motor now, and a sample on if the motor keeps its speed */
+        /* where the load is against the motor now, and a sample on if the motor keeps pace with the load */
         double rel = y_motor / P->pid.N - c[0], reach = P->free_load_reach * S->offset;
         if (!(fabs(rel) <= reach && fabs(rel - 0.5 * P->pid.Ts * (S->free[1] - c[1])) <= reach)) {
             /* the predicted load left the gap: it met a flank of the motor; the crossing ends here, the load taken
