@@ -124,6 +124,7 @@ def iso230_statistics(up: NDArray[np.float64], down: NDArray[np.float64]) -> dic
     R_i = np.maximum.reduce([2 * su + 2 * sd + np.abs(B_i), R_up, R_down])
     mean_bi = (mu + md) / 2
     A = max(np.max(mu + 2 * su), np.max(md + 2 * sd)) - min(np.min(mu - 2 * su), np.min(md - 2 * sd))
+    every = np.concatenate([up.ravel(), down.ravel()])
     return {
         "mean_up": mu, "mean_down": md, "s_up": su, "s_down": sd, "reversal": B_i, "mean_bidirectional": mean_bi,
         "reversal_value": float(np.max(np.abs(B_i))),
@@ -134,8 +135,8 @@ def iso230_statistics(up: NDArray[np.float64], down: NDArray[np.float64]) -> dic
         "mean_bidirectional_deviation": float(np.max(mean_bi) - np.min(mean_bi)),
         "systematic_deviation": float(max(mu.max(), md.max()) - min(mu.min(), md.min())),
         "accuracy": float(A),
-        "mean_deviation": float(np.mean(np.concatenate([up.ravel(), down.ravel()]))),
-        "largest_deviation": float(np.max(np.abs(np.concatenate([up.ravel(), down.ravel()])))),
+        "mean_deviation": float(np.mean(every)),
+        "largest_deviation": float(np.max(np.abs(every))),
     }
 
 

@@ -573,11 +573,9 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     load_noise = load_std = None
     if sensors is not None and not file_noise:
         load_std = sensors.reading_std("load")
-    if sensors is not None and sensors.load_encoder_cpr and not file_noise:
-        sl = sensors.reading_std("load")
-        lost = 2.0 * settings.backlash / info.plant.rb2
-        if _COUNT_PER_STD * sl > lost:  # a count of the load encoder is over the lost motion: weigh it by its own
-            load_noise = sl  # error (see *Coarse load encoders*)
+        # a count of the load encoder over the lost motion: weigh it by its own error (see *Coarse load encoders*)
+        if sensors.load_encoder_cpr and _COUNT_PER_STD * load_std > 2.0 * settings.backlash / info.plant.rb2:
+            load_noise = load_std
     try:
         return MPC(info, settings, Ts=Ts, name=name, reading_error=reading_error, load_noise=load_noise,
                    load_std=load_std, scaled_smoothing=scaled_smoothing)
@@ -1094,9 +1092,7 @@ class MPC(Controller):
         # gap (else, with a small b, the reading's noise alone makes contact come and go)
         self._tol = contact_tolerance(info) * st.backlash
         if st.feedback == "load":
-            sm, sl = st.measurement_noise, self._sigma_load
-            r_s = sm * math.hypot(p.rb1, p.rb2) if sl == sm else math.hypot(p.rb1 * sm, p.rb2 * sl)
-            self._tol = max(self._tol, _GAP_NOISE_TOL * r_s)
+            self._tol = max(self._tol, _GAP_NOISE_TOL * self._gap_reading_std())
         # backlash-free (the rigid train, the mesh pushes and pulls): b = 0, or a gap the plan cannot resolve in time
         # (crossed within _RIGID_SAMPLES samples) or the encoders in position (contact bands over half of it)
         self.rigid_reason = ("backlash estimate 0" if st.backlash == 0.0 else
@@ -1174,6 +1170,12 @@ class MPC(Controller):
         self.statuses: list[str] = []
         self.step_times: list[float] = []
         self.reset()
+
+    def _gap_reading_std(self) -> float:
+        """Std of the encoders' gap ``rb1 y1 - rb2 y2`` [m], each reading with its own noise (the same expression as
+        before the load's own noise was used where the two are equal: the same last bits)."""
+        p, sm, sl = self.info.plant, self.settings.measurement_noise, self._sigma_load
+        return sm * math.hypot(p.rb1, p.rb2) if sl == sm else math.hypot(p.rb1 * sm, p.rb2 * sl)
 
     def _mesh_torque_max(self) -> float:
         """Mesh torque on the load [N m] the torque limit gives the rigid train at rest, without load torque:
@@ -1337,8 +1339,7 @@ class MPC(Controller):
                                                        m.B_con[0, 1], m.B_con[1, 1]))
         # gap: rows of the separation model (they also see phi, omega through friction)
         self._gap_rows = tuple(float(v) for v in (*m.A_sep[2], *m.B_sep[2], *m.A_sep[3], *m.B_sep[3]))
-        rb1, rb2 = self.info.plant.rb1, self.info.plant.rb2
-        r_s = sm * math.hypot(rb1, rb2) if sl == sm else math.hypot(rb1 * sm, rb2 * sl)
+        r_s = self._gap_reading_std()
         if self._rigid:  # no gap (and no impact: the velocity-jump model below would be degenerate)
             self._Lg = ((0.0, 0.0), (0.0, 0.0))
             self._impact_innovation = math.inf
@@ -1524,7 +1525,7 @@ class MPC(Controller):
             fl = self._flanks[s_n > 0.0]
             if abs(s_n) >= fl - tol:
                 s_n, v_n = math.copysign(fl, s_n), 0.0
-        phi_meas = (y_motor - m.kappa1 * s_n) if not load or self._centre_motor else (y_motor - self._c_centre * s_m)
+        phi_meas = (y_motor - m.kappa1 * s_n) if not load else (y_motor - self._c_centre * s_m)
         inn = phi_meas - phi_p
         l0, l1, l2 = self._Lc
         z[0], z[1], z[2], z[3], z[4] = phi_p + l0 * inn, om_p + l1 * inn, s_n, v_n, d + l2 * inn

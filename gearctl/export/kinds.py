@@ -68,7 +68,7 @@ _struct("gcx_ada_p", [("inv", "gcx_inv_p"), ("rb1", "double"), ("rb2", "double")
         + [("converged_measurements", "int")])
 _struct("gcx_mpc_p", [
     ("n_pat", "int"), ("n_p", "int"), ("all_contact", "int"), ("rigid", "int"), ("uses_load", "int"),
-    ("n_cross", "int"), ("n_lead", "int"), ("bound_landing", "int"), ("centre_motor", "int"),
+    ("n_cross", "int"), ("n_lead", "int"), ("bound_landing", "int"),
     *[(f, "double") for f in ("Ts", "b", "tol", "umax", "tau_load", "rb1", "rb2", "kappa1", "kappa2", "ratio",
                               "J_eq", "d_eq", "impact_innovation", "a_max", "v_land", "f_land", "deadband",
                               "cross_share", "learn_below", "tc1", "w_friction", "tc2", "gap_limit",

@@ -102,7 +102,7 @@ def mpc_values(c: MPC) -> tuple[dict[str, Any], dict[str, int]]:
     vals: dict[str, Any] = {
         "n_pat": len(keys), "n_p": n_p, "all_contact": index[c._all_contact], "rigid": int(c._rigid),
         "uses_load": int(c.uses_load_encoder), "n_cross": c.n_cross, "n_lead": c.n_lead,
-        "bound_landing": int(c._bound_landing), "centre_motor": int(c._centre_motor),
+        "bound_landing": int(c._bound_landing),
         "Ts": c.Ts, "b": c._b, "tol": c._tol, "umax": c._umax, "tau_load": c._tau_load, "rb1": c._rb1, "rb2": c._rb2,
         "kappa1": md.kappa1, "kappa2": md.kappa2, "ratio": c._ratio, "J_eq": c.info.J_eq, "d_eq": c.info.d_eq,
         "impact_innovation": c._impact_innovation, "a_max": c._a_max, "v_land": c._v_land, "f_land": c._f_land,

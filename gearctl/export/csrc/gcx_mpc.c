@@ -177,7 +177,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         double fl = S->flanks[s_n > 0.0];
         if (fabs(s_n) >= fl - tol) s_n = copysign(fl, s_n), v_n = 0.0;
     }
-    double phi_meas = (!load || P->centre_motor) ? (y_motor - P->kappa1 * s_n) : (y_motor - P->c_centre * s_m);
+    double phi_meas = !load ? (y_motor - P->kappa1 * s_n) : (y_motor - P->c_centre * s_m);
     double inn = phi_meas - phi_p;
     const double *L = P->Lc;
     S->z[0] = phi_p + L[0] * inn, S->z[1] = om_p + L[1] * inn, S->z[2] = s_n, S->z[3] = v_n;
