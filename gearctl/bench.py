@@ -95,12 +95,40 @@ class BenchSpec:
         for c in self.controllers:
             resolve(c, "controllers")
 
-    def runs(self) -> list[Run]:
-        """The independent tracking runs, as values (plants and designs built once, here)."""
-        ctrls = self.controllers or tuple(controller_names())
+    def skipped(self) -> list[dict[str, str]]:
+        """Catalog controllers left out of a model's rows: ``{model, controller, reason}``.
+
+        With the default controllers (every catalog entry), a model whose servo has no load encoder
+        (``[sensors] load_encoder = false``) runs only those on the motor encoder; controllers named in
+        :attr:`controllers` always run (and one that reads the missing encoder fails with the reason).
+        """
+        if self.controllers:
+            return []
         out = []
         for m in self.models:
             model = load_model(m)
+            if model.sensors.load_encoder:
+                continue
+            plant = build_plant(model)
+            for c in controller_names():
+                if design_controller(Design(spec=controller_spec(c)[0], nominal=plant)).uses_load_encoder:
+                    out.append({"model": m, "controller": c,
+                                "reason": "reads the load encoder, and the servo has none ([sensors] load_encoder = "
+                                          "false)"})
+        return out
+
+    def _controllers(self, m: str, skipped: Sequence[dict[str, str]]) -> tuple[str, ...]:
+        left_out = {s["controller"] for s in skipped if s["model"] == m}
+        return tuple(c for c in (self.controllers or tuple(controller_names())) if c not in left_out)
+
+    def runs(self, skipped: Sequence[dict[str, str]] | None = None) -> list[Run]:
+        """The independent tracking runs, as values (plants and designs built once, here); ``skipped``:
+        :meth:`skipped`, computed if not given."""
+        skipped = self.skipped() if skipped is None else skipped
+        out = []
+        for m in self.models:
+            model = load_model(m)
+            ctrls = self._controllers(m, skipped)
             true = {p: build_plant(model, p) for p in self.plants}
             true[FREE] = build_plant(model, backlash=0.0)
             nominal = {"improved": build_plant(model), "yang-sun": build_plant(model, "yang-sun"), FREE: true[FREE]}
@@ -118,14 +146,15 @@ class BenchSpec:
                                    tags={"model": m, "controller": c, "plant": p, "design": d, "reference": r}))
         return out
 
-    def precision_runs(self) -> list[dict[str, Any]]:
+    def precision_runs(self, skipped: Sequence[dict[str, str]] | None = None) -> list[dict[str, Any]]:
         """The ISO 230-2 rows: each controller on the improved plant, and the PID on the backlash-free one."""
         if not self.precision:
             return []
-        ctrls = self.controllers or tuple(controller_names())
+        skipped = self.skipped() if skipped is None else skipped
         out = []
         for m in self.models:
             model = load_model(m)
+            ctrls = self._controllers(m, skipped)
             plant, free = build_plant(model), build_plant(model, backlash=0.0)
             for c in ctrls:
                 spec, label = controller_spec(c)
@@ -201,10 +230,11 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     dict
         ``runs`` (every run's figures), ``precision`` (the ISO rows), ``ratios`` {``over_pid``,
         ``over_backlash_free``, ``improved_over_yang_sun``, ``cross_design``, ``iso_over_backlash_free``},
-        ``spec``.
+        ``spec``, ``skipped`` (:meth:`BenchSpec.skipped`).
     """
-    runs = list(runs if runs is not None else spec.runs())
-    iso = spec.precision_runs()
+    skipped = spec.skipped()
+    runs = list(runs if runs is not None else spec.runs(skipped))
+    iso = spec.precision_runs(skipped)
     compiled_available()  # compile the kernel once before the workers start
     tasks: list[tuple[Callable[[Any], dict[str, Any]], Any]] = [(_row, r) for r in runs]
     tasks += [(_precision_row, j) for j in iso]
@@ -213,7 +243,8 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     rows.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
     iso_rows = [r for r in results[len(runs):] if r is not None]
     spec_d = dataclasses.asdict(spec)
-    return {"spec": spec_d, "runs": rows, "precision": iso_rows, "ratios": _ratios(rows, iso_rows)}
+    return {"spec": spec_d, "runs": rows, "precision": iso_rows, "ratios": _ratios(rows, iso_rows),
+            "skipped": skipped}
 
 
 def _ratios(results: Sequence[dict[str, Any]], iso: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:
@@ -346,6 +377,8 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
     for r in failed:
         how = "" if r["design"] == "improved" else f", designed on {r['design']}"
         lines.append(f"FAILED: {r['controller']} on {r['plant']} ({r['reference']}{how}): {r['message']}")
+    for s in result.get("skipped", ()):
+        lines.append(f"not run: {s['controller']} on {s['model']}: {s['reason']}")
     return "\n".join(lines).rstrip() + "\n"
 
 

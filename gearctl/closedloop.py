@@ -200,12 +200,15 @@ def simulate_closed_loop(
 
     Raises
     ------
+    InputError
+        If the controller reads the load encoder and ``sensors`` say the servo has none.
     SimulationError
         If the loop diverges or the plant state becomes NaN; ``error.result`` holds the run so far.
     """
     Ts = controller.Ts
     n = loop_samples(plant, controller, duration, seed)
     sensors = sensors or Sensors()
+    sensors.check_controller(controller)
     enc_m = Encoder(sensors.motor_encoder_cpr, sensors.motor_noise)
     enc_l = Encoder(sensors.load_encoder_cpr, sensors.load_noise)
     rng = np.random.default_rng(seed)

@@ -261,10 +261,13 @@ def record_excitation(model: GearModel | str | Path, *, motion: str = "identify"
     nominal = build_plant(m, backlash=backlash)
     ctrl = load_controller(controller, nominal, sensors=m.sensors)
     check_output_size(int(round(duration / ctrl.Ts)) + 1, true.nx + 8, field="duration", fix="a shorter --duration")
-    run = simulate_closed_loop(true, _RecordBoth(ctrl), program, duration, sensors=m.sensors, seed=seed)
+    # the log records the load encoder too, where the servo has one
+    rec = _RecordBoth(ctrl) if m.sensors.load_encoder else ctrl
+    run = simulate_closed_loop(true, rec, program, duration, sensors=m.sensors, seed=seed)
     notes = (f"gearctl excite: model {m.name}, {plant} plant, backlash {true.backlash:.6g} m, motion {motion}, "
              f"amplitude {amplitude:g} rad, controller {ctrl.name}, seed {seed}")
-    log = EncoderLog(t=run.t, torque=run.torque, theta1=run.y_motor, theta2=run.y_load,
+    log = EncoderLog(t=run.t, torque=run.torque, theta1=run.y_motor,
+                     theta2=run.y_load if m.sensors.load_encoder else None,
                      extra={"reference": run.reference}, sample_time=ctrl.Ts, comments=(notes,))
     return Excitation(log=log, run=run, plant=true, program=program, model=m)
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+from typing import Any
 
 from .errors import InputError
 from .units import (
@@ -148,16 +149,45 @@ class Sensors:
     """Position encoders on the motor and load shafts (the ``[sensors]`` table).
 
     A resolution of ``None`` is an ideal (unquantised) sensor. Noise is white, Gaussian, with the given
-    standard deviation, drawn from the simulation's seeded generator.
+    standard deviation, drawn from the simulation's seeded generator. ``load_encoder = False`` says the servo
+    has no load encoder at all (a motor-encoder-only drive): a controller that reads one is refused
+    (:meth:`check_controller`), and a log records ``theta1`` alone.
     """
 
     motor_encoder_cpr: int | None = ENCODER_CPR.field(default=None, optional=True, doc="motor encoder resolution")
     load_encoder_cpr: int | None = ENCODER_CPR.field(default=None, optional=True, doc="load encoder resolution")
     motor_noise: float = ENCODER_NOISE.field(default=0.0, doc="motor encoder noise (std)")
     load_noise: float = ENCODER_NOISE.field(default=0.0, doc="load encoder noise (std)")
+    load_encoder: bool = True
 
     def __post_init__(self) -> None:
         validate_fields(self)
+        if not isinstance(self.load_encoder, bool):
+            rule = "is not true or false: expected true (the servo has a load encoder) or false (it has none)"
+            raise InputError(f"load_encoder = {self.load_encoder!r} {rule}", field="load_encoder", rule=rule)
+        if not self.load_encoder:
+            for name in ("load_encoder_cpr", "load_noise"):
+                if getattr(self, name):
+                    rule = f"describes a load encoder the table says is missing (load_encoder = false): remove {name}"
+                    raise InputError(f"{name} = {getattr(self, name)!r} {rule}", field=name, rule=rule)
+
+    def check_controller(self, controller: Any, where: str = "") -> None:
+        """Refuse a controller that reads the load encoder when the servo has none.
+
+        ``where`` names the controller's file in the message.
+
+        Raises
+        ------
+        InputError
+            Naming ``load_encoder`` and the controllers that run on the motor encoder alone.
+        """
+        if not self.load_encoder and getattr(controller, "uses_load_encoder", False):
+            name = getattr(controller, "name", "controller")
+            at = f" ({where})" if where else ""
+            rule = (f"(the servo has no load encoder), but controller {name!r}{at} reads one: run a controller on "
+                    f"the motor encoder alone (pid, deadzone_inverse, reversal_offset, or an MPC file with "
+                    f"feedback = \"motor\")")
+            raise InputError(f"[sensors] load_encoder = false {rule}", field="load_encoder", rule=rule)
 
     def reading_std(self, shaft: str) -> float:
         """Standard deviation of one reading of the ``"motor"`` or ``"load"`` encoder [rad]: its quantisation

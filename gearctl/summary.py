@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -83,13 +84,15 @@ def model_summary(model: GearModel) -> dict[str, Any]:
         {k, c, J1, J2, natural_frequency_hz} for the improved plant. For a train: ``stages`` (a list of
         those per-stage keys, each with its ``ratio``), ``plant`` {J (per shaft), k, c (per stage),
         gear_ratio, natural_frequency_hz}, ``lost_motion`` [rad at the output] and
-        ``equivalent_stiffness`` [N m/rad at the output]. Both have ``model``, ``stages_count`` and
-        ``source``.
+        ``equivalent_stiffness`` [N m/rad at the output]. Both have ``model``, ``stages_count``,
+        ``sensors`` {``motor_encoder_cpr``, ``load_encoder_cpr`` (null: ideal), ``motor_noise``,
+        ``load_noise`` [rad], ``load_encoder`` (false: the servo has none)} and ``source``.
     """
     plant = build_plant(model)
     stages = [_stage_summary(s.pair, s.dynamics, plant, i) for i, s in enumerate(model.stages)]
+    sensors = {f.name: getattr(model.sensors, f.name) for f in dataclasses.fields(model.sensors)}
     common = {"model": model.name, "stages_count": len(stages), "lost_motion": plant.lost_motion,
-              "equivalent_stiffness": plant.equivalent_stiffness, "source": dict(model.source)}
+              "equivalent_stiffness": plant.equivalent_stiffness, "sensors": sensors, "source": dict(model.source)}
     if len(stages) == 1:
         return {"model": model.name, **stages[0], "plant": {
             "k": plant.k, "c": plant.c, "J1": plant.J1, "J2": plant.J2, "contact_law": plant.contact_law.value,

@@ -199,6 +199,7 @@ SENSOR_CASES = [
     ("load_encoder_cpr", 1000.5),
     ("motor_noise", -1e-6),
     ("load_noise", 2.0),
+    ("load_encoder", "no"),
 ]
 
 

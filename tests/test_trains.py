@@ -483,7 +483,7 @@ def test_cli_info_train(capsys: pytest.CaptureFixture[str], two: Plant) -> None:
     assert len(info["stages"]) == 2
     assert_allclose(info["lost_motion"], two.lost_motion, rtol=1e-15)
     # each stage carries the keys a pair's info has (less the model-level ones)
-    model_level = {"model", "source", "plant", "stages_count", "lost_motion", "equivalent_stiffness"}
+    model_level = {"model", "source", "plant", "stages_count", "lost_motion", "equivalent_stiffness", "sensors"}
     for st in info["stages"]:
         assert set(pair) - model_level <= set(st)
     assert [s["teeth"] for s in info["stages"]] == [[32, 96], [48, 80]]

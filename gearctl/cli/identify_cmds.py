@@ -44,7 +44,8 @@ def _cmd_excite(args: argparse.Namespace) -> int:
     print(f"  backlash               {p.backlash * 1e6:.4g} um (lost motion {p.lost_motion:.4g} rad at the load)")
     print(f"  gap crossings          {crossings} (flank changes), {run.impact_count} impacts")
     print(f"  torque                 max |u| {abs(run.torque).max():.3g} N m")
-    say_written((args.out, f"log, {ex.log.n} samples: t, torque, theta1, theta2, reference"))
+    cols = ", ".join(["t", "torque", "theta1"] + (["theta2"] if ex.log.theta2 is not None else []) + list(ex.log.extra))
+    say_written((args.out, f"log, {ex.log.n} samples: {cols}"))
     return 0
 
 
@@ -100,7 +101,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                                       "friction (or write that motion for a real drive)")
     p.add_argument("model", help="the true model: catalog name or TOML path (its [sensors] quantise the angles)")
     p.add_argument("--duration", type=spec_arg(DURATION), default=10.0, help="length of the log [s] (default 10)")
-    p.add_argument("--out", metavar="LOG.csv", help="write the log: t, torque, theta1, theta2, reference")
+    p.add_argument("--out", metavar="LOG.csv",
+                   help="write the log: t, torque, theta1, theta2 (with a load encoder), reference")
     p.add_argument("--reference-only", metavar="FILE", help="write only the motion (t, reference, velocity, "
                                                             "acceleration), to run on a real drive")
     p.add_argument("--motion", choices=("identify", "moves"), default="identify",

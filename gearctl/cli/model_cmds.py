@@ -107,6 +107,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
         _print_stage(s)
         print(f"  plant                  k {p['k']:.5g} N/m, c {p['c']:.5g} N s/m, J1 {p['J1']:.5g}, J2 {p['J2']:.5g} "
               f"kg m^2, mesh mode {p['natural_frequency_hz']:.5g} Hz, {p['contact_law']} contact law")
+        _print_sensors(s["sensors"])
         return 0
     print(f"{s['model']}: {s['stages_count']}-stage train, ratio {p['gear_ratio']:.5g}, lost motion at the output "
           f"{s['lost_motion'] * 1e6:.4g} urad, stiffness at the output {s['equivalent_stiffness']:.4g} N m/rad")
@@ -118,7 +119,18 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print("  plant                  J " + ", ".join(f"{v:.4g}" for v in p["J"]) + " kg m^2 (motor first); k "
           + ", ".join(f"{v:.4g}" for v in p["k"]) + " N/m; fastest mesh mode "
           f"{p['natural_frequency_hz']:.5g} Hz, {p['contact_law']} contact law")
+    _print_sensors(s["sensors"])
     return 0
+
+
+def _encoder_text(cpr: int | None, noise: float) -> str:
+    text = f"{cpr} counts/rev" if cpr else "ideal"
+    return text + (f", noise {noise:.3g} rad" if noise else "")
+
+
+def _print_sensors(s: dict[str, Any]) -> None:
+    load = _encoder_text(s["load_encoder_cpr"], s["load_noise"]) if s["load_encoder"] else "none"
+    print(f"  encoders               motor {_encoder_text(s['motor_encoder_cpr'], s['motor_noise'])}; load {load}")
 
 
 def _cmd_stiffness(args: argparse.Namespace) -> int:

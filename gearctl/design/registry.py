@@ -62,7 +62,8 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
     Raises
     ------
     InputError
-        For an unknown kind or key, or a value out of range.
+        For an unknown kind or key, or a value out of range; for a controller that reads the load encoder when
+        ``sensors`` say the servo has none (``load_encoder = false``).
     """
     path = Path(path)
     kind = spec.get("kind")
@@ -87,7 +88,11 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
             Ts = SAMPLE_TIME.check("sample_time", ts)
         except InputError as exc:
             raise InputError(f"{path}: sample_time = {ts!r} {exc.rule}", field="sample_time", rule=exc.rule) from None
-        return mpc.build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash, sensors=sensors)
-    if kind in ("deadzone_inverse", "adaptive_inverse"):  # the rattle guard's floor follows the motor encoder
-        return MODULES[kind].build(path, spec, info, name=name, backlash=backlash, sensors=sensors)
-    return MODULES[kind].build(path, spec, info, name=name, backlash=backlash)
+        ctrl = mpc.build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash, sensors=sensors)
+    elif kind in ("deadzone_inverse", "adaptive_inverse"):  # the rattle guard's floor follows the motor encoder
+        ctrl = MODULES[kind].build(path, spec, info, name=name, backlash=backlash, sensors=sensors)
+    else:
+        ctrl = MODULES[kind].build(path, spec, info, name=name, backlash=backlash)
+    if sensors is not None:
+        sensors.check_controller(ctrl, str(path))
+    return ctrl

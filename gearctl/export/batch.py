@@ -136,6 +136,7 @@ def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: fl
     Ts = controller.Ts
     n = loop_samples(plant, controller, duration, seed)
     sensors = sensors or Sensors()
+    sensors.check_controller(controller)
     use_load = controller.uses_load_encoder
     kn = Kernel(plant, np.zeros(plant.nx), dt=Ts, compiled=True)
     if kn._fn is None:
