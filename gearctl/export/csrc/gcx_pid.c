@@ -277,6 +277,8 @@ GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     S->rattle = 0.0, S->rattling = 0;
     S->reach = -INFINITY;
     S->trusted = 0;
+    S->motor_free[0] = S->motor_free[1] = 0.0, S->motor_free_since = 0.0;
+    S->motor_free_set = S->motor_free_new = S->motor_free_anchor = 0;
     gcx_ramp_reset(&S->ramp, 0.0);
     S->obs.set = 0;
     S->obs.x[0] = S->obs.x[1] = S->obs.x[2] = 0.0;
@@ -334,6 +336,25 @@ GCX_FN void gcx_inv_start_crossing(const gcx_inv_p *P, gcx_inv_s *S, double t, d
     else
         omega = rd;
     S->free[0] = theta, S->free[1] = omega;
+    /* the motor alone from here on, under the torques it is given */
+    S->motor_free[0] = y_motor / P->pid.N, S->motor_free[1] = omega;
+    S->motor_free_set = 1, S->motor_free_new = 1, S->motor_free_anchor = 1, S->motor_free_since = t;
+}
+
+/* DeadzoneInverse._advance_free_motor: the free motor's prediction over the last sample */
+GCX_FN void gcx_inv_advance_free_motor(const gcx_inv_p *P, gcx_inv_s *S) {
+    if (!S->motor_free_set) return;
+    if (S->motor_free_new) { /* the crossing started this sample: its torque is yet to act */
+        S->motor_free_new = 0;
+        return;
+    }
+    const gcx_plant_p *pl = &P->plant;
+    double x = S->motor_free[0], v = S->motor_free[1];
+    double u = S->u_hist[1];
+    if (pl->tc1 > 0.0 && v != 0.0) u -= copysign(pl->tc1, v);
+    double acc = (u / P->pid.N - pl->d1 * v) / pl->J1;
+    double v_new = v + P->pid.Ts * acc;
+    S->motor_free[0] = x + 0.5 * P->pid.Ts * (v + v_new), S->motor_free[1] = v_new;
 }
 
 /* DeadzoneInverse._free_load */
@@ -396,11 +417,20 @@ GCX_FN void gcx_inv_take_up(const gcx_inv_p *P, gcx_inv_s *S, double t, double o
     out[2] = (d0 * h00dd + T * dd0 * h10dd) / pow(T, 2.0);
 }
 
-/* DeadzoneInverse._check_contact */
-GCX_FN void gcx_inv_check_contact(const gcx_inv_p *P, gcx_inv_s *S, double t, double rel, double o) {
-    S->reach = gcx_max(S->reach, S->sigma * rel);
+/* DeadzoneInverse._check_contact: motor the motor's angle, load the predicted free load's (load units) */
+GCX_FN void gcx_inv_check_contact(const gcx_inv_p *P, gcx_inv_s *S, double t, double motor, double load) {
+    S->reach = gcx_max(S->reach, S->sigma * (motor - load));
+    if (!S->motor_free_set) return;
+    if (S->motor_free_anchor && gcx_ramp_progress(&S->ramp, t) > 0.5) {
+        /* re-anchored on the measured motion, the start speed's error corrected (see the Python) */
+        double elapsed = t - S->motor_free_since;
+        if (elapsed > 0.0) S->motor_free[1] += (motor - S->motor_free[0]) / elapsed;
+        S->motor_free[0] = motor;
+        S->motor_free_anchor = 0;
+    }
+    double lag = S->sigma * (motor - S->motor_free[0]);
     if (S->trusted && gcx_ramp_progress(&S->ramp, t) > 0.5 && S->reach > 0.0 &&
-        S->sigma * (rel - o) < -P->contact_lag * S->offset) {
+        lag < -P->contact_lag * S->offset) {
         S->cross_end = t;
         gcx_ramp_reset(&S->ramp, S->sigma * S->reach);
         S->contacts += 1;
@@ -498,7 +528,8 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
         S->was_free = 1;
         double a_c = (S->free[1] - c[1]) / P->pid.Ts; /* the free load's mean acceleration over the sample */
         u = gcx_offset_torque(&P->pid, &S->pid, pl, c[0], c[1], a_c, off, y_motor, y_load, has_yl, 1, 1.0, 0.0);
-        gcx_inv_check_contact(P, S, t, y_motor / P->pid.N - c[0], off[0]);
+        gcx_inv_advance_free_motor(P, S);
+        gcx_inv_check_contact(P, S, t, y_motor / P->pid.N, c[0]);
     } else {
         if (S->was_free) { /* landed: the load's lag behind the reference is taken up smoothly */
             S->was_free = 0;

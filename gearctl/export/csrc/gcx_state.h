@@ -38,6 +38,8 @@ typedef struct {
     double rdd_prev; /* |r''| of the last step (_one_way) */
     double crossing_time; /* set_crossing_time: the crossing time and ramp shape now (init: the parameters') */
     double jump_threshold; /* set_backlash: the rattle guard's motor speed jump, b / jump_den */
+    double motor_free[2], motor_free_since; /* the free motor's predicted angle and speed; the crossing's start */
+    int motor_free_set, motor_free_new, motor_free_anchor; /* predicted; its start torque yet to act; not re-anchored */
     int ramp_shape;
     int was_free, moving_ref, has_lag, contacts, free_load_exits, y_hist_n, rattling, trusted;
     int stopped, one_way_prev; /* at rest with the push-back withheld; withheld at the last step (_one_way) */
