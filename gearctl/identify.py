@@ -913,6 +913,8 @@ TORQUE_MARGIN = 1.5
 INERTIA_FACTOR = 3.0
 #: The load encoder must move at the model's ratio within this factor while both shafts move.
 RATIO_FACTOR = 1.25
+#: ... checked over a travel of at least this many of the model's lost motions (a log dithering in the gap is not)
+RATIO_TRAVEL = 20.0
 #: The backlash a model file allows, in modules (gearctl.units.BACKLASH).
 MAX_BACKLASH_MODULES = 0.5
 
@@ -945,9 +947,9 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
     - ``t``, ``torque`` or ``theta1`` in other units: that lumped inertia more than :data:`INERTIA_FACTOR` from
       the model's (the message guesses degrees, revolutions, counts, mN m or ms from the factor; a factor it
       does not know names ``theta1``);
-    - ``theta2`` (with both encoders): the median of ``N theta2' / theta1'`` over the samples where the motor
-      moves (mostly in contact) outside ``1 / RATIO_FACTOR .. RATIO_FACTOR`` (swapped columns give ``N^2``,
-      a dead encoder 0, revolutions ``1 / 2 pi``).
+    - ``theta2`` (with both encoders): the least-squares slope of ``N theta2`` on ``theta1`` outside ``1 /
+      RATIO_FACTOR .. RATIO_FACTOR`` (swapped columns give ``N^2``, a dead encoder 0, revolutions ``1 / 2 pi``),
+      where the motor travels at least :data:`RATIO_TRAVEL` lost motions (over less the gap itself moves the ratio).
     """
     lg, name = p.log, p.log.name
     if p.Ts > MAX_IDENTIFY_PERIOD:
@@ -972,15 +974,22 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
     mv = _Encoder.moving(m.w, m.v_thr, p.W)
     pl = p.nominal
     J_model = pl.J1 + pl.J2 / p.N**2
-    if p.l is not None and mv.sum() >= 20:
-        sel = mv & (np.abs(m.w) > 0)
-        ratio = float(np.median(p.N * p.l.w[sel] / m.w[sel]))
+    lost = 2.0 * pl.backlash / pl.rb2  # the model's lost motion [rad at the load]
+    # the load's travel, as either encoder reads it (swapped columns must not hide the check)
+    travel = max(float(np.ptp(lg.theta1)) / p.N, float(np.ptp(lg.theta2)) if p.l is not None else 0.0)
+    if p.l is not None and travel >= RATIO_TRAVEL * lost:
+        # over a travel of many lost motions the load follows the motor at 1 / N whatever the gap does: the
+        # least-squares slope of N theta2 on theta1 (a median of N theta2' / theta1' over the samples where the motor
+        # moves read 0 on a PRBS log whose motor dithers in the gap while friction holds the load)
+        x = lg.theta1 - float(np.mean(lg.theta1))
+        ratio = p.N * float(np.dot(x, lg.theta2 - float(np.mean(lg.theta2)))) / float(np.dot(x, x))
         if not 1 / RATIO_FACTOR <= ratio <= RATIO_FACTOR:
             hint = (" (theta1 and theta2 swapped?)" if abs(math.log(max(ratio, 1e-300) / p.N**2)) < math.log(1.5) else
                     " (a dead load encoder?)" if abs(ratio) < 0.05 else _unit_hint(ratio, RATIO_HINTS))
-            raise InputError(f"{name}: column theta2: moves {ratio:.3g} times as far as theta1 / N while the motor "
-                             f"moves (median of N theta2' / theta1'; expected 1 at the model's ratio N = {p.N:.4g}, "
-                             f"allowed {1 / RATIO_FACTOR:.3g}-{RATIO_FACTOR:g}){hint}", field="theta2")
+            raise InputError(f"{name}: column theta2: moves {ratio:.3g} times as far as theta1 / N over the log "
+                             f"(least-squares slope of N theta2 on theta1 over {travel:.3g} rad of travel at the "
+                             f"load; expected 1 at the model's ratio N = {p.N:.4g}, allowed "
+                             f"{1 / RATIO_FACTOR:.3g}-{RATIO_FACTOR:g}){hint}", field="theta2")
     if mv.sum() >= 20:
         A = np.column_stack([m.a, m.w, np.sign(m.w)])[mv]
         y = p.uf[mv]
@@ -1385,7 +1394,10 @@ def _systematic(p: _Problem, wins: list[_Window], fits: list[_Fit], theta: NDArr
             variants[key] = [th]
     variants["viscous split"] = [_split(theta, N, psi=0.0), _split(theta, N, psi=1.0)]
     if spreads.get("kappa", 0.0) > 0:
-        variants["kappa"] = [_split(theta, N, kappa=1.0 + spreads["kappa"])]
+        # a heavier motor takes its inertia from the load's share of the lumped one: never all of it (a load that
+        # reflects less than the motor inertia's tolerance would get a negative inertia)
+        kappa = min(1.0 + spreads["kappa"], 1.0 + 0.5 * (J_eq - theta[0]) / theta[0])
+        variants["kappa"] = [_split(theta, N, kappa=kappa)]
     if spreads.get("phi", 0.0) > 0 and T_eq > 0:
         phi0 = theta[4] / T_eq
         variants["phi"] = [_split(theta, N, phi=min(phi0 + spreads["phi"], 1.0) if phi0 < 0.5 else
@@ -1442,6 +1454,41 @@ def _check_log(lg: EncoderLog) -> None:
     if lg.n < MIN_LOG_SAMPLES:
         raise InputError(f"{lg.name}: {lg.n} samples is too short: expected at least {MIN_LOG_SAMPLES}", field="log")
     SAMPLE_TIME.check("sample_time", lg.sample_time)
+
+
+#: Largest angle a reading may hold [rad] (160 000 revolutions): beyond it a value is no encoder angle
+MAX_ANGLE = 1e6
+#: A reading that leaves its neighbours by more than this many times the log's 99th-percentile step and comes back
+#: within a sample is an encoder glitch
+SPIKE_FACTOR = 20.0
+
+
+def _check_readings(lg: EncoderLog) -> None:
+    """Refuse encoder columns holding values no encoder gives: beyond :data:`MAX_ANGLE`, or a one-sample glitch
+    (a jump out and back of more than :data:`SPIKE_FACTOR` times the 99th percentile of the steps), naming the
+    column and the sample."""
+    for col, v in (("theta1", lg.theta1), ("theta2", lg.theta2)):
+        if v is None:
+            continue
+        big = np.flatnonzero(np.abs(v) > MAX_ANGLE)
+        if big.size:
+            k = int(big[0])
+            raise InputError(f"{lg.name}: column {col}: {float(v[k]):.6g} at sample {k} (t = {float(lg.t[k]):.6g} s) "
+                             f"is beyond {MAX_ANGLE:g} rad: expected the encoder's angle in rad", field=col)
+        d = np.diff(v)
+        if d.size < 3:
+            continue
+        thr = SPIKE_FACTOR * float(np.percentile(np.abs(d), 99.0))
+        out, back = d[:-1], d[1:]
+        spike = ((np.abs(out) > thr) & (np.abs(back) > thr) & (out * back < 0.0)
+                 & (np.abs(out + back) < 0.1 * np.minimum(np.abs(out), np.abs(back))))
+        if thr > 0.0 and spike.any():
+            k = int(np.flatnonzero(spike)[0]) + 1
+            raise InputError(f"{lg.name}: column {col}: sample {k} (t = {float(lg.t[k]):.6g} s) jumps "
+                             f"{float(out[k - 1]):.3g} rad from its neighbours and back (an encoder glitch: the "
+                             f"log's steps are at most {thr / SPIKE_FACTOR:.3g} rad in 99 % of the samples); repair "
+                             f"or cut the log there",
+                             field=col)
 
 
 def _load_encoder_direction(log: EncoderLog) -> tuple[EncoderLog, bool]:
@@ -1551,6 +1598,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
 
     lg = log if isinstance(log, EncoderLog) else read_log(log)
     _check_log(lg)
+    _check_readings(lg)
     mdl = model if isinstance(model, GearModel) else load_model(model)
     if mdl.n_stages != 1:
         raise InputError(f"{mdl.name}: a train of {mdl.n_stages} stages; identify handles a gear pair (one stage)",
@@ -1777,6 +1825,9 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
             widen(key, f"the log hardly constrains it: variance {cov[i, i] / sd[i] ** 2:.0%} of the prior's")
     if encoders == "motor":
         ni.setdefault("J1", f"the model's within {MOTOR_INERTIA_TOLERANCE:.0%}: the motor encoder sees J1 + J2/N^2")
+        # J2 = N^2 (J_eq - J1): a motor inertia off the model's by more than its tolerance moves J2 N^2 times as much
+        ni.setdefault("J2", f"from J1 + J2/N^2 with J1 the model's within {MOTOR_INERTIA_TOLERANCE:.0%}: a motor "
+                            f"inertia further off moves J2 N^2 = {N**2:.4g} times as much")
         for key in ("viscous1", "viscous2"):
             ni.setdefault(key, "the motor encoder sees d1 + d2/N^2: the interval spans every split")
         teq_hi = teq + spreads["T_eq"]
