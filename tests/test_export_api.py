@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import shutil
 import subprocess
+import sys
 import textwrap
 from pathlib import Path
 
@@ -290,3 +291,45 @@ def test_the_mpc_torque_never_exceeds_the_limit(tmp_path: Path) -> None:
     limit = _macro((d / "gearctl_ctrl.h").read_text(), "GEARCTL_TORQUE_LIMIT")
     _, cases = read_vectors(d / "gearctl_vectors.bin")
     assert max(float(np.max(np.abs(c.u))) for c in cases) <= limit
+
+
+@needs_make
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="feenableexcept is glibc's")
+@pytest.mark.parametrize(("ctrl", "missing_load"), [("mpc", 1), ("adaptive_inverse", 2), ("deadzone_inverse", 0)])
+def test_a_nan_input_is_screened_without_a_floating_point_trap(tmp_path: Path, ctrl: str, missing_load: int) -> None:
+    # a reviewer's harness ran with FE_INVALID trapped: the input screen's !(|x| <= limit) compared a NaN and raised
+    # SIGFPE. With isfinite first: a NaN motor reading or reference is a bad input (2, zero torque); a NaN load
+    # reading is a missing one for the MPC (1, a fallback), a bad input where the load encoder is read (2), ignored
+    # where it is not (0)
+    d, _ = _export(tmp_path, SERVO, ctrl, vectors=False)
+    subprocess.run(["make", "-s", "-C", str(d)], check=True, capture_output=True, timeout=600)
+    src = tmp_path / "trap.c"
+    src.write_text(textwrap.dedent("""\
+        #define _GNU_SOURCE
+        #include <fenv.h>
+        #include <math.h>
+        #include <stdio.h>
+        #include "gearctl_ctrl.h"
+        int main(void) {
+            static gearctl_ctrl_t c;
+            double y[2] = {NAN, 0.0}, ref[3 * GEARCTL_PREVIEW] = {0}, u = 1.0;
+            int a, b, e;
+            feenableexcept(FE_INVALID | FE_DIVBYZERO | FE_OVERFLOW);
+            gearctl_ctrl_init(&c);
+            a = gearctl_ctrl_step(&c, y, ref, &u);
+            y[0] = 0.0, y[1] = NAN;
+            b = gearctl_ctrl_step(&c, y, ref, &u);
+            y[1] = 0.0, ref[0] = NAN;
+            e = gearctl_ctrl_step(&c, y, ref, &u);
+            printf("%d %d %d %.17g\\n", a, b, e, u);
+            return 0;
+        }
+        """))
+    exe = tmp_path / "trap"
+    proc = subprocess.run([CC, "-std=c99", "-O2", f"-I{d}", str(src), str(d / "libgearctl_ctrl.a"), "-lm", "-o",
+                           str(exe)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, (run.returncode, run.stderr)  # -8: SIGFPE
+    a, b, e, u = run.stdout.split()
+    assert (int(a), int(b), int(e), float(u)) == (2, missing_load, 2, 0.0)

@@ -213,6 +213,7 @@ def _implementation(spec: KindSpec) -> str:
     """``gearctl_ctrl.c``."""
     mpc = spec.prefix == "mpc"
     check_load = spec.uses_load_encoder and not mpc  # the MPC takes a load reading beyond the limit as missing
+    load_screen = " || !isfinite(y[1]) || fabs(y[1]) > GEARCTL_INPUT_LIMIT" if check_load else ""
     parts = [
         f"/* gearctl_ctrl.c -- exported controller \"{spec.name}\" (kind {spec.kind}): the kind's C, which mirrors\n"
         " * gearctl's Python methods line by line. SPDX-License-Identifier: MIT (see LICENSE) */\n",
@@ -234,9 +235,9 @@ void gearctl_ctrl_init(gearctl_ctrl_t *c) {{
 }}
 
 int gearctl_ctrl_step(gearctl_ctrl_t *c, const double y[2], const double *ref, double *u) {{
-    /* !(|v| <= limit) is also true for NaN */
-    int i, bad = !(fabs(y[0]) <= GEARCTL_INPUT_LIMIT){" || !(fabs(y[1]) <= GEARCTL_INPUT_LIMIT)" if check_load else ""};
-    for (i = 0; i < 3 * GEARCTL_PREVIEW; i++) bad = bad || !(fabs(ref[i]) <= GEARCTL_INPUT_LIMIT);
+    /* isfinite first: no ordered comparison with a NaN (FE_INVALID, a trap where floating-point traps are on) */
+    int i, bad = !isfinite(y[0]) || fabs(y[0]) > GEARCTL_INPUT_LIMIT{load_screen};
+    for (i = 0; i < 3 * GEARCTL_PREVIEW; i++) bad = bad || !isfinite(ref[i]) || fabs(ref[i]) > GEARCTL_INPUT_LIMIT;
     if (bad) {{ /* a missed sample: no update, a zero torque */
         *u = 0.0;
         c->k++;

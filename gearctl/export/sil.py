@@ -99,8 +99,9 @@ class ExportedController(Controller):
     The C keeps its own clock, ``t = k Ts`` with ``k`` the steps since :meth:`reset`: the ``t`` the loop passes
     is used only to evaluate the reference (gearctl's closed loop passes exactly ``k Ts``). For a controller
     that solves an optimisation (the MPC), :attr:`solve_times` holds the wall time of each whole C step (the
-    C cannot read a clock), so overruns are counted against the whole step; the C does not fall back on an
-    overrun (``realtime`` has no effect).
+    C cannot read a clock), so :attr:`overruns` counts the steps longer than the design's ``max_solve_time`` (the
+    sample period if it has none); the C itself has no time budget and does not fall back on an overrun
+    (``realtime`` has no effect).
     """
 
     def __init__(self, lib: ctypes.CDLL, manifest: dict[str, Any], folder: Path) -> None:
@@ -112,6 +113,8 @@ class ExportedController(Controller):
         self.preview = int(manifest["preview"])
         self.uses_load_encoder = bool(manifest["uses_load_encoder"])
         self._timed = self.kind == "mpc"
+        budget = (manifest.get("describe") or {}).get("max_solve_time")
+        self._budget = float(budget) if budget is not None else self.Ts
         prefix = str(manifest.get("prefix", DEFAULT_PREFIX))
         self._init, self._fn = getattr(lib, f"{prefix}_ctrl_init"), getattr(lib, f"{prefix}_ctrl_step")
         size = int(getattr(lib, f"{prefix}_sil_state_size")())
@@ -145,7 +148,10 @@ class ExportedController(Controller):
         if self._timed:
             t0 = time.perf_counter()
             flag = self._fn(self._c, self._y_ref, self._base + 24 * k, self._u_ref)
-            self.solve_times.append(time.perf_counter() - t0)
+            took = time.perf_counter() - t0
+            self.solve_times.append(took)
+            if took > self._budget:
+                self.overruns += 1
         else:
             flag = self._fn(self._c, self._y_ref, self._base + 24 * k, self._u_ref)
         if flag > 0:

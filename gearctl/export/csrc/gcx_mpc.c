@@ -81,7 +81,7 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
  * Returns 1 when a reading was missing or rejected (the step reports a fallback), else 0. */
 GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, double y_load) {
     double b = P->b, tol = P->tol;
-    int load = P->uses_load && fabs(y_load) <= GEARCTL_INPUT_LIMIT; /* else missing (also NaN) */
+    int load = P->uses_load && isfinite(y_load) && fabs(y_load) <= GEARCTL_INPUT_LIMIT; /* else missing */
     int note = P->uses_load && !load;
     double s_m = load ? P->rb1 * y_motor - P->rb2 * y_load : 0.0;
     if (load && !(fabs(s_m) <= P->gap_limit)) { /* the encoders disagree beyond any gap: the load reading is wrong */
