@@ -8,6 +8,7 @@ and returns the results in order. ``gearctl bench`` and ``gearctl sweep`` both g
 
 from __future__ import annotations
 
+import concurrent.futures
 import hashlib
 import logging
 import os
@@ -161,8 +162,11 @@ class Engine:
                 client = None
             self.own = client is None
         if client is not None:
+            if getattr(client, "status", "running") in ("closing", "closed"):
+                raise InputError(f"the Dask client given is {client.status}: open a new distributed.Client",
+                                 field="client")
             self.client = client
-            self.where = str(getattr(client.scheduler, "address", "client"))
+            self.where = str(getattr(client.scheduler, "address", "the client's scheduler"))
         elif address:
             probe_scheduler(address)
             try:
@@ -227,6 +231,7 @@ def completed(client: Any, futures: Sequence[Any], *,
     forever, for the tasks left and for a finished task's result that only the dead worker held. While nothing
     arrives, the cluster's workers are counted every :data:`POLL` seconds."""
     from distributed import as_completed
+    from distributed.comm.core import CommClosedError
 
     ac = as_completed(list(futures), loop=client.loop)
     checked = time.monotonic()
@@ -260,6 +265,14 @@ def completed(client: Any, futures: Sequence[Any], *,
                 except TimeoutError:  # finished, but its result is on a worker that is gone: recomputed, or none left
                     watch(ac.count() + len(batch) - k)
                     continue
+                except (concurrent.futures.CancelledError, CommClosedError) as exc:
+                    # not a task's error: the scheduler cancelled it or went away (killed mid-run: "scheduler-
+                    # connection-lost", or the connection reset while a result was fetched), which ended a sweep in
+                    # a traceback, exit 1
+                    raise InputError(f"{where}: the run's tasks were cancelled with {ac.count() + len(batch) - k} "
+                                     f"unfinished ({type(exc).__name__}: {' '.join(str(exc).split())}): the "
+                                     f"scheduler went away or cancelled them; run again when it is back",
+                                     field="scheduler") from None
                 except Exception as exc:  # the task's own error, for the caller to raise or record
                     yield fut, None, exc
                 else:

@@ -589,6 +589,48 @@ def test_a_cluster_left_without_workers_ends_with_one_line(monkeypatch: pytest.M
         assert time.monotonic() - t0 < 60.0
 
 
+@pytest.mark.slow
+def test_a_scheduler_lost_mid_sweep_ends_with_one_line(tmp_path: Path) -> None:
+    # a review killed the scheduler during a sweep: the sweep ended at once, but in a traceback
+    # (FutureCancelledError: scheduler-connection-lost) and exit 1. Now: one line, the tasks left, InputError (exit 2)
+    procs: list[subprocess.Popen] = []
+    try:
+        sched, address = _free_scheduler(tmp_path)
+        procs.append(sched)
+        procs.append(_worker(tmp_path, address, "w0"))
+        from distributed import Client
+
+        with Client(address, timeout=30, set_as_default=False) as c:
+            c.wait_for_workers(1, timeout=90)
+
+        def progress(done: int, total: int) -> None:
+            if done == 1:
+                os.killpg(sched.pid, signal.SIGKILL)
+
+        t0 = time.monotonic()
+        with pytest.raises(InputError, match=r"tasks were cancelled with \d+ unfinished .*scheduler went away"):
+            sweep(MODEL, "pid", vary=["backlash=0.5x:2x"], runs=12, duration=0.3, scheduler=address, batch=1,
+                  progress=progress)
+        assert time.monotonic() - t0 < 60.0
+    finally:
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
+
+
+def test_a_closed_client_is_named_as_such(cluster: str) -> None:
+    # a closed Client was reported as "the workers of client cannot run gearctl: RuntimeError: IOLoop is closed"
+    from distributed import Client
+
+    import gearctl.parallel
+
+    client = Client(cluster, set_as_default=False)
+    client.close()
+    with pytest.raises(InputError, match="the Dask client given is closed"):
+        gearctl.parallel.Engine(client=client)
+
+
 def test_ctrl_c_is_one_line_and_the_sigint_code(monkeypatch: pytest.MonkeyPatch) -> None:
     import gearctl.sweep
 
