@@ -18,7 +18,7 @@ controller                  shing1993_servo         shing1993_servo_friction
 ==========================  ======================  ========================
 pid                         1440 / 1319 / 1346      1690 / 1502 / 1520
 pid, backlash-free plant    1.4 / 1.0 / 1.4         7.6 / 4.8 / 5.4
-deadzone_inverse            208 / 46 / 141          12.6 / 4.2 / 6.9
+deadzone_inverse            197 / 45 / 131          12.6 / 4.2 / 6.9
 reversal_offset             2670 / 2644 / 2670      189 / 88 / 101
 mpc                         312 / 139 / 241         9.1 / 3.7 / 9.1
 ==========================  ======================  ========================
@@ -105,8 +105,8 @@ def _servo_slow_xfail(reason: str) -> list[pytest.MarkDecorator]:
 @pytest.mark.parametrize("model", [
     FRICTION,
     pytest.param(SERVO, marks=_servo_slow_xfail(
-        "issue 12 claim not met on the frictionless servo: best ISO accuracy is the inverse's, A = 208 urad "
-        "(the MPC's 312) against 1.4 urad for the PID on the backlash-free plant (150x, not <= 3x; before the "
+        "issue 12 claim not met on the frictionless servo: best ISO accuracy is the inverse's, A = 197 urad "
+        "(the MPC's 312) against 1.4 urad for the PID on the backlash-free plant (140x, not <= 3x; before the "
         "PID's feedforward corrections the backlash-free PID gave 17.7 urad). The inverse stops the load a few "
         "tens of urad past the target (it may not push a coasting load back). The MPC ends each move within a "
         "few urad, but the free load (no friction, elastic mesh impacts, restitution ~0.85, a 2.8 kHz mesh "
@@ -135,7 +135,7 @@ def test_inverse_cuts_reversal_and_repeatability(runs: _Runs, model: str, gain: 
     # measured on shing1993_servo_friction: B = 4.2 urad (0.003 L), R = 6.9 urad (0.005 L) against the PID's
     # 1502 / 1520 urad (1.13 L); the issue asks for <= 0.15 L each (200 urad), kept with that bound (measured
     # 0.03x of it) and an improvement over the PID of at least 50x (measured 220x). On the frictionless
-    # shing1993_servo: B = 46 urad (0.035 L), R = 128 urad (0.096 L) against the PID's 1319 / 1346 urad (28x
+    # shing1993_servo: B = 45 urad (0.034 L), R = 131 urad (0.098 L) against the PID's 1319 / 1346 urad (30x
     # on B; kept >= 10x), since the inverse withholds the push-back that launched the stopped load off its
     # braking flank (B = 712, R = 1562 urad before; deadzone.py, "The stop")
     L = runs.lost_motion(model)
@@ -165,7 +165,7 @@ def test_wrong_backlash_estimate_keeps_reversal_down(runs: _Runs, factor: float)
 
 
 #: Seeds of the frictionless servo's test with a wrong estimate: its B moves with the targets' offsets.
-WRONG_ESTIMATE_SEEDS = range(8)
+WRONG_ESTIMATE_SEEDS = range(16)
 
 
 def _frictionless_wrong_estimate(runs: _Runs, factor: float) -> tuple[np.ndarray, float]:
@@ -180,9 +180,10 @@ def _frictionless_wrong_estimate(runs: _Runs, factor: float) -> tuple[np.ndarray
 @pytest.mark.parametrize("factor", [0.8, 1.2])
 def test_wrong_backlash_estimate_frictionless_median(runs: _Runs, factor: float) -> None:
     # on the frictionless shing1993_servo the inverse's B with a wrong estimate depends on where the targets fall
-    # (the load coasts off its flank at each stop and lands where its bounces leave it). Seeds 0-7 against the
-    # PID's 1319 urad: 0.8 b 299-576 urad, median 384 (3.4x); 1.2 b 147-571 urad, median 300 (4.4x). The median
-    # meets the issue's 3x; kept at 3x (margins 1.14x and 1.46x)
+    # (the load coasts off its flank at each stop and lands where its bounces leave it: chaotic, seed by seed).
+    # Seeds 0-15 against the PID's 1319 urad: 0.8 b 289-580 urad, median 331 (4.0x); 1.2 b 193-616 urad, median
+    # 403 (3.3x; over seeds 0-7 alone 431, 3.06x: sixteen seeds, since the contact check's change moved the
+    # eight-seed median from 300). The median meets the issue's 3x; kept at 3x (margins 1.33x and 1.09x)
     B, B_pid = _frictionless_wrong_estimate(runs, factor)
     assert B_pid >= 3.0 * np.median(B)
 
@@ -191,8 +192,8 @@ def test_wrong_backlash_estimate_frictionless_median(runs: _Runs, factor: float)
 @pytest.mark.parametrize("factor", [0.8, 1.2])
 @pytest.mark.xfail(strict=True, reason=(
     "issue 12 claim not met on every seed of the frictionless servo: with the estimate 20 % off the inverse's B "
-    "exceeds a third of the PID's 1319 urad on 3 of 8 seeds at 0.8 b (worst 576 urad, 2.3x) and 2 of 8 at 1.2 b "
-    "(worst 571 urad, 2.3x). The frictionless load leaves its flank at each stop and lands where its bounces "
+    "exceeds a third of the PID's 1319 urad on 5 of 16 seeds at 0.8 b (worst 580 urad, 2.3x) and 7 of 16 at 1.2 b "
+    "(worst 616 urad, 2.1x). The frictionless load leaves its flank at each stop and lands where its bounces "
     "leave it; the friction servo meets the claim on every seed"))
 def test_wrong_backlash_estimate_frictionless_every_seed(runs: _Runs, factor: float) -> None:
     B, B_pid = _frictionless_wrong_estimate(runs, factor)
