@@ -428,10 +428,13 @@ def _worker(tmp_path: Path, address: str, name: str) -> subprocess.Popen:
 
 @contextlib.contextmanager
 def _cluster(tmp_path: Path, workers: int) -> Iterator[tuple[str, list[subprocess.Popen]]]:
+    """A scheduler and ``workers`` worker processes: the address and the workers (the scheduler process is
+    ``_cluster.scheduler``, for a test that kills it)."""
     procs: list[subprocess.Popen] = []
     try:
         sched, address = _free_scheduler(tmp_path)
         procs.append(sched)
+        _cluster.scheduler = sched  # type: ignore[attr-defined]
         ws = [_worker(tmp_path, address, f"w{k}") for k in range(workers)]
         procs += ws
         from distributed import Client
@@ -593,15 +596,8 @@ def test_a_cluster_left_without_workers_ends_with_one_line(monkeypatch: pytest.M
 def test_a_scheduler_lost_mid_sweep_ends_with_one_line(tmp_path: Path) -> None:
     # a review killed the scheduler during a sweep: the sweep ended at once, but in a traceback
     # (FutureCancelledError: scheduler-connection-lost) and exit 1. Now: one line, the tasks left, InputError (exit 2)
-    procs: list[subprocess.Popen] = []
-    try:
-        sched, address = _free_scheduler(tmp_path)
-        procs.append(sched)
-        procs.append(_worker(tmp_path, address, "w0"))
-        from distributed import Client
-
-        with Client(address, timeout=30, set_as_default=False) as c:
-            c.wait_for_workers(1, timeout=90)
+    with _cluster(tmp_path, 1) as (address, _):
+        sched = _cluster.scheduler  # type: ignore[attr-defined]
 
         def progress(done: int, total: int) -> None:
             if done == 1:
@@ -612,11 +608,6 @@ def test_a_scheduler_lost_mid_sweep_ends_with_one_line(tmp_path: Path) -> None:
             sweep(MODEL, "pid", vary=["backlash=0.5x:2x"], runs=12, duration=0.3, scheduler=address, batch=1,
                   progress=progress)
         assert time.monotonic() - t0 < 60.0
-    finally:
-        for p in procs:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(p.pid, signal.SIGKILL)
-            p.wait(timeout=30)
 
 
 def test_a_closed_client_is_named_as_such(cluster: str) -> None:
