@@ -301,6 +301,11 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
     cell = {(r["model"], r["controller"], r["reference"], r["plant"]): r for r in runs}
     ratios = result["ratios"]
     lines: list[str] = []
+    several = len({r["model"] for r in result["runs"]} | {r["model"] for r in result.get("precision") or []}) > 1
+    mhead = ["model"] if several else []
+
+    def named(m: str, c: str) -> list[str]:  # the model column where the bench ran several
+        return [m, c] if several else [c]
 
     def table(head: list[str], body: list[list[str]]) -> None:
         if markdown:
@@ -317,7 +322,7 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
     lines.append("")
     body = []
     for m, c, ref in rows:
-        row = [f"{c}", ref]
+        row = [*named(m, c), ref]
         for p in plants:
             r = cell.get((m, c, ref, p))
             if r is None:
@@ -332,7 +337,7 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
         prev = [cell[(m, c, ref, p)].get("preview") for p in plants if cell.get((m, c, ref, p), {}).get("preview")]
         row.append(str(prev[0]) if prev else "1")
         body.append(row)
-    table(["controller", "reference", *plants, "solve p99 (worst plant) / Ts [us]", "preview"], body)
+    table([*mhead, "controller", "reference", *plants, "solve p99 (worst plant) / Ts [us]", "preview"], body)
 
     lines.append("Ratios of RMS error, per plant: over the PID's on the same plant / over the backlash-free plant's "
                  "under the same controller:")
@@ -340,7 +345,7 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
     body = []
     for m, c, ref in rows:
         key = f"{m}/{c}/{ref}"
-        row = [c, ref]
+        row = [*named(m, c), ref]
         for p in plants:
             if p == FREE:
                 continue
@@ -349,13 +354,14 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
             row.append(f"{_fmt(a, 1, 3)} / {_fmt(b, 1, 3)}")
         row.append(_fmt(ratios["improved_over_yang_sun"].get(key), 1, 3))
         body.append(row)
-    table(["controller", "reference", *[p for p in plants if p != FREE], "improved / yang-sun"], body)
+    table([*mhead, "controller", "reference", *[p for p in plants if p != FREE], "improved / yang-sun"], body)
     if ratios["cross_design"]:
         lines.append("Designed on one plant, run on another (sine, RMS [urad]):")
         lines.append("")
-        body = [[k.split("/")[-1], _fmt(v["designed_improved_on_improved"]), _fmt(v["designed_improved_on_yang_sun"]),
-                 _fmt(v["designed_yang_sun_on_improved"])] for k, v in ratios["cross_design"].items()]
-        table(["controller", "improved -> improved", "improved -> yang-sun", "yang-sun -> improved"], body)
+        body = [[*named(*k.rsplit("/", 1)), _fmt(v["designed_improved_on_improved"]),
+                 _fmt(v["designed_improved_on_yang_sun"]), _fmt(v["designed_yang_sun_on_improved"])]
+                for k, v in ratios["cross_design"].items()]
+        table([*mhead, "controller", "improved -> improved", "improved -> yang-sun", "yang-sun -> improved"], body)
     iso = result.get("precision") or []
     if iso:
         lines.append("ISO 230-2 positioning on the improved plant (5 targets, 5 cycles; load angle [urad]); ratios "
@@ -365,18 +371,19 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
         for r in iso:
             key = f"{r['model']}/{r['controller']}"
             if not r.get("ok"):
-                body.append([r["controller"], r["plant"], "FAILED", "", "", ""])
+                body.append([*named(r["model"], r["controller"]), r["plant"], "FAILED", "", "", ""])
                 continue
             q = ratios.get("iso_over_backlash_free", {}).get(key, {})
-            body.append([r["controller"], r["plant"], _fmt(r["accuracy"]), _fmt(r["reversal_value"]),
-                         _fmt(r["repeatability"]),
+            body.append([*named(r["model"], r["controller"]), r["plant"], _fmt(r["accuracy"]),
+                         _fmt(r["reversal_value"]), _fmt(r["repeatability"]),
                          "—" if r["plant"] == FREE else " / ".join(_fmt(q.get(k), 1, 3) for k in
                                                                   ("accuracy", "reversal_value", "repeatability"))])
-        table(["controller", "plant", "A", "B", "R", "A / B / R over backlash-free PID"], body)
+        table([*mhead, "controller", "plant", "A", "B", "R", "A / B / R over backlash-free PID"], body)
     failed = [r for r in result["runs"] if not r.get("ok")]
     for r in failed:
         how = "" if r["design"] == "improved" else f", designed on {r['design']}"
-        lines.append(f"FAILED: {r['controller']} on {r['plant']} ({r['reference']}{how}): {r['message']}")
+        model = f"{r['model']}, " if several else ""
+        lines.append(f"FAILED: {r['controller']} on {model}{r['plant']} ({r['reference']}{how}): {r['message']}")
     for s in result.get("skipped", ()):
         lines.append(f"not run: {s['controller']} on {s['model']}: {s['reason']}")
     return "\n".join(lines).rstrip() + "\n"

@@ -988,7 +988,7 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
     gm = model if isinstance(model, GearModel) else load_model(model)
     train = build_plant(gm)
     plant = train.equivalent_pair()  # a train is analysed as its one-gap pair (the controllers' design model)
-    ctrl = load_controller(controller, train)
+    ctrl = load_controller(controller, train, sensors=gm.sensors)  # (refused if it reads a missing load encoder)
     if not isinstance(ctrl, PID):
         raise InputError(f"controller {str(controller)!r} is a {type(ctrl).__name__}: the describing-function "
                          f"analysis covers kind = 'pid' controllers", field="controller")

@@ -1639,6 +1639,9 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         notes.append(f"the time stamps jitter by {lg.jitter[0] * 1e6:.3g} us RMS (at most {lg.jitter[1] * 1e6:.3g} us, "
                      f"{lg.jitter[1] / lg.sample_time:.1%} of the period) around a fixed period: read as samples at "
                      f"{lg.sample_time:.6g} s, the torque held over each")
+    if encoders == "motor+load" and not mdl.sensors.load_encoder:
+        notes.append(f"{mdl.name} says the servo has no load encoder ([sensors] load_encoder = false), but the log "
+                     f"has a theta2 column: identified with both encoders (--encoders motor ignores it)")
     if lg.theta2 is not None:
         lg, flipped = _load_encoder_direction(lg)
         if flipped:
@@ -1981,6 +1984,9 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
                     for k, v in servo.items() if not (isinstance(v, tuple) and not v)}
     sensors = {f.name: getattr(mdl.sensors, f.name) for f in dataclasses.fields(Sensors)}
     doc["sensors"] = {k: v for k, v in sensors.items() if v is not None}
+    if not mdl.sensors.load_encoder:  # no load encoder: nothing of one is written
+        doc["sensors"].pop("load_noise", None)
+        doc["sensors"].pop("load_encoder_cpr", None)
     return doc
 
 

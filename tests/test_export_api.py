@@ -333,3 +333,15 @@ def test_a_nan_input_is_screened_without_a_floating_point_trap(tmp_path: Path, c
     assert run.returncode == 0, (run.returncode, run.stderr)  # -8: SIGFPE
     a, b, e, u = run.stdout.split()
     assert (int(a), int(b), int(e), float(u)) == (2, missing_load, 2, 0.0)
+
+
+@needs_make
+def test_an_export_for_another_gear_ratio_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # a review ran a pair's exported inverse (ratio 4) on a ratio-5 train: 0.013 rad RMS, no warning
+    from gearctl.cli import main
+
+    d, _ = _export(tmp_path, SERVO, "deadzone_inverse", vectors=False)
+    assert main(["track", "servo_2stage_phm09", "--exported", str(d), "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "exported for gear ratio 4" in err and "ratio is 5" in err, err
+    assert main(["track", SERVO, "--exported", str(d), "--duration", "0.1"]) == 0

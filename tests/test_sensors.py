@@ -101,3 +101,42 @@ def test_the_log_has_no_load_column(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert header == "t,torque,theta1,reference"
     assert main(["info", str(NO_LOAD)]) == 0
     assert "load none" in capsys.readouterr().out
+
+
+def test_describe_refuses_a_load_feedback_pid(capsys: pytest.CaptureFixture[str]) -> None:
+    # a review: describe ran pid_load on a servo without a load encoder, where every other command refused it
+    assert main(["describe", str(NO_LOAD), "pid_load", "--duration", "0.2"]) == 2
+    assert "load_encoder = false" in capsys.readouterr().err
+
+
+def test_excite_noise_goes_to_the_motor_encoder_alone(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # --noise is "on both encoders": on a servo without a load encoder it was refused naming a --set the user never
+    # typed; it is the motor encoder's noise there
+    out = tmp_path / "log.csv"
+    assert main(["excite", str(NO_LOAD), "--duration", "1", "--noise", "1e-6", "--out", str(out)]) == 0, \
+        capsys.readouterr().err
+    assert "theta2" not in out.read_text().split("\n#")[-1]
+
+
+def test_identify_says_when_the_log_has_a_load_encoder_the_model_lacks(tmp_path: Path) -> None:
+    from gearctl.identify import identified_model, identify
+
+    log = record_excitation("shing1993_servo_friction", duration=4.0).log  # both encoders
+    res = identify(log, NO_LOAD)
+    assert res.encoders == "motor+load"
+    assert any("no load encoder" in w and "--encoders motor" in w for w in res.warnings)
+    sensors = identified_model(res, load_model(NO_LOAD))["sensors"]
+    assert sensors["load_encoder"] is False and "load_noise" not in sensors and "load_encoder_cpr" not in sensors
+
+
+def test_a_bench_of_several_models_names_them() -> None:
+    from gearctl.bench import bench_table, run_bench
+
+    spec = BenchSpec(models=("shing1993_servo", str(NO_LOAD)), controllers=("pid", "mpc"), plants=("improved",),
+                     references=("sine",), duration=0.3, precision=False)
+    table = bench_table(run_bench(spec, jobs=1))
+    lines = table.splitlines()
+    assert lines[2].split()[:3] == ["model", "controller", "reference"]
+    assert any(ln.startswith(str(NO_LOAD)) and " pid " in ln for ln in lines)
+    # the run the missing encoder refuses names its model, as the bench was given it
+    assert f"FAILED: mpc on {NO_LOAD}, improved (sine): [sensors] load_encoder = false" in table

@@ -23,8 +23,10 @@ def _cmd_excite(args: argparse.Namespace) -> int:
         raise InputError("nothing to write: give --out LOG.csv (the simulated servo's log) or --reference-only FILE "
                          "(the motion, to run on a real drive)", field="out")
     AMPLITUDE.check("amplitude", args.amplitude)
-    model = load_model(args.model) if args.noise is None else load_model(args.model, motor_noise=args.noise,
-                                                                          load_noise=args.noise)
+    model = load_model(args.model)
+    if args.noise is not None:  # both encoders, or the motor's alone on a servo without a load encoder
+        noise = {"motor_noise": args.noise} | ({"load_noise": args.noise} if model.sensors.load_encoder else {})
+        model = load_model(args.model, **noise)
     program = excitation(args.motion, duration=args.duration, amplitude=args.amplitude)
     if args.reference_only:
         n = write_reference(args.reference_only, program, duration=args.duration)
@@ -113,8 +115,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                    help="true plant (default improved)")
     p.add_argument("--controller", default="pid", help="the position loop: catalog name or TOML path (default pid)")
     p.add_argument("--backlash", type=spec_arg(BACKLASH), help="the true backlash [m] (default: the model's)")
-    p.add_argument("--noise", type=spec_arg(ENCODER_NOISE), help="encoder noise (std) on both encoders [rad] "
-                                                                  "(default: the model's [sensors])")
+    p.add_argument("--noise", type=spec_arg(ENCODER_NOISE),
+                   help="encoder noise (std) on both encoders (the motor's alone without a load encoder) [rad] "
+                        "(default: the model's [sensors])")
     p.add_argument("--seed", type=spec_arg(SEED), default=0, help="encoder-noise seed (default 0)")
 
     p = sub.add_parser("identify", help="backlash, friction and inertias of a gear pair from a servo log")

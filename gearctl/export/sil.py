@@ -229,8 +229,8 @@ def execute_exported(run: Any, folder: str | Path, *, keep: bool = False) -> Any
     Raises
     ------
     InputError
-        For a folder that holds no exported controller, one of another kind than the run's, or that does
-        not compile.
+        For a folder that holds no exported controller, one of another kind than the run's or for another gear
+        ratio, or that does not compile.
     """
     from ..runs import execute_controller
 
@@ -240,4 +240,11 @@ def execute_exported(run: Any, folder: str | Path, *, keep: bool = False) -> Any
         raise InputError(f"{folder} holds an exported {ctrl.kind} controller ({ctrl.name!r}), but the command names "
                          f"a {kind} controller ({run.design.label}): export that one, or name the exported kind",
                          field="exported")
+    ratio = ctrl.manifest.get("ratio")
+    if ratio is not None and not math.isclose(float(ratio), run.plant.gear_ratio, rel_tol=1e-9):
+        # a controller exported for another gear ratio reads the motor encoder through the wrong ratio (a review
+        # ran a pair's export on a ratio-5 train: 0.013 rad RMS, no warning)
+        raise InputError(f"{folder} holds a controller exported for gear ratio {float(ratio):.10g} (model "
+                         f"{ctrl.manifest.get('model')!r}); this plant's ratio is {run.plant.gear_ratio:.10g}: export "
+                         f"it for this model", field="exported")
     return execute_controller(run, ctrl, keep=keep)
