@@ -121,7 +121,8 @@ def local_cluster(workers: int) -> Any:
     cost of its own in runs of a few milliseconds). Dask's nanny starts each worker with one BLAS thread. The
     scheduler's HTTP server (its health routes, which run even without a dashboard) listens on a free local port:
     on the default 8787, which another cluster or notebook often holds, it warns (an error under pytest's
-    warnings-as-errors).
+    warnings-as-errors). The workers ignore SIGINT (:mod:`gearctl._worker_setup`): Ctrl-C reaches the whole process
+    group, and each worker printed a traceback while the command ended with its one line.
     """
     import dask
     import distributed
@@ -129,7 +130,8 @@ def local_cluster(workers: int) -> Any:
     with dask.config.set({"distributed.worker.profile.enabled": False}):
         return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                         dashboard_address=None, silence_logs=logging.ERROR,
-                                        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"})
+                                        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+                                        preload=["gearctl._worker_setup"])
 
 
 class Engine:

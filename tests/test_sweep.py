@@ -622,6 +622,22 @@ def test_a_closed_client_is_named_as_such(cluster: str) -> None:
         gearctl.parallel.Engine(client=client)
 
 
+@pytest.mark.slow
+def test_ctrl_c_in_a_terminal_leaves_no_worker_traceback(tmp_path: Path) -> None:
+    # a terminal's Ctrl-C signals the whole process group, the local cluster's workers too: each printed a
+    # KeyboardInterrupt traceback (4 on a bench of two workers) beside the command's one line. They ignore SIGINT now
+    code = "import sys; from gearctl.cli import main; sys.exit(main(sys.argv[1:]))"
+    proc = subprocess.Popen([sys.executable, "-c", code, "sweep", MODEL, "pid", "--vary", "backlash=0.5x:2x",
+                             "--runs", "5000", "--duration", "1", "--workers", "2", "--quiet"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    time.sleep(8.0)  # the cluster up and the runs under way
+    os.killpg(proc.pid, signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert err.strip().splitlines()[-1] == "gearctl sweep: interrupted"
+
+
 def test_ctrl_c_is_one_line_and_the_sigint_code(monkeypatch: pytest.MonkeyPatch) -> None:
     import gearctl.sweep
 

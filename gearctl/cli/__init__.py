@@ -43,6 +43,7 @@ def _parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Nam
     commands: dict[str, Callable[[argparse.Namespace], int]] = {}
     for group in GROUPS:
         commands.update(group.register(sub))
+    ap.set_defaults(_subparsers=sub.choices)
     return ap, commands
 
 
@@ -50,7 +51,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``gearctl`` command line; return the exit code (0 success, 2 bad input, 130 interrupted)."""
     parser, commands = _parser()
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # said by the subcommand's parser (its usage and name), not the top level's
+            args._subparsers[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     except SystemExit as exc:  # argparse: --help / --version (0) or a usage error (2)
         return int(exc.code or 0)
     try:
