@@ -45,7 +45,7 @@ LAYERS: dict[str, int] = {
     "gearctl.design": 4,
     "gearctl.catalog": 5, "gearctl.summary": 5, "gearctl.metrics": 5, "gearctl.runs": 5, "gearctl.precision": 5,
     "gearctl.bench": 5, "gearctl.describe": 5, "gearctl.perf": 5, "gearctl.identify": 5, "gearctl.sweep": 5,
-    "gearctl.excite": 5, "gearctl.parallel": 5,
+    "gearctl.excite": 5, "gearctl.parallel": 5, "gearctl._worker_setup": 5,
     "gearctl.export": 5,
     "gearctl.plots": 6, "gearctl.cli": 6,
 }
