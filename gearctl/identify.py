@@ -106,6 +106,11 @@ class EncoderLog:
         """The file's name (or ``<log>``)."""
         return str(self.path) if self.path is not None else "<log>"
 
+    @property
+    def columns(self) -> list[str]:
+        """The column names as :func:`write_log` writes them: ``t, torque, theta1[, theta2]`` and the extra ones."""
+        return ["t", "torque", "theta1"] + (["theta2"] if self.theta2 is not None else []) + list(self.extra)
+
 
 def _fail(path: Path, where: str, what: str, field: str | None = None) -> InputError:
     return InputError(f"{path}: {where}: {what}" if where else f"{path}: {what}", field=field)
@@ -313,7 +318,7 @@ def write_log(path: str | Path, log: EncoderLog, *, comments: Sequence[str] = ()
         If the file cannot be written.
     """
     path = Path(path)
-    names = ["t", "torque", "theta1"] + (["theta2"] if log.theta2 is not None else []) + list(log.extra)
+    names = log.columns
     cols = [log.t, log.torque, log.theta1] + ([log.theta2] if log.theta2 is not None else []) + \
         [np.asarray(v) for v in log.extra.values()]
     try:

@@ -90,7 +90,7 @@ def model_summary(model: GearModel) -> dict[str, Any]:
     """
     plant = build_plant(model)
     stages = [_stage_summary(s.pair, s.dynamics, plant, i) for i, s in enumerate(model.stages)]
-    sensors = {f.name: getattr(model.sensors, f.name) for f in dataclasses.fields(model.sensors)}
+    sensors = dataclasses.asdict(model.sensors)
     common = {"model": model.name, "stages_count": len(stages), "lost_motion": plant.lost_motion,
               "equivalent_stiffness": plant.equivalent_stiffness, "sensors": sensors, "source": dict(model.source)}
     if len(stages) == 1:

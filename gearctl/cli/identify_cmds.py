@@ -46,8 +46,7 @@ def _cmd_excite(args: argparse.Namespace) -> int:
     print(f"  backlash               {p.backlash * 1e6:.4g} um (lost motion {p.lost_motion:.4g} rad at the load)")
     print(f"  gap crossings          {crossings} (flank changes), {run.impact_count} impacts")
     print(f"  torque                 max |u| {abs(run.torque).max():.3g} N m")
-    cols = ", ".join(["t", "torque", "theta1"] + (["theta2"] if ex.log.theta2 is not None else []) + list(ex.log.extra))
-    say_written((args.out, f"log, {ex.log.n} samples: {cols}"))
+    say_written((args.out, f"log, {ex.log.n} samples: {', '.join(ex.log.columns)}"))
     return 0
 
 
