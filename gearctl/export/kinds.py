@@ -22,6 +22,7 @@ from ..design.mpc import MPC
 from ..design.pid import PID
 from ..design.reversal import ReversalOffset
 from ..errors import InputError
+from ..plant import MAX_STAGES
 from .cstruct import CArray, CStruct
 
 __all__ = ["KindSpec", "kind_spec", "KINDS", "CSRC", "STRUCTS", "kind_structs"]
@@ -60,7 +61,8 @@ _struct("gcx_inv_p", [("pid", "gcx_pid_p"), ("plant", "gcx_plant_p"), ("obs", "g
                       ("rattle_decay", "double"),
                       ("rattle_level", "double"), ("rattle_gain", "double"), ("rattle_max_error", "double"),
                       ("contact_lag", "double"), ("free_load_reach", "double"),
-                      ("take_up_acceleration", "double")])
+                      ("take_up_acceleration", "double"), ("n_carried", "int"),
+                      ("carried", f"double[{4 * MAX_STAGES}]")])
 _struct("gcx_ada_p", [("inv", "gcx_inv_p"), ("rb1", "double"), ("rb2", "double"), ("k", "double"),
                       ("window", "int")] + [(f, "double") for f in (
                           "gain", "max_step", "min_backlash", "max_backlash", "plateau_tolerance", "apply_threshold",
@@ -192,7 +194,8 @@ def _inv_values(inv: DeadzoneInverse) -> dict[str, Any]:
             "rattle_level": deadzone.RATTLE_LEVEL, "rattle_gain": deadzone.RATTLE_GAIN,
             "rattle_max_error": deadzone.RATTLE_MAX_ERROR,
             "contact_lag": inv._contact_lag, "free_load_reach": deadzone.FREE_LOAD_REACH,
-            "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION}
+            "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION, "n_carried": len(inv._carried),
+            "carried": [v for row in inv._carried for v in row] + [0.0] * (4 * (MAX_STAGES - len(inv._carried)))}
 
 
 def kind_spec(controller: Controller) -> KindSpec:

@@ -357,6 +357,21 @@ GCX_FN void gcx_inv_advance_free_motor(const gcx_inv_p *P, gcx_inv_s *S) {
     S->motor_free[0] = x + 0.5 * P->pid.Ts * (v + v_new), S->motor_free[1] = v_new;
 }
 
+/* DeadzoneInverse._carried_now: J1, d1, tc1 of pl replaced by what the motor moves at offset o of a crossing (a
+ * train's motor shaft and the intermediate shafts picked up; unchanged on a pair) */
+GCX_FN void gcx_inv_carried_now(const gcx_inv_p *P, const gcx_inv_s *S, double o, gcx_plant_p *pl) {
+    if (P->n_carried <= 1) return;
+    double crossed = (S->sigma * o + S->offset) / (2.0 * S->offset);
+    const double *row = &P->carried[4 * (P->n_carried - 1)];
+    for (int i = 0; i < P->n_carried; i++) {
+        if (crossed < P->carried[4 * i]) {
+            row = &P->carried[4 * i];
+            break;
+        }
+    }
+    pl->J1 = row[1], pl->d1 = row[2], pl->tc1 = row[3];
+}
+
 /* DeadzoneInverse._free_load */
 GCX_FN void gcx_inv_free_load(const gcx_inv_p *P, gcx_inv_s *S, double out[3]) {
     const gcx_plant_p *pl = &P->plant;
@@ -527,7 +542,10 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     if (free) { /* the motor lands on where the load is predicted to be */
         S->was_free = 1;
         double a_c = (S->free[1] - c[1]) / P->pid.Ts; /* the free load's mean acceleration over the sample */
-        u = gcx_offset_torque(&P->pid, &S->pid, pl, c[0], c[1], a_c, off, y_motor, y_load, has_yl, 1, 1.0, 0.0);
+        gcx_plant_p carried = *pl; /* what the motor moves now (DeadzoneInverse._carried_now) */
+        gcx_inv_carried_now(P, S, off[0], &carried);
+        u = gcx_offset_torque(&P->pid, &S->pid, &carried, c[0], c[1], a_c, off, y_motor, y_load, has_yl, 1, 1.0,
+                              0.0);
         gcx_inv_advance_free_motor(P, S);
         gcx_inv_check_contact(P, S, t, y_motor / P->pid.N, c[0]);
     } else {
