@@ -423,12 +423,33 @@ def test_crossing_carries_the_shafts_it_has_picked_up(two: Plant) -> None:
     assert rows[1][1] == pytest.approx(two.equivalent_pair().J1, rel=1e-12)  # all upstream shafts: the design J1
     pair = build_plant(load_model("shing1993_servo"))
     assert deadzone.carried_by_motor(pair) == ((1.0, pair.J1, pair.d1, pair.tc1),)
+    # a stage without backlash: its shaft is always carried (the row before it ends where that stage's starts)
+    assert [r[0] for r in deadzone.carried_by_motor(two.with_backlash([0.0, s2.backlash]))] == [0.0, 1.0]
+    assert [r[0] for r in deadzone.carried_by_motor(two.with_backlash([s1.backlash, 0.0]))] == [1.0, 1.0]
+    assert [r[0] for r in deadzone.carried_by_motor(two.with_backlash(0.0))] == [0.0, 1.0]  # every shaft, always
+
+
+def test_crossing_share_is_that_of_the_ramps_own_travel(two: Plant) -> None:
+    """The inverse picks the row by the share of its ramp's travel: from a settled flank that is the share of the
+    lost motion; from the centred start-up (every gap half open) the same shares of the half gaps left. The
+    motor is alone at the start of either and carries the intermediate shaft at the end."""
+    inv = load_controller("deadzone_inverse", two)
+    rows = deadzone.carried_by_motor(two)
+    half, end0 = inv._offset, rows[0][0]
+    inv._ramp.reset(0.0)  # the start-up: centred
+    inv._ramp.move_to(0.0, half)
+    assert inv._carried_now(0.5 * end0 * half) == rows[0][1:]
+    assert inv._carried_now(1.01 * end0 * half) == rows[1][1:]
+    inv._ramp.reset(half)  # from the front flank to the back one
+    inv._ramp.move_to(0.0, -half)
+    assert inv._carried_now(half - 0.99 * end0 * 2 * half) == rows[0][1:]
+    assert inv._carried_now(half - 1.01 * end0 * 2 * half) == rows[1][1:]
 
 
 def test_two_stage_inverse_crossing_does_not_fling_the_intermediate_shaft(
         sine_rms: Callable[[str, str], float], two: Plant) -> None:
     """On ``servo_2stage_phm09`` (an intermediate shaft half the motor's inertia, reflected) the crossing's
-    feedforward counts only what the motor moves. Measured: sine RMS 7.53e-5 rad against the PID's 1.52e-3
+    feedforward counts only what the motor moves. Measured: sine RMS 7.52e-5 rad against the PID's 1.52e-3
     (20x); with the intermediate shaft in the feedforward from the crossing's start the motor ran ahead of its
     ramp into it at 0.2 rad/s, flung it into the load, and the inverse gave 5.32e-4 (2.9x). Kept at 8x."""
     pid, inv = sine_rms(TWO, "pid"), sine_rms(TWO, "deadzone_inverse")

@@ -242,6 +242,11 @@ class OffsetRamp:
         return self._o1
 
     @property
+    def origin(self) -> float:
+        """The value the last ramp started from (the rest value after :meth:`reset`)."""
+        return self._o0
+
+    @property
     def end(self) -> float:
         """Time the last ramp ends [s]."""
         return self._t0 + self._T
@@ -352,7 +357,8 @@ def carried_by_motor(plant: Plant) -> tuple[tuple[float, float, float, float], .
     order from the motor's; each stage's share is its lost motion at the output, ``2 b_i / (r_b2,i prod_(j > i)
     N_j)``, over the train's); ``J``, ``d`` and ``T_c`` are the inertia, viscous and Coulomb friction of the
     motor shaft and the intermediate shafts picked up before it, reflected to the motor [kg m^2, N m s/rad, N m].
-    A pair has one row, ``(1, J1, d1, T_c1)``: its motor shaft.
+    A pair has one row, ``(1, J1, d1, T_c1)``: its motor shaft. A stage without backlash ends where the one before
+    it does (its shaft is always carried); a train without any ends every row but the last at 0.
 
     Why: the design pair of a train (:meth:`~gearctl.plant.Plant.equivalent_pair`) puts every intermediate shaft
     on the motor shaft. While the motor crosses the first stage's gap it moves alone, and a feedforward with the
@@ -369,7 +375,12 @@ def carried_by_motor(plant: Plant) -> tuple[tuple[float, float, float, float], .
         J += sh.J / ratio_to[i] ** 2
         d += sh.d / ratio_to[i] ** 2
         tc += sh.tc / ratio_to[i]
-        end = 1.0 if i == plant.n_stages - 1 or total <= 0.0 else end + lost[i] / total
+        if i == plant.n_stages - 1:
+            end = 1.0
+        elif total > 0.0:
+            end += lost[i] / total
+        else:  # no gap anywhere (a crossing of an estimate alone): the motor always moves every shaft
+            end = 0.0
         rows.append((end, J, d, tc))
     return tuple(rows)
 
@@ -516,7 +527,7 @@ class DeadzoneInverse(Controller):
         # scaled down by the load's inertial and viscous torque on the catalog sine against that servo's (never up).
         # Absolute values left a 1 mN m instrument servo's inverse with a flank that never changed, its PID without a
         # word; scaled by the motor's capacity, N x torque_limit, the three-stage train got a width below its sweet
-        # spot (ISO A 2701 urad, worse than its PID's 1602; now 845)
+        # spot (ISO A 2701 urad, worse than its PID's 1602; now 868)
         p0 = pid.info.plant
         load = p0.J2 * _REF_AMPLITUDE * _REF_OMEGA**2 + p0.d2 * _REF_AMPLITUDE * _REF_OMEGA
         scale = min(load / _BENCH_LOAD_TORQUE, 1.0) if load > 0.0 and math.isfinite(load) else 1.0
@@ -716,7 +727,8 @@ class DeadzoneInverse(Controller):
 
     def _advance_free_motor(self) -> None:
         """Advance the free motor's prediction over the last sample, under the torque held over it (load units:
-        ``u = N (J1 a + d1 v) + T_c1 sign(v)``, the feedforward's model)."""
+        ``u = N (J1 a + d1 v) + T_c1 sign(v)``, the design pair's motor side: on a train it lumps the intermediate
+        shafts, but the contact check this feeds is a pair's)."""
         if self._motor_free is None:
             return
         if self._motor_free_new:  # the crossing started this sample: its torque is yet to act
@@ -824,12 +836,16 @@ class DeadzoneInverse(Controller):
 
     def _carried_now(self, o: float) -> tuple[float, float, float] | None:
         """``(J, d, T_c)`` the motor moves at offset ``o`` of a crossing (None on a pair: the design pair's motor
-        side). The share of the lost motion crossed is counted from the flank the motor left; the stages' gaps
-        close in order from the motor's (:func:`carried_by_motor`)."""
+        side).
+
+        The share crossed is that of the ramp's own travel, from where it started: from a settled flank, the share
+        of the lost motion; from the centred start-up, the share of the half gaps left, in which every stage has
+        the same share. The stages' gaps close in that order from the motor's (:func:`carried_by_motor`)."""
         rows = self._carried
         if len(rows) == 1:
             return None
-        crossed = (self._sigma * o + self._offset) / (2.0 * self._offset)
+        travel = self._ramp.target - self._ramp.origin
+        crossed = (o - self._ramp.origin) / travel if travel != 0.0 else 1.0
         for end, J, d, tc in rows:
             if crossed < end:
                 return J, d, tc

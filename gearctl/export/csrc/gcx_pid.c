@@ -361,7 +361,8 @@ GCX_FN void gcx_inv_advance_free_motor(const gcx_inv_p *P, gcx_inv_s *S) {
  * train's motor shaft and the intermediate shafts picked up; unchanged on a pair) */
 GCX_FN void gcx_inv_carried_now(const gcx_inv_p *P, const gcx_inv_s *S, double o, gcx_plant_p *pl) {
     if (P->n_carried <= 1) return;
-    double crossed = (S->sigma * o + S->offset) / (2.0 * S->offset);
+    double travel = S->ramp.o1 - S->ramp.o0; /* the share of the ramp's own travel, from where it started */
+    double crossed = travel != 0.0 ? (o - S->ramp.o0) / travel : 1.0;
     const double *row = &P->carried[4 * (P->n_carried - 1)];
     for (int i = 0; i < P->n_carried; i++) {
         if (crossed < P->carried[4 * i]) {
