@@ -114,3 +114,20 @@ def test_a_load_step_beyond_the_motor_is_said(capsys: pytest.CaptureFixture[str]
     assert "load step, 0.5 N m, is 125 times the torque the motor can put on the load" in err
     main(["track", "shing1993_servo", "pid", "--reference", "step", "--duration", "1.2"])
     assert "load step" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("argv", "says"), [
+    (["track", "shing1993_servo", "pid", "--duration", "-1"], "argument --duration: -1 is out of range: expected 0 <"),
+    (["track", "shing1993_servo", "pid", "--plant", "foo"], "argument --plant: invalid choice: 'foo'"),
+    (["precision", "shing1993_servo", "pid", "--targets", "x"], "argument --targets:"),
+])
+def test_a_bad_option_value_is_one_line(capsys, argv: list[str], says: str) -> None:  # noqa: ANN001
+    # argparse printed its usage block above such a line; like every other input error it is one line now
+    lines = _refusal(capsys, argv).splitlines()
+    assert len(lines) == 1 and says in lines[0], lines
+    assert lines[0].startswith(f"gearctl {argv[0]}: error: ") and lines[0].endswith(f"(usage: gearctl {argv[0]} -h)")
+
+
+def test_an_unknown_option_keeps_the_usage(capsys) -> None:  # noqa: ANN001
+    err = _refusal(capsys, ["track", "--bogus"])
+    assert err.startswith("usage: gearctl track") and "unrecognized arguments: --bogus" in err

@@ -1,8 +1,9 @@
 """The ``gearctl`` command line. The only package that prints or exits.
 
 A :class:`~gearctl.errors.GearctlError` becomes one line on stderr and exit code 2; argparse's own usage
-errors also exit with 2; a closed output pipe (``gearctl models --json | head``) ends quietly. Anything else
-is a bug and surfaces as a traceback. Each module of this package registers a group of commands.
+errors also exit with 2 (a bad option value in one line, like the others); a closed output pipe (``gearctl models
+--json | head``) ends quietly. Anything else is a bug and surfaces as a traceback. Each module of this package
+registers a group of commands.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import os
 import re
 import sys
 from collections.abc import Callable, Sequence
+from typing import NoReturn
 
 from .. import __version__
 from ..errors import GearctlError
@@ -31,6 +33,14 @@ class _Parser(argparse.ArgumentParser):
     def __init__(self, *args: object, **kwargs: object) -> None:
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
         self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+    def error(self, message: str) -> NoReturn:
+        """A bad value of a named option or argument (``argument --duration: -1 is out of range: ...``) is one line
+        with a pointer to ``-h``, as every other input error is; the rest (an unknown option, a missing argument)
+        keeps argparse's usage above it. Exit status 2 either way."""
+        if message.startswith("argument "):
+            self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} -h)\n")
+        super().error(message)
 
 
 def _parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]]:
