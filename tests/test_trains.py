@@ -462,7 +462,7 @@ def test_inverse_contact_check_is_a_pairs(tmp_path: Path, three: Plant) -> None:
     """On a train the motor meets the intermediate shafts before the load, and their impacts make it lag its ramp
     as a too large estimate would: with the check on, a 5 ms crossing on the three-stage train ended 6 crossings
     early in 3 s, each stopping the offset short (RMS 8.66e-4 rad, the PID's 9.87e-4). With it off on trains:
-    6.2e-5 rad (16x below the PID; 4.7e-5 before the crossing's feedforward counted only the shafts the motor
+    6.1e-5 rad (16x below the PID; 4.7e-5 before the crossing's feedforward counted only the shafts the motor
     moves; the 10 ms catalog crossing gives 1.04e-4; 4-7 ms gave 5e-5 to 2.1e-4, the loop is that sensitive). Kept:
     no early end, RMS
     under 2e-4 rad (a quarter of the misfiring check's), and the check still on for a pair."""
@@ -509,7 +509,7 @@ def test_inverse_on_a_trains_equivalent_pair(name: str, factor: float) -> None:
                    "without the intermediate shafts this motor-dominated train would not reach the pair's factor. The "
                    "crossing flings the light intermediate shafts (restitution ~0.85), and through them the load, "
                    "ahead of a motor "
-                   "24x the reflected load; with the last stage's backlash alone the inverse gives 37x. The one-gap "
+                   "24x the reflected load; with the last stage's backlash alone the inverse gives 32x. The one-gap "
                    "inverse does not see the intermediate shafts (a per-stage inverse would be needed). Traced: the "
                    "error is a 750 urad peak at every reversal (365 urad RMS over the 50 ms around it, 1 urad "
                    "between), not chaos: the 10 ms crossing reaches 21 rad/s at the motor and meets the first "
