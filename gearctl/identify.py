@@ -1001,7 +1001,7 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
     mv = _Encoder.moving(m.w, m.v_thr, p.W)
     pl = p.nominal
     J_model = pl.J1 + pl.J2 / p.N**2
-    lost = 2.0 * pl.backlash / pl.rb2  # the model's lost motion [rad at the load]
+    lost = pl.lost_motion  # the model's [rad at the load]
     # the load's travel, as either encoder reads it (swapped columns must not hide the check)
     travel = max(float(np.ptp(lg.theta1)) / p.N, float(np.ptp(lg.theta2)) if p.l is not None else 0.0)
     if p.l is not None and travel >= RATIO_TRAVEL * lost:
@@ -1941,7 +1941,7 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
     """
     from .catalog import PAIR_TABLES, GearModel, load_model
     from .geometry import pair_geometry
-    from .params import Sensors, Servo
+    from .params import Servo
 
     mdl = model if isinstance(model, GearModel) else load_model(model)
     pair = mdl.pair
@@ -1987,8 +1987,7 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
         servo[f"coulomb_friction{j}"] = float(result.friction[key]) if keep else 0.0
     doc["servo"] = {k: (v.value if hasattr(v, "value") else (list(v) if isinstance(v, tuple) else v))
                     for k, v in servo.items() if not (isinstance(v, tuple) and not v)}
-    sensors = {f.name: getattr(mdl.sensors, f.name) for f in dataclasses.fields(Sensors)}
-    doc["sensors"] = {k: v for k, v in sensors.items() if v is not None}
+    doc["sensors"] = {k: v for k, v in dataclasses.asdict(mdl.sensors).items() if v is not None}
     if not mdl.sensors.load_encoder:  # no load encoder: nothing of one is written
         doc["sensors"].pop("load_noise", None)
         doc["sensors"].pop("load_encoder_cpr", None)

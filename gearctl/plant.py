@@ -317,9 +317,14 @@ class Plant:
         return math.prod(s.ratio for s in self.stages[i + 1:])
 
     @property
+    def stage_lost_motions(self) -> tuple[float, ...]:
+        """Each stage's lost motion at the load shaft, ``2 b_i / (r_b2,i prod_(j > i) N_j)`` [rad]."""
+        return tuple(2 * s.backlash / (s.rb2 * self.ratio_after(i)) for i, s in enumerate(self.stages))
+
+    @property
     def lost_motion(self) -> float:
-        """Lost motion at the load shaft, ``sum_i 2 b_i / (r_b2,i prod_(j > i) N_j)`` [rad]."""
-        return sum(2 * s.backlash / (s.rb2 * self.ratio_after(i)) for i, s in enumerate(self.stages))
+        """Lost motion at the load shaft, the sum of :attr:`stage_lost_motions` [rad]."""
+        return sum(self.stage_lost_motions)
 
     def stage_m_eq(self, i: int) -> float:
         """Equivalent mass of stage ``i``'s mesh mode between its two shafts [kg]."""

@@ -367,8 +367,8 @@ def carried_by_motor(plant: Plant) -> tuple[tuple[float, float, float, float], .
     0.2 rad/s at the load and flung it into the load, 2.3 mrad of error at every reversal.
     """
     ratio_to = [math.prod(s.ratio for s in plant.stages[:j]) for j in range(len(plant.shafts))]
-    lost = [2.0 * s.backlash / (s.rb2 * plant.ratio_after(i)) for i, s in enumerate(plant.stages)]
-    total = sum(lost)
+    lost = plant.stage_lost_motions
+    total = plant.lost_motion
     rows, end, J, d, tc = [], 0.0, 0.0, 0.0, 0.0
     for i in range(plant.n_stages):
         sh = plant.shafts[i]

@@ -611,17 +611,8 @@ def contact_tolerance(info: LoopInfo) -> float:
     nominal = info.nominal
     if nominal.n_stages <= 1 or nominal.lost_motion <= 0.0:
         return 0.02
-    shares = _stage_lost_motion(nominal)
+    shares = nominal.stage_lost_motions
     return 0.02 + float(sum(shares[:-1])) / nominal.lost_motion
-
-
-def _stage_lost_motion(plant: Any) -> list[float]:
-    """Each stage's share of the lost motion at the output, ``2 b_i / (r_b2,i prod_(j>i) N_j)`` [rad]."""
-    out = []
-    for i, st in enumerate(plant.stages):
-        after = math.prod(s.ratio for s in plant.stages[i + 1:])
-        out.append(2.0 * st.backlash / (st.rb2 * after))
-    return out
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
