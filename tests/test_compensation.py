@@ -542,6 +542,51 @@ def test_inverse_holds_its_flank_at_rest_unless_friction_is_exceeded() -> None:
         assert inv.flank(0.5, rest) == expected, d
 
 
+class _Kinematics:
+    """A reference that gives the same ``(r, r', r'')`` at every time."""
+
+    def __init__(self, rd: float, rdd: float) -> None:
+        self.value = (0.0, rd, rdd)
+
+    def at(self, t: float) -> tuple[float, float, float]:
+        return self.value
+
+
+def test_inverse_skips_a_crossing_the_reference_would_overtake() -> None:
+    # the end of a forward move on a friction load: the braking flank (-1) is held while the deceleration
+    # outweighs the friction; as it fades, the torque to transmit turns positive. Where the reference rests
+    # (in 2 r' / |r''|) before a crossing could land, the flank is kept; a later rest, or a deceleration that grows
+    # (a sine's top), changes it
+    plant = build_plant(load_model(FRICTION))
+    inv = load_controller("deadzone_inverse", plant)
+    assert isinstance(inv, DeadzoneInverse)
+    Tc = inv.crossing_time
+    rdd = -0.5 * inv._tc2 / inv._J2  # half the friction's deceleration: the driving flank must push
+    for rd, rdd_before, expected in (
+        (0.2 * abs(rdd) * Tc, 1.1 * abs(rdd), -1.0),  # fading, rests in 0.4 Tc: kept
+        (0.45 * abs(rdd) * Tc, 1.1 * abs(rdd), -1.0),  # rests in 0.9 Tc: kept
+        (0.55 * abs(rdd) * Tc, 1.1 * abs(rdd), 1.0),  # rests in 1.1 Tc: the crossing lands first
+        (0.2 * abs(rdd) * Tc, 0.9 * abs(rdd), 1.0),  # the deceleration grows: a reversal, not a rest
+    ):
+        inv.reset()
+        inv._sigma, inv._rdd_before = -1.0, rdd_before
+        assert inv.transmitted_torque(rd, rdd) > inv.width
+        assert inv.flank(0.5, _Kinematics(rd, rdd)) == expected, (rd, rdd_before)
+
+
+def test_inverse_on_a_cnc_table_positions_as_well_as_the_pid() -> None:
+    # a reviewer's CNC rotary table (5 N m of table friction, 3 kg m^2, 44.7 urad of lost motion): a crossing
+    # decided in the last 10 ms of a move landed after the load had stopped, and the motor held it 30 urad short
+    # of the targets reached after the 0.02 rad overshoot moves: ISO A 178 urad against the PID's 86 (3 cycles).
+    # Measured now 88 urad against 86 (5 cycles: 83 against 87); kept within 1.3x of the PID
+    m = load_model(str(Path(__file__).parent / "data" / "cnc_table_tight.toml"))
+    plant = build_plant(m)
+    A = {c: precision_test(plant, load_controller(c, plant, sensors=m.sensors), cycles=3,
+                           sensors=m.sensors).stats["accuracy"] for c in ("pid", "deadzone_inverse")}
+    print(f"\ncnc table ISO A: PID {A['pid'] * 1e6:.1f} urad, inverse {A['deadzone_inverse'] * 1e6:.1f} urad")
+    assert A["deadzone_inverse"] <= 1.3 * A["pid"]
+
+
 # --- 9. the mechanisms behind the figures ---------------------------------------------------------------------
 
 

@@ -301,8 +301,8 @@ GCX_FN double gcx_inv_transmitted(const gcx_inv_p *P, const gcx_inv_s *S, double
     return drive;
 }
 
-/* DeadzoneInverse.flank */
-GCX_FN double gcx_inv_flank(const gcx_inv_p *P, gcx_inv_s *S, double rd, double rdd) {
+/* DeadzoneInverse.flank (rdd_prev: |r''| of the last sample) */
+GCX_FN double gcx_inv_flank(const gcx_inv_p *P, gcx_inv_s *S, double rd, double rdd, double rdd_prev) {
     double w = P->width;
     if (rd == 0.0 && rdd == 0.0) {
         if (!P->rule_velocity) {
@@ -312,10 +312,10 @@ GCX_FN double gcx_inv_flank(const gcx_inv_p *P, gcx_inv_s *S, double rd, double 
         return S->sigma;
     }
     double drive = !P->rule_velocity ? gcx_inv_transmitted(P, S, rd, rdd) : rd;
-    if (drive > w)
-        S->sigma = 1.0;
-    else if (drive < -w)
-        S->sigma = -1.0;
+    double sigma = drive > w ? 1.0 : (drive < -w ? -1.0 : S->sigma);
+    /* too late to land: the reference rests before a crossing could */
+    int stops_first = rd * rdd < 0.0 && fabs(rdd) < rdd_prev && 2.0 * fabs(rd) < fabs(rdd) * S->crossing_time;
+    if (!(S->sigma != 0.0 && sigma != S->sigma && stops_first)) S->sigma = sigma;
     return S->sigma;
 }
 
@@ -503,7 +503,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     double rdd_prev = S->rdd_prev;
     S->rdd_prev = fabs(rdd);
     double sigma_old = S->sigma;
-    double sigma = gcx_inv_flank(P, S, rd, rdd);
+    double sigma = gcx_inv_flank(P, S, rd, rdd, rdd_prev);
     if (sigma != sigma_old) {
         /* a contact met during this crossing is trusted only if it starts from a settled flank */
         S->trusted = sigma_old != 0.0 && !S->has_lag && !S->rattling && t >= S->cross_end + S->crossing_time;
