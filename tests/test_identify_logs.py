@@ -71,11 +71,13 @@ def _ref(t: float, moves: list[tuple[float, ...]]) -> float:
     return pos
 
 
-def simulate(duration: float = 8.0, Ts: float = 1e-3, sub: int = 40, seed: int = 1) -> dict[str, np.ndarray]:
-    """The closed loop: sample times, torque and the true angles (n,) at the samples."""
+def simulate(duration: float = 8.0, Ts: float = 1e-3, sub: int = 40, seed: int = 1,
+             amp: float = 0.1) -> dict[str, np.ndarray]:
+    """The closed loop (moves of up to ``amp`` [rad] at the load): sample times, torque and the true angles (n,) at
+    the samples."""
     b, J1, J2, d1, d2, tc1, tc2 = (TRUTH[k] for k in ("b", "J1", "J2", "d1", "d2", "tc1", "tc2"))
     rng = np.random.default_rng(seed)
-    moves = _moves(duration, 0.1, rng)
+    moves = _moves(duration, amp, rng)
     n = int(round(duration / Ts)) + 1
     h, q, ratio, eps = Ts / sub, 2 * math.pi / CPR, RB2 / RB1, 1e-3
 
@@ -237,6 +239,18 @@ def test_a_dead_load_encoder_is_named(sim: dict[str, np.ndarray]) -> None:
         identify(dataclasses.replace(log, theta2=np.full(log.n, 0.25)), MODEL)
 
 
+def test_a_motion_inside_the_gap_is_refused_not_read_as_b() -> None:
+    # a reviewer's log whose motor turned back inside the gap (an excitation too small to cross it) gave b at 23 %
+    # of the truth with a confident interval, and --write-model wrote it: the extremes of s were only how far the
+    # motor swung. Here moves of 0.1 mrad at the load, 7.5 um along the line of action against b = 50 um: the load
+    # never moves, and the log is refused on the load encoder's column
+    sim = simulate(duration=3.0, amp=1e-4)
+    assert float(np.ptp(sim["th2"])) < 1e-9  # the truth: the motor never met the load
+    with pytest.raises(InputError, match=r"column theta2: the load does not move where the gap reaches") as exc:
+        identify(read_log_from(sim), MODEL)
+    assert exc.value.field == "theta2"
+
+
 @pytest.mark.parametrize(("value", "fragment"), [
     (1e308, "is beyond 1e+06 rad"),  # a reviewer's log: its differences overflowed, SVD did not converge (exit 1)
     (1e5, "jumps 1e+05 rad from its neighbours and back"),  # 1e6 was refused as "column torque: does not drive"
@@ -294,6 +308,56 @@ def test_write_model_refuses_a_missing_folder_and_leaves_no_file(both: Identific
     with pytest.raises(InputError, match=r"not valid, not writing"):
         write_identified_model(tmp_path / "m.toml", bad, MODEL)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_write_model_keeps_the_mode_and_refuses_a_folder(both: Identification, tmp_path: Path) -> None:
+    # a reviewer found the written model private (0600, mkstemp's) and a 0644 file it replaced made 0600
+    import os
+    import stat
+
+    out = tmp_path / "m.toml"
+    write_identified_model(out, both, MODEL)
+    mask = os.umask(0)
+    os.umask(mask)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~mask
+    out.chmod(0o640)
+    write_identified_model(out, both, MODEL)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o640
+    with pytest.raises(InputError, match="it is a folder"):
+        write_identified_model(tmp_path, both, MODEL)
+    with pytest.raises(InputError, match="is not a folder"):
+        write_identified_model(out / "x.toml", both, MODEL)
+
+
+def test_cli_never_writes_over_its_own_inputs(sim: dict[str, np.ndarray], folder: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    # `identify LOG --write-model LOG` replaced the measurement by a model file, exit 0
+    log = write_csv(folder / "keep.csv", sim)
+    before = log.read_bytes()
+    for target in (str(log), str(folder / "." / "keep.csv")):
+        assert main(["identify", str(log), "--model", MODEL, "--write-model", target]) == 2
+        assert "is the input file" in capsys.readouterr().err
+    assert main(["identify", str(log), "--model", MODEL, "--plot", str(log)]) == 2
+    assert log.read_bytes() == before
+
+
+def test_unreadable_logs_are_one_line(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # a device or a pipe has no size to check beforehand (/dev/zero grew to 12 GB); a field beyond the csv module's
+    # limit was a traceback; Python's float() reads '0_1' as 1
+    import gearctl.identify as ident
+
+    monkeypatch.setattr(ident, "MAX_LOG_BYTES", 10_000)
+    with pytest.raises(InputError, match="too large for a log"):
+        read_log("/dev/zero")
+    monkeypatch.undo()
+    long = folder / "long.csv"
+    long.write_text("t,torque,theta1\n0," + "1" * 200_000 + ",0\n")
+    with pytest.raises(InputError, match=r"line 2: is not a CSV row"):
+        read_log(long)
+    under = folder / "under.csv"
+    under.write_text("t,torque,theta1\n0,0_1,0\n")
+    with pytest.raises(InputError, match=r"line 2: column torque = '0_1' is not a number"):
+        read_log(under)
 
 
 # --- 3. file and clock formats ---------------------------------------------------------------------------------

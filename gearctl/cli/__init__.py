@@ -18,6 +18,7 @@ from typing import NoReturn
 from .. import __version__
 from ..errors import GearctlError
 from . import export_cmds, identify_cmds, loop_cmds, model_cmds, sweep_cmds
+from .common import refuse_writing_over_inputs
 
 __all__ = ["main"]
 
@@ -67,6 +68,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # argparse: --help / --version (0) or a usage error (2)
         return int(exc.code or 0)
     try:
+        refuse_writing_over_inputs(args)
         return commands[args.command](args)
     except GearctlError as exc:
         print(f"gearctl {args.command}: error: {exc}", file=sys.stderr)

@@ -136,6 +136,33 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
         raise InputError(f"cannot write {path}: {exc.strerror}") from None
 
 
+#: Arguments that name files a command reads, and those that name what it writes.
+INPUT_ARGS = ("model", "controller", "log")
+OUTPUT_ARGS = ("csv", "plot", "out", "write_model", "reference_only")
+
+
+def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
+    """Refuse an output path that is one of the command's input files (``--write-model LOG``): it would be lost.
+
+    The same file under another name (a link, ``./``) counts (:func:`os.path.samefile`).
+    """
+    import os
+
+    inputs = [v for k in INPUT_ARGS if isinstance(v := getattr(args, k, None), str) and Path(v).is_file()]
+    for key in OUTPUT_ARGS:
+        out = getattr(args, key, None)
+        if not isinstance(out, str) or not Path(out).exists():
+            continue
+        for inp in inputs:
+            try:
+                same = os.path.samefile(out, inp)
+            except OSError:
+                continue
+            if same:
+                raise InputError(f"--{key.replace('_', '-')} {out} is the input file {inp}: writing there would "
+                                 f"lose it; write to another file", field=key)
+
+
 def say_written(*pairs: tuple[str | None, str]) -> None:
     """Print ``wrote FILE (what)`` for each file the user asked for."""
     for path, what in pairs:
