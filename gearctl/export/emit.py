@@ -213,7 +213,7 @@ def _implementation(spec: KindSpec) -> str:
     """``gearctl_ctrl.c``."""
     mpc = spec.prefix == "mpc"
     check_load = spec.uses_load_encoder and not mpc  # the MPC takes a load reading beyond the limit as missing
-    load_screen = " || !isfinite(y[1]) || fabs(y[1]) > GEARCTL_INPUT_LIMIT" if check_load else ""
+    load_screen = " || !gcx_finite(y[1]) || fabs(y[1]) > GEARCTL_INPUT_LIMIT" if check_load else ""
     parts = [
         f"/* gearctl_ctrl.c -- exported controller \"{spec.name}\" (kind {spec.kind}): the kind's C, which mirrors\n"
         " * gearctl's Python methods line by line. SPDX-License-Identifier: MIT (see LICENSE) */\n",
@@ -235,9 +235,10 @@ void gearctl_ctrl_init(gearctl_ctrl_t *c) {{
 }}
 
 int gearctl_ctrl_step(gearctl_ctrl_t *c, const double y[2], const double *ref, double *u) {{
-    /* isfinite first: no ordered comparison with a NaN (FE_INVALID, a trap where floating-point traps are on) */
-    int i, bad = !isfinite(y[0]) || fabs(y[0]) > GEARCTL_INPUT_LIMIT{load_screen};
-    for (i = 0; i < 3 * GEARCTL_PREVIEW; i++) bad = bad || !isfinite(ref[i]) || fabs(ref[i]) > GEARCTL_INPUT_LIMIT;
+    /* finiteness first, read off the bits (gcx_finite): no ordered comparison with a NaN (FE_INVALID, a trap where
+     * floating-point traps are on), and a check that -ffast-math or -ffinite-math-only cannot remove */
+    int i, bad = !gcx_finite(y[0]) || fabs(y[0]) > GEARCTL_INPUT_LIMIT{load_screen};
+    for (i = 0; i < 3 * GEARCTL_PREVIEW; i++) bad = bad || !gcx_finite(ref[i]) || fabs(ref[i]) > GEARCTL_INPUT_LIMIT;
     if (bad) {{ /* a missed sample: no update, a zero torque */
         *u = 0.0;
         c->k++;
@@ -329,7 +330,7 @@ def _params(spec: KindSpec) -> str:
     """``gearctl_ctrl_params.h``: the constant tables and the parameter struct."""
     st = spec.struct
     out = [f"/* gearctl_ctrl_params.h -- parameters of \"{spec.name}\" (kind {spec.kind}), read off the Python\n"
-           " * object.\n"
+           " * object. SPDX-License-Identifier: MIT (see LICENSE)\n"
            " * Included once, by gearctl_ctrl.c (static const definitions). Doubles are written as their shortest\n"
            " * round-trip decimal, so they parse to the Python values exactly. */\n\n"]
     for arr in spec.arrays:
@@ -351,7 +352,7 @@ def _makefile(spec: KindSpec, vectors: bool = True) -> str:
     else:
         no = "@echo 'exported with --no-vectors: no test vectors to replay (export again without it)' >&2; exit 2"
         run_rules = f"check:\n\t{no}\n\nbench:\n\t{no}\n"
-    return f"""# Exported gearctl controller "{spec.name}" ({spec.kind}).
+    return f"""# Exported gearctl controller "{spec.name}" ({spec.kind}). SPDX-License-Identifier: MIT (see LICENSE)
 #   make         the static library libgearctl_ctrl.a (link it with -lm)
 #   make check   replay the recorded test vectors; print the largest |du| relative (0 expected)
 #   make bench   time gearctl_ctrl_step: median and p99 per step

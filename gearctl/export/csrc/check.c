@@ -81,7 +81,7 @@ int main(int argc, char **argv) {
                 goto bad;
             }
             double y[2] = {rd_f64(ys + 16 * k), rd_f64(ys + 16 * k + 8)};
-            double u_ref = rd_f64(us + 8 * k), u = NAN;
+            double u_ref = rd_f64(us + 8 * k), u = (double)NAN;
             if (gearctl_ctrl_step(&ctrl, y, rows + 3 * f, &u) > 0) flagged++;
             if (isnan(u) != isnan(u_ref)) {
                 nans++;

@@ -169,7 +169,7 @@ int gcx_batch_run(gcx_kernel_step kstep, const gc_params *p, gc_state *st, gcx_l
             const double *z = L->z + i * L->k_per;
             double y[2];
             y[0] = gcx_encoder(x[0], L->noise_m, L->noise_m > 0.0 ? z[0] : 0.0, L->q_m);
-            y[1] = L->use_load ? gcx_encoder(x[L->w - 1], L->noise_l, L->zi_l >= 0 ? z[L->zi_l] : 0.0, L->q_l) : NAN;
+            y[1] = L->use_load ? gcx_encoder(x[L->w - 1], L->noise_l, L->zi_l >= 0 ? z[L->zi_l] : 0.0, L->q_l) : (double)NAN;
             double row[3];
             const double *ref = row;
             if (L->ref)

@@ -9,6 +9,22 @@
 #define GCX_FN static
 #endif
 
+#include <float.h>
+#include <stdint.h>
+#include <string.h>
+
+#if DBL_MANT_DIG != 53 || DBL_MAX_EXP != 1024
+#error "gearctl: the exported controller needs IEEE 754 binary64 doubles (DBL_MANT_DIG 53, DBL_MAX_EXP 1024)"
+#endif
+
+/* x is finite, read off its bits: isfinite(x) and x == x are folded to 1 under -ffast-math or -ffinite-math-only,
+ * which would let a NaN reading through the input check */
+GCX_FN int gcx_finite(double x) {
+    uint64_t bits;
+    memcpy(&bits, &x, sizeof bits);
+    return (bits & UINT64_C(0x7ff0000000000000)) != UINT64_C(0x7ff0000000000000);
+}
+
 #define GCX_PI 3.141592653589793
 #define GCX_HALF_PI 1.5707963267948966        /* Python: 0.5 * math.pi */
 #define GCX_HALF_PI_SQ 4.934802200544679      /* Python: 0.5 * math.pi ** 2 */

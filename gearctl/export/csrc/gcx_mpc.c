@@ -81,7 +81,7 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
  * Returns 1 when a reading was missing or rejected (the step reports a fallback), else 0. */
 GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, double y_load) {
     double b = P->b, tol = P->tol;
-    int load = P->uses_load && isfinite(y_load) && fabs(y_load) <= GEARCTL_INPUT_LIMIT; /* else missing */
+    int load = P->uses_load && gcx_finite(y_load) && fabs(y_load) <= GEARCTL_INPUT_LIMIT; /* else missing */
     int note = P->uses_load && !load;
     double s_m = load ? P->rb1 * y_motor - P->rb2 * y_load : 0.0;
     if (load && !(fabs(s_m) <= P->gap_limit)) { /* the encoders disagree beyond any gap: the load reading is wrong */
@@ -122,7 +122,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         if (S->rejects > GCX_GATE_PERSIST) { /* a reading that persists is the truth: start again from it */
             S->rejects = 0;
             S->z_set = 0;
-            gcx_mpc_observe(P, S, y_motor, load ? y_load : NAN);
+            gcx_mpc_observe(P, S, y_motor, load ? y_load : (double)NAN);
             /* restarting again and again: the readings follow no motion the model allows: a latched fault */
             for (int i = 0; i < GCX_FAULT_RESTARTS - 1; i++) S->restarts[i] = S->restarts[i + 1];
             S->restarts[GCX_FAULT_RESTARTS - 1] = S->n_obs;
@@ -241,7 +241,7 @@ GCX_FN int gcx_mpc_pattern(const gcx_mpc_p *P, int a, int e) { return P->pat_ind
 
 /* MPC._full_cost of the solution in the buffers (status: that solve's) */
 GCX_FN double gcx_mpc_full_cost(const gcx_mpc_p *P, const gcx_mpc_s *S, int q, int status) {
-    if (status != 0) return INFINITY;
+    if (status != 0) return HUGE_VAL;
     double c = 0.0, acc = 0.0;
     int cur = -1;
     for (int k = P->K_ptr[q]; k < P->K_ptr[q + 1]; k++) {
@@ -364,7 +364,7 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
     (void)k;
     const int n = GCX_MPC_N;
     S->n_obs += 1;
-    int note = S->fault ? 0 : gcx_mpc_observe(P, S, y[0], y[1]);
+    int note = S->fault ? 0 : gcx_mpc_observe(P, S, y[0], P->uses_load ? y[1] : (double)NAN); /* y[1] unread */
     if (S->fault) { /* latched: the motor braked to rest, reported on every step */
         double u = gcx_mpc_brake_torque(P, S, y[0]);
         S->u = u;

@@ -238,7 +238,7 @@ GCX_FN void gcx_obs_update(const gcx_obs_p *P, gcx_obs_s *O, double theta, doubl
 /* DeadzoneInverse.set_backlash */
 GCX_FN void gcx_inv_set_backlash(const gcx_inv_p *P, gcx_inv_s *S, double backlash) {
     S->backlash = backlash;
-    S->jump_threshold = backlash > 0.0 ? gcx_max(backlash / P->jump_den, P->jump_floor) : INFINITY;
+    S->jump_threshold = backlash > 0.0 ? gcx_max(backlash / P->jump_den, P->jump_floor) : HUGE_VAL;
     S->offset = backlash / P->plant.rb2;
     S->ramp.span = 2.0 * S->offset;
     if (S->sigma != 0.0) {
@@ -261,7 +261,7 @@ GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     gcx_pid_reset(&S->pid);
     S->sigma = 0.0;
     S->t = 0.0;
-    S->cross_end = -INFINITY;
+    S->cross_end = -HUGE_VAL;
     S->free[0] = S->free[1] = 0.0;
     S->was_free = 0;
     S->moving_ref = 0;
@@ -275,7 +275,7 @@ GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     S->y_hist[0] = S->y_hist[1] = 0.0, S->y_hist_n = 0;
     S->u_hist[0] = S->u_hist[1] = 0.0;
     S->rattle = 0.0, S->rattling = 0;
-    S->reach = -INFINITY;
+    S->reach = -HUGE_VAL;
     S->trusted = 0;
     S->motor_free[0] = S->motor_free[1] = 0.0, S->motor_free_since = 0.0;
     S->motor_free_set = S->motor_free_new = S->motor_free_anchor = 0;
@@ -511,7 +511,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
         S->has_lag = 0; /* the landing of the new crossing sets the lag to take up */
         gcx_ramp_move_to(&S->ramp, S->ramp_shape, S->crossing_time, t, sigma * S->offset);
         S->cross_end = S->ramp.t0 + S->ramp.T;
-        S->reach = -INFINITY;
+        S->reach = -HUGE_VAL;
     }
     double lag[3];
     gcx_inv_take_up(P, S, t, lag); /* the load's target is the reference less the lag still to take up */
@@ -644,7 +644,7 @@ GCX_FN double gcx_ada_step(const gcx_ada_p *P, gcx_ada_s *S, double t, const dou
     if (has_yl) gcx_ada_observe(P, S, t, P->rb1 * y[0] - P->rb2 * y[1] - S->u / (P->rb1 * P->k));
     gcx_ada_switch_crossing(P, S, t);
     /* the inner inverse gets y_load only with load feedback (Python: None otherwise) */
-    double yi[2] = {y[0], P->inv.pid.feedback_load ? y[1] : NAN};
+    double yi[2] = {y[0], P->inv.pid.feedback_load ? y[1] : (double)NAN};
     double u = gcx_inv_step(&P->inv, &S->inv, t, yi, has_yl && P->inv.pid.feedback_load, ref);
     S->u = u;
     return u;
@@ -679,7 +679,7 @@ GCX_FN int gcx_rev_run(const gcx_rev_p *P, gcx_rev_s *S, int64_t k, const double
 GCX_FN void gcx_inv_init(const gcx_inv_p *P, gcx_inv_s *S) {
     S->sigma = 0.0;
     S->t = 0.0;
-    S->cross_end = -INFINITY;
+    S->cross_end = -HUGE_VAL;
     S->crossing_time = P->crossing_time, S->ramp_shape = P->ramp_shape;
     gcx_inv_set_backlash(P, S, P->backlash);
     gcx_inv_reset(S);
@@ -696,7 +696,7 @@ GCX_FN int gcx_inv_run(const gcx_inv_p *P, gcx_inv_s *S, int64_t k, const double
 GCX_FN void gcx_ada_init(const gcx_ada_p *P, gcx_ada_s *S) {
     S->inv.sigma = 0.0;
     S->inv.t = 0.0;
-    S->inv.cross_end = -INFINITY;
+    S->inv.cross_end = -HUGE_VAL;
     gcx_ada_reset(P, S);
 }
 
