@@ -288,3 +288,38 @@ def test_the_law_keeps_the_estimate_above_the_backlash_floor() -> None:
     for i in range(8):
         ctrl.update(0.1 * i, 1e-10)
     assert ctrl.min_backlash == BACKLASH_FLOOR and ctrl.inner.backlash == BACKLASH_FLOOR
+
+
+@pytest.mark.parametrize(("model", "seed"), [("shing1993_servo_friction", 0), ("shing1993_servo", 1)])
+def test_only_a_flank_change_is_measured(model: str, seed: int) -> None:
+    # two kinds of window passed the span and plateau tests without holding both flanks: the centred start-up
+    # (the half gap from the centre to a flank, measured 0.50 b on the friction servo: the estimate fell to 0.70 b
+    # and took 17 s of ISO cycles to return) and a frictionless load coasting off its flank at rest (0.29-0.46 b,
+    # seed 1: the inverse went back to its learning crossing for a cycle). Only a window with a flank change
+    # measures now: every measurement of the ISO run within 5 % of b (measured: within 0.5 % and 2.7 %)
+    from gearctl.precision import precision_test
+
+    m = load_model(model)
+    plant = build_plant(m)
+    ctrl = load_controller("adaptive_inverse", plant, sensors=m.sensors)
+    precision_test(plant, ctrl, sensors=m.sensors, seed=seed)
+    measured = np.array([h[1] for h in ctrl.history])
+    print(f"\n{model}: {measured.size} measurements, {measured.min() / plant.backlash:.3f}-"
+          f"{measured.max() / plant.backlash:.3f} b")
+    assert measured.size >= 5
+    assert np.all(np.abs(measured / plant.backlash - 1.0) <= 0.05)
+
+
+def test_adaptive_positions_like_the_fixed_inverse_with_load_friction() -> None:
+    # ISO 230-2 on shing1993_servo_friction, estimate right: the adaptive inverse A = 14.4 urad, the fixed inverse
+    # 14.2 (the adaptive gave 257 while the start-up's half gap was taken for the gap); kept within 1.5x
+    from gearctl.precision import precision_test
+
+    m = load_model("shing1993_servo_friction")
+    plant = build_plant(m)
+    A = {}
+    for name in ("adaptive_inverse", "deadzone_inverse"):
+        res = precision_test(plant, load_controller(name, plant, sensors=m.sensors), sensors=m.sensors)
+        A[name] = res.stats["accuracy"]
+    print(f"\nISO A: adaptive {A['adaptive_inverse'] * 1e6:.1f}, fixed {A['deadzone_inverse'] * 1e6:.1f} urad")
+    assert A["adaptive_inverse"] <= 1.5 * A["deadzone_inverse"]

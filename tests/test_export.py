@@ -275,6 +275,24 @@ def test_sil_iso_cycle_on_a_friction_table_equals_python(tmp_path: Path) -> None
 
 
 @needs_cc
+def test_sil_adaptive_iso_cycle_measures_only_flank_changes_as_python(tmp_path: Path) -> None:
+    # the adaptive inverse measures the gap only in a window where the inverse changed flank (not the centred
+    # start-up's half gap): the C counts the same samples, and the ISO cycle is the Python's to the last bit
+    from gearctl.export import export_controller, load_exported
+    from gearctl.precision import precision_test
+
+    m = load_model("shing1993_servo_friction")
+    plant = build_plant(m)
+    export_controller(load_controller("adaptive_inverse", plant, sensors=m.sensors), tmp_path, plant=plant,
+                      sensors=m.sensors, model=m.name)
+    py = load_controller("adaptive_inverse", plant, sensors=m.sensors)
+    a = precision_test(plant, py, cycles=2, sensors=m.sensors)
+    b = precision_test(plant, load_exported(tmp_path), cycles=2, sensors=m.sensors)
+    assert len(py.history) >= 2 and all(abs(h[1] / plant.backlash - 1.0) < 0.05 for h in py.history)
+    np.testing.assert_array_equal(b.run.torque, a.run.torque)
+
+
+@needs_cc
 def test_sil_controller_reports_c_step_times_and_settings(exported, servo) -> None:
     from gearctl.export import load_exported
 

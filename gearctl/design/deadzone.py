@@ -606,6 +606,11 @@ class DeadzoneInverse(Controller):
         self._ramp.shape = "sin2" if crossing_time > 0.0 else "step"
         self._ramp.duration = crossing_time
 
+    @property
+    def held_flank(self) -> float:
+        """The flank the inverse holds: +1 front, -1 back, 0 before its first decision (the centred start-up)."""
+        return self._sigma
+
     def offset_moving(self, t: float) -> bool:
         """Whether the offset is on its ramp at ``t`` [s] (a crossing, or a change of the estimate)."""
         return self._ramp.moving(t)

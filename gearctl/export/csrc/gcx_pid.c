@@ -582,6 +582,8 @@ GCX_FN void gcx_ada_reset(const gcx_ada_p *P, gcx_ada_s *S) {
     S->converged = 0;
     S->agree = 0;
     S->head = S->len = S->count = S->fresh = 0;
+    S->flank = 0.0;
+    S->since_change = P->window;
     S->u = 0.0;
 }
 
@@ -620,6 +622,7 @@ GCX_FN void gcx_ada_observe(const gcx_ada_p *P, gcx_ada_s *S, double t, double s
     S->fresh++;
     if (S->count < n / 2 || S->len < n || S->fresh < n) return;
     S->count = 0;
+    if (S->since_change >= n) return; /* no flank change in the window: its extremes need not be the flanks */
     double *v = S->sorted;
     for (int i = 0; i < n; i++) { /* insertion sort (stable, as Python's sorted) */
         double x = S->recent[i];
@@ -639,7 +642,16 @@ GCX_FN void gcx_ada_observe(const gcx_ada_p *P, gcx_ada_s *S, double t, double s
     }
 }
 
+/* AdaptiveInverse._watch_flank: samples since the inverse last changed from one flank to the other */
+GCX_FN void gcx_ada_watch_flank(const gcx_ada_p *P, gcx_ada_s *S) {
+    double f = S->inv.sigma;
+    int changed = f != 0.0 && S->flank != 0.0 && f != S->flank;
+    S->since_change = changed ? 0 : (S->since_change + 1 < P->window ? S->since_change + 1 : P->window);
+    S->flank = f;
+}
+
 GCX_FN double gcx_ada_step(const gcx_ada_p *P, gcx_ada_s *S, double t, const double y[2], const double *ref) {
+    gcx_ada_watch_flank(P, S);
     int has_yl = !isnan(y[1]);
     if (has_yl) gcx_ada_observe(P, S, t, P->rb1 * y[0] - P->rb2 * y[1] - S->u / (P->rb1 * P->k));
     gcx_ada_switch_crossing(P, S, t);

@@ -51,6 +51,8 @@ typedef struct {
     gcx_inv_s inv;
     double b, u;
     int head, len, count, fresh;
+    double flank;     /* the inverse's held flank at the last sample (0: centred, no decision yet) */
+    int since_change; /* samples since the inverse changed flank, at most the window */
     int converged, agree; /* the estimate counts as converged; consecutive measurements that agree with it */
     double recent[GCX_ADA_WINDOW], sorted[GCX_ADA_WINDOW];
 } gcx_ada_s;
