@@ -27,7 +27,7 @@ from .kernel import compiled_available
 from .parallel import map_tasks
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, reference
-from .runs import Design, Run, controller_spec, design_controller, execute
+from .runs import Design, Run, controller_spec, design_controller, execute, unholdable_load_step
 from .units import DURATION, SEED
 
 __all__ = ["BenchSpec", "run_bench", "bench_table", "DEFAULT_DURATION", "FREE", "ISO_SETTINGS"]
@@ -180,6 +180,11 @@ def _row(run: Run) -> dict[str, Any]:
         out.update({"name": res.controller.get("name"), "Ts": res.controller.get("Ts"),
                     "preview": res.controller.get("preview", 1), **m, "warnings": list(health["warnings"]),
                     "design_notes": list(res.controller.get("design_notes", ()))})
+    too_large = unholdable_load_step(run.plant, run.reference)  # the likely cause of a failure: say it
+    if too_large:
+        out["warnings"] = [*out.get("warnings", ()), too_large]
+        if not res.ok:
+            out["message"] = f"{res.message}; {too_large}"
     if res.ok:
         out.update({"trace_t": res.trace_t.tolist(), "trace_error": res.trace_error.tolist()})
     return out
@@ -187,7 +192,8 @@ def _row(run: Run) -> dict[str, Any]:
 
 def _precision_row(job: dict[str, Any]) -> dict[str, Any]:
     """Worker: one ISO 230-2 test."""
-    from .precision import precision_test
+    from .metrics import loop_health
+    from .precision import precision_test, unreached_targets
 
     out = {k: job[k] for k in ("model", "controller", "plant", "seed")}
     try:
@@ -197,8 +203,13 @@ def _precision_row(job: dict[str, Any]) -> dict[str, Any]:
         out.update({"ok": False, "message": str(exc)})
         return out
     st = res.stats
+    # the warnings `gearctl precision` gives: the loop's health, targets not reached, a constant offset
+    warnings = list(loop_health(res.run, settle=0.0).warnings)
+    warnings += unreached_targets(res, job["true"].lost_motion, ISO_SETTINGS["travel"])
     out.update({"ok": True, "message": "ok", "accuracy": st["accuracy"], "reversal_value": st["reversal_value"],
-                "repeatability": st["repeatability"], "lost_motion": job["true"].lost_motion})
+                "repeatability": st["repeatability"], "mean_deviation": st["mean_deviation"],
+                "largest_deviation": st["largest_deviation"], "lost_motion": job["true"].lost_motion,
+                "warnings": warnings})
     return out
 
 

@@ -97,9 +97,11 @@ def contact_mode_model(plant: Plant, *, name: str = "contact") -> ct.StateSpace:
 def separation_model(plant: Plant, *, name: str = "separation") -> ct.StateSpace:
     """Linear model with every stage separated: free inertias with their viscous friction (eqs 6–7).
 
-    Same signals as :func:`contact_mode_model`; the ``force`` outputs are identically zero.
+    Same signals as :func:`contact_mode_model`; the ``force`` outputs of the separated stages are identically
+    zero. A stage without backlash (``b = 0``) cannot separate: its contact law is one spring through ``s = 0``,
+    so it stays in contact here (a backlash-free pair's separation model is its contact model).
     """
-    return mode_model(plant, [False] * plant.n_stages, name=name)
+    return mode_model(plant, [b == 0.0 for b in plant.backlashes], name=name)
 
 
 def rigid_model(plant: Plant, *, name: str = "rigid") -> ct.StateSpace:
@@ -293,8 +295,9 @@ class ContactModes:
     resonances_hz : tuple of float
         Undamped natural frequencies of every oscillatory mode with all stages in contact [Hz] (one per
         stage: the train's resonances), lowest first.
-    stage_separated : tuple of control.StateSpace
-        For a train, the model with stage ``i`` separated and the others in contact (empty for a pair).
+    stage_separated : tuple of control.StateSpace or None
+        For a train, the model with stage ``i`` separated and the others in contact (empty for a pair); None
+        for a stage without backlash, which cannot separate.
     """
 
     contact: ct.StateSpace
@@ -305,7 +308,7 @@ class ContactModes:
     mesh: MeshMode
     plant: Plant
     resonances_hz: tuple[float, ...] = ()
-    stage_separated: tuple[ct.StateSpace, ...] = ()
+    stage_separated: tuple[ct.StateSpace | None, ...] = ()
 
     @property
     def lost_motion(self) -> float:
@@ -346,7 +349,7 @@ def linearize_modes(plant: Plant) -> ContactModes:
     osc = poles[poles.imag > 1e-9 * np.max(np.abs(poles))]
     n = plant.n_stages
     separated = tuple(mode_model(plant, [j != i for j in range(n)], name=f"stage{i + 1}_separated")
-                      for i in range(n)) if n > 1 else ()
+                      if plant.backlashes[i] > 0.0 else None for i in range(n)) if n > 1 else ()
     return ContactModes(
         contact=contact, separation=separation_model(plant), rigid=rigid_model(plant),
         motor_angle=ct.tf(tf_motor.num, tf_motor.den, inputs=xi, outputs=outs[0], name="motor_angle"),

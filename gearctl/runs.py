@@ -174,6 +174,20 @@ def true_model(name: str | Path, model: GearModel, overrides: Mapping[str, Any])
     return load_model(name, **overrides)
 
 
+def unholdable_load_step(plant: Plant, ref: Reference) -> str | None:
+    """A warning when the reference's load-torque step exceeds what the motor can put on the load, else None.
+
+    The most torque the motor puts on the load shaft is ``gear_ratio x torque_limit`` [N m]; a larger step
+    drives the load away under any controller (the benchmark's 0.5 N m step on a servo of a few mN m).
+    """
+    hold = plant.gear_ratio * plant.torque_limit
+    dist = abs(float(getattr(ref, "disturbance", 0.0)))
+    if not (dist > hold and np.isfinite(dist)):
+        return None
+    return (f"the reference's load step, {dist:g} N m, is {dist / hold:.3g} times the torque the motor can put on "
+            f"the load (ratio x torque_limit = {hold:.3g} N m): no controller can hold it")
+
+
 def make_run(model: str | Path, controller: str | Path, *, plant: str = "improved", reference_kind: str = "sine",
              duration: float | None = None, seed: int = 0, backlash: float | None = None,
              estimate: float | None = None, realtime: bool = False, design_plant: str = "improved",

@@ -83,7 +83,8 @@ def model_summary(model: GearModel) -> dict[str, Any]:
         ``profile_shift``, ``operating_pressure_angle_deg``, ``centre_distance`` [m], and ``plant``
         {k, c, J1, J2, natural_frequency_hz} for the improved plant. For a train: ``stages`` (a list of
         those per-stage keys, each with its ``ratio``), ``plant`` {J (per shaft), k, c (per stage),
-        gear_ratio, natural_frequency_hz}, ``lost_motion`` [rad at the output] and
+        gear_ratio, natural_frequency_hz (the highest resonance of the coupled contact model, `linearize`'s mesh
+        mode), resonances_hz (every resonance in contact, lowest first)}, ``lost_motion`` [rad at the output] and
         ``equivalent_stiffness`` [N m/rad at the output]. Both have ``model``, ``stages_count``,
         ``sensors`` {``motor_encoder_cpr``, ``load_encoder_cpr`` (null: ideal), ``motor_noise``,
         ``load_noise`` [rad], ``load_encoder`` (false: the servo has none)} and ``source``.
@@ -97,7 +98,10 @@ def model_summary(model: GearModel) -> dict[str, Any]:
         return {"model": model.name, **stages[0], "plant": {
             "k": plant.k, "c": plant.c, "J1": plant.J1, "J2": plant.J2, "contact_law": plant.contact_law.value,
             "natural_frequency_hz": plant.natural_frequency / (2 * math.pi)}, **common}
+    from .modes import linearize_modes  # python-control: only for a train's summary
+
+    modes = linearize_modes(plant)  # a train's resonances are the coupled contact model's, as `linearize` gives them
     return {**common, "stages": stages, "plant": {
         "J": [s.J for s in plant.shafts], "k": [s.k for s in plant.stages], "c": [s.c for s in plant.stages],
         "gear_ratio": plant.gear_ratio, "contact_law": plant.contact_law.value,
-        "natural_frequency_hz": plant.natural_frequency / (2 * math.pi)}}
+        "natural_frequency_hz": modes.mesh.natural_frequency_hz, "resonances_hz": list(modes.resonances_hz)}}

@@ -22,6 +22,7 @@ import csv
 import dataclasses
 import json
 import math
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -597,6 +598,40 @@ def test_cli_info_train(capsys: pytest.CaptureFixture[str], two: Plant) -> None:
         assert set(pair) - model_level <= set(st)
     assert [s["teeth"] for s in info["stages"]] == [[32, 96], [48, 80]]
     assert [s["backlash"] for s in info["stages"]] == list(two.backlashes)
+    # the mesh mode and resonances are the coupled contact model's, as `linearize` gives them (a reviewer saw info
+    # print the uncoupled per-stage estimate, 13608 against linearize's 17035 Hz on a four-stage train)
+    lin = run_json(["linearize", TWO], capsys)
+    assert info["plant"]["natural_frequency_hz"] == lin["natural_frequency_hz"]
+    assert info["plant"]["resonances_hz"] == lin["resonances_hz"]
+
+
+def test_a_stage_without_backlash_does_not_separate(two: Plant, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    # its contact law is one spring through s = 0: the separation model keeps it in contact (a reviewer's train
+    # with a zero-backlash middle stage got every shaft free), and `linearize --mode stageK` refuses it
+    from gearctl.modes import linearize_modes, separation_model
+
+    plant = two.with_backlash([two.stages[0].backlash, 0.0])
+    sep = separation_model(plant)
+    osc = [p for p in sep.poles() if abs(p.imag) > 1.0]
+    s2 = plant.stages[1]
+    wn = math.sqrt(s2.k * (s2.rb1**2 / plant.shafts[1].J + s2.rb2**2 / plant.shafts[2].J))
+    assert len(osc) == 2
+    assert_allclose(np.abs(osc), wn, rtol=1e-3)  # stage 2's two-inertia mode
+    assert not np.any(sep.C[sep.output_index["force1"]])  # stage 1 is separated
+    modes = linearize_modes(plant)
+    assert modes.stage_separated[1] is None and modes.stage_separated[0] is not None
+    src = Path(resolve(TWO, "models")).read_text()
+    f = tmp_path / "zero_stage2.toml"
+    head, _, tail = src.partition("[[stage]]")
+    second = tail.index("[[stage]]")
+    stage2 = tail[second:]
+    stage2 = re.sub(r"(?m)^backlash\s*=.*$", "backlash = 0.0", stage2, count=1)
+    f.write_text(head + "[[stage]]" + tail[:second] + stage2)
+    assert main(["linearize", str(f), "--mode", "stage2"]) == 2
+    err = capsys.readouterr().err
+    assert "stage 2 has no backlash" in err and len(err.strip().splitlines()) == 1
+    assert main(["linearize", str(f), "--mode", "stage1"]) == 0
 
 
 def test_cli_stiffness_per_stage(capsys: pytest.CaptureFixture[str], two: Plant) -> None:

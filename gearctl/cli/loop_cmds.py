@@ -34,7 +34,7 @@ __all__ = ["register"]
 
 
 def _cmd_track(args: argparse.Namespace) -> int:
-    from ..runs import execute, make_run
+    from ..runs import execute, make_run, unholdable_load_step
 
     if args.exported is not None and args.estimate is not None:
         raise InputError("--estimate and --exported: an exported controller runs with the numbers it was exported "
@@ -71,11 +71,9 @@ def _cmd_track(args: argparse.Namespace) -> int:
                                             + c["plastic_back"][i]) for i in range(n)]
     warn("track", [f"{ctrl['name']}: {n}" for n in ctrl.get("design_notes", ())], kind="note")
     warn("track", m.health.warnings)
-    hold = plant.gear_ratio * plant.torque_limit  # the most torque the motor puts on the load [N m]
-    dist = abs(getattr(run.reference, "disturbance", 0.0))
-    if dist > hold and math.isfinite(dist):
-        warn("track", [f"the reference's load step, {dist:g} N m, is {dist / hold:.3g} times the torque the motor can "
-                       f"put on the load (ratio x torque_limit = {hold:.3g} N m): no controller can hold it"])
+    too_large = unholdable_load_step(plant, run.reference)
+    if too_large:
+        warn("track", [too_large])
     if not out.ok:
         warn("track", [f"the run stopped early: {out.message}"])
     if args.csv:
@@ -226,6 +224,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     warn("bench", dict.fromkeys(f"{r['model']}, {r['controller']}: {n}" for r in result["runs"]
                                 for n in r.get("design_notes", ())), kind="note")
     warn("bench", _grouped_warnings(result["runs"]))
+    warn("bench", _grouped_warnings(result.get("precision") or [], iso=True))
     if args.json:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
@@ -328,19 +327,23 @@ def _cmd_perf(args: argparse.Namespace) -> int:
 SWEEP_RUNS = Spec(unit="1", doc="runs per controller", low=10, high=100_000, integer=True)
 
 
-def _grouped_warnings(runs: list[dict[str, Any]]) -> list[str]:
-    """One line per kind of loop warning (limit cycle, impact rate, ...) naming the runs that have it."""
+def _grouped_warnings(runs: list[dict[str, Any]], *, iso: bool = False) -> list[str]:
+    """One line per kind of loop warning (limit cycle, impact rate, ...) naming the runs (``iso``: the ISO 230-2
+    rows) that have it."""
     import re
 
     groups: dict[str, list[str]] = {}
+    several = len({r.get("model") for r in runs}) > 1
     for r in runs:
         design = "" if r.get("design", r["plant"]) in ("improved", r["plant"]) else f", designed on {r['design']}"
-        label = f"{r['controller']} on {r['plant']}{design} ({r['reference']})"
+        model = f"{r.get('model')}: " if several else ""
+        label = f"{model}{r['controller']} on {r['plant']}{design} ({'ISO 230-2' if iso else r['reference']})"
         for wmsg in r.get("warnings", ()):
-            if ":" in wmsg:  # "sustained limit cycle: 56 impacts ..."
-                kind = wmsg.split(":")[0]
+            base = re.sub(r"\s*\(stage 1:.*\)$", "", wmsg)  # a train's rates per stage
+            if ":" in base:  # "sustained limit cycle: 56 impacts ..."
+                kind = base.split(":")[0]
             else:  # "impact rate 112 per s, above 100 per s" -> "impact rate above 100 per s"
-                kind = re.split(r"\s[-+]?\d", wmsg)[0] + (f" {wmsg.rsplit(', ', 1)[1]}" if ", " in wmsg else "")
+                kind = re.split(r"\s[-+]?\d", base)[0] + (f" {base.rsplit(', ', 1)[1]}" if ", " in base else "")
             if label not in groups.setdefault(kind.strip(), []):
                 groups[kind.strip()].append(label)
     return [f"{kind} in {len(labels)} run(s): {', '.join(labels)} (figures: --json FILE)"

@@ -117,8 +117,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
               f"ratio {st['ratio']:.4g}")
         _print_stage(st, indent="    ")
     print("  plant                  J " + ", ".join(f"{v:.4g}" for v in p["J"]) + " kg m^2 (motor first); k "
-          + ", ".join(f"{v:.4g}" for v in p["k"]) + " N/m; fastest mesh mode "
-          f"{p['natural_frequency_hz']:.5g} Hz, {p['contact_law']} contact law")
+          + ", ".join(f"{v:.4g}" for v in p["k"]) + " N/m; resonances in contact "
+          + ", ".join(f"{v:.5g}" for v in p["resonances_hz"]) + f" Hz (the mesh mode {p['natural_frequency_hz']:.5g}"
+          f" Hz), {p['contact_law']} contact law")
     _print_sensors(s["sensors"])
     return 0
 
@@ -308,6 +309,9 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
             raise InputError(f"mode = {args.mode!r}: 'stageK' (stage K separated, the others in contact) needs a train "
                              f"and 1 <= K <= {n}", field="mode")
         sys_ = modes.stage_separated[k - 1]
+        if sys_ is None:
+            raise InputError(f"mode = {args.mode!r}: stage {k} has no backlash (backlash = 0), so it cannot separate: "
+                             f"expected a stage with backlash > 0", field="mode")
     else:
         sys_ = modes.mode(args.mode)
     mesh = modes.mesh
