@@ -264,9 +264,12 @@ def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         j = int(bad[0])
+        step = float(np.median(dt)) if dt.size else 0.0
+        why = ("a clock printed with too few digits repeats values" if t[j + 1] == t[j] or step <= 0.0 else
+               f"the clock jitters, or two rows are swapped: a jittering clock's stamps are read while each lies "
+               f"within {JITTER_TOLERANCE:.0%} of the period, about {step:.3g} s here, of a fixed grid")
         raise _fail(path, f"line {line_of[j + 1]}", f"t = {float(t[j + 1]):.10g} does not increase (previous "
-                    f"sample t = {float(t[j]):.10g}): expected time in increasing order (a clock printed with too few "
-                    f"digits repeats values)", "t")
+                    f"sample t = {float(t[j]):.10g}): expected time in increasing order ({why})", "t")
     Ts = float(np.median(dt))  # robust to a gap; refined by the fit over the whole log once the spacing is checked
     try:
         SAMPLE_TIME.check("sample period", Ts)
@@ -687,6 +690,10 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
     for A, y, _, _, _ in blocks:
         r = y - A @ mean
         sig.append(max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-12))
+    # a block's noise never falls below a thousandth of its first estimate: a block of a dozen rows kept only the
+    # few the fit passed through exactly, its noise fell to the 1e-12 floor and its rows outweighed the prior by
+    # 1e23 (a reviewer's log with the torque one sample late: the normal matrix lost its definiteness to rounding)
+    sig_floor = [1e-3 * s0 for s0 in sig]
     D = np.diag(sd)
 
     def normal(with_rhs: bool) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -704,12 +711,17 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
         return G, h, E
 
     def corrected(G: NDArray[np.float64], E: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A square root ``L`` of ``G - f E`` (``L L^T``), the largest ``f`` of 1, 1/2, ... 0 that is positive definite."""
         for f in (1.0, 0.5, 0.25, 0.125, 0.0):
             try:
                 return np.linalg.cholesky(G - f * E)
             except np.linalg.LinAlgError:
                 continue
-        return np.linalg.cholesky(G)  # pragma: no cover (G itself is positive definite: it holds the prior)
+        # G = I + sum w A^T A has every eigenvalue >= 1, but rounding can lose that where a block's rows weigh 1e20
+        # times the prior (a torque column one sample late: a reviewer's log raised LinAlgError here): its
+        # eigenvalues, held at 1 from below
+        w, V = np.linalg.eigh(0.5 * (G + G.T))
+        return V * np.sqrt(np.maximum(w, 1.0))
 
     for _ in range(4):
         G, h, E = normal(True)
@@ -719,7 +731,7 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
         theta = sol.x * sd
         for j, (A, y, _, _, _) in enumerate(blocks):
             r = y - A @ theta
-            s = max(1.4826 * float(np.median(np.abs(r[keeps[j]]))), 1e-12)
+            s = max(1.4826 * float(np.median(np.abs(r[keeps[j]]))), sig_floor[j], 1e-12)
             sig[j] = s
             keeps[j] = np.abs(r) < 5 * s
     G, _, E = normal(False)

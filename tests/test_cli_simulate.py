@@ -197,3 +197,16 @@ def test_model_file_path(write_model, capsys: pytest.CaptureFixture[str]) -> Non
     # first impact at b / (50 rb1) (section 5.1.1 start): the JSON's first impact time, rtol 1e-12
     rb1 = 0.02 * math.cos(math.radians(20.0))
     assert_allclose(summary["impact_times"][0], 1e-4 / (50.0 * rb1), rtol=1e-12)
+
+
+@pytest.mark.parametrize("argv", [["simulate", "shing1993_servo", "--duration", "0.002"],
+                                  ["track", "shing1993_servo", "pid", "--duration", "0.05"]])
+def test_csv_dash_is_standard_output(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    # `--csv -` wrote a file named '-' (a reviewer); it is standard output now, the command's own lines on stderr
+    assert main([*argv, "--csv", "-"]) == 0
+    cap = capsys.readouterr()
+    rows = list(csv.reader(cap.out.splitlines()))
+    assert rows[0][0] == "t" and len(rows) > 10 and all(len(r) == len(rows[0]) for r in rows)
+    assert "wrote standard output (CSV)" in cap.err and not Path("-").exists()
+    assert main([*argv, "--csv", "-", "--json"]) == 2
+    assert "both would write standard output" in capsys.readouterr().err

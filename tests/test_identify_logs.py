@@ -395,3 +395,24 @@ def test_round_trip_keeps_a_large_clock_origin(tmp_path: Path) -> None:
     back = read_log(tmp_path / "a.csv")  # time to 15 digits: 10 us at 1.7e9 s
     assert back.sample_time == pytest.approx(1e-3, rel=1e-6)
     np.testing.assert_allclose(back.t - t[0], t - t[0], atol=1e-5)
+
+
+@pytest.mark.parametrize("lag", [1, 2])
+def test_a_torque_column_samples_late_is_read_without_a_traceback(sim: dict[str, np.ndarray], folder: Path,
+                                                                  lag: int) -> None:
+    late = dict(sim, torque=np.concatenate([np.zeros(lag), sim["torque"][:-lag]]))
+    res = identify(write_csv(folder / f"late{lag}.csv", late), MODEL)
+    assert math.isfinite(res.backlash) and all(math.isfinite(v) for v in res.inertia.values())
+    assert _check_all(res) == []  # the truth inside each interval, or named not identified
+
+
+def test_a_reviewers_log_with_the_torque_late_is_no_traceback() -> None:
+    # a reviewer's triangle log (its own simulator: b = 60 um, J1 2.42e-4, J2 9.02e-3, Coulomb 0.01 and 0.15 N m)
+    # with the torque one sample late raised LinAlgError: a free-flight block of a dozen rows kept only the few the
+    # fit passed through exactly, its noise fell to the 1e-12 floor and the normal matrix (rows weighing 1e23 times
+    # the prior) lost its definiteness to rounding. A block's noise is now held above a thousandth of its first
+    # estimate. b from the plateaus is right (59.9 um, 95 % CI 57.7-62.1); the torque balances, off by a sample,
+    # are named not identified
+    res = identify(DATA / "reviewer_triangle_torque_late.csv", "shing1993_servo_friction")
+    assert res.backlash_ci[0] <= 6e-5 <= res.backlash_ci[1]
+    assert {"J1", "J2", "coulomb1", "coulomb2"} <= set(res.not_identified)

@@ -9,6 +9,7 @@ registers a group of commands.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
 import sys
@@ -16,8 +17,8 @@ from collections.abc import Callable, Sequence
 from typing import NoReturn
 
 from .. import __version__
-from ..errors import GearctlError
-from . import export_cmds, identify_cmds, loop_cmds, model_cmds, sweep_cmds
+from ..errors import GearctlError, InputError
+from . import common, export_cmds, identify_cmds, loop_cmds, model_cmds, sweep_cmds
 from .common import refuse_writing_over_inputs
 
 __all__ = ["main"]
@@ -69,6 +70,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(exc.code or 0)
     try:
         refuse_writing_over_inputs(args)
+        if getattr(args, "csv", None) == "-":  # the CSV on standard output, everything else the command says on stderr
+            if getattr(args, "json", False):
+                raise InputError("--csv - and --json: both would write standard output; give the CSV a file name",
+                                 field="csv")
+            common.CSV_STDOUT = sys.stdout
+            with contextlib.redirect_stdout(sys.stderr):
+                return commands[args.command](args)
         return commands[args.command](args)
     except GearctlError as exc:
         print(f"gearctl {args.command}: error: {exc}", file=sys.stderr)

@@ -103,6 +103,21 @@ def dump_json(obj: Any) -> str:
     return json.dumps(_clean(json.loads(json.dumps(obj, default=_json_default))), indent=2)
 
 
+#: The standard output a ``--csv -`` writes to, set by :func:`gearctl.cli.main` (which sends the rest to stderr).
+CSV_STDOUT: Any = None
+
+
+def _write_rows(fh: Any, header: Sequence[str], columns: Callable[[int, int], Iterable[Sequence[Any]]], n: int,
+                chunk: int) -> None:
+    w = csv.writer(fh, lineterminator="\n")  # Unix lines: `cut` and `awk` see no \r
+    w.writerow(header)
+    for i0 in range(0, n, chunk):
+        cols = columns(i0, min(i0 + chunk, n))
+        text = [c if isinstance(c, list) else np.char.mod("%.10g", np.asarray(c, dtype=float)).tolist()
+                for c in cols]
+        w.writerows(zip(*text, strict=True))
+
+
 def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, int], Iterable[Sequence[Any]]],
                      n: int, *, chunk: int = 20_000) -> None:
     """Write a CSV in chunks of rows: ``columns(i0, i1)`` gives the columns of rows ``i0..i1``.
@@ -117,17 +132,15 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
         If ``path`` is a pipe whose reader went away (``--csv /dev/stdout | head``): not an input error, so
         it propagates to :func:`gearctl.cli.main`, which ends quietly as for any closed output pipe.
     """
-    p = Path(path)
     try:
+        if path == "-":  # standard output (main sends the command's other output to stderr meanwhile)
+            _write_rows(CSV_STDOUT or sys.stdout, header, columns, n, chunk)
+            (CSV_STDOUT or sys.stdout).flush()
+            return
+        p = Path(path)
         p.parent.mkdir(parents=True, exist_ok=True)
         with open(p, "w", newline="") as fh:
-            w = csv.writer(fh, lineterminator="\n")  # Unix lines: `cut` and `awk` see no \r
-            w.writerow(header)
-            for i0 in range(0, n, chunk):
-                cols = columns(i0, min(i0 + chunk, n))
-                text = [c if isinstance(c, list) else np.char.mod("%.10g", np.asarray(c, dtype=float)).tolist()
-                        for c in cols]
-                w.writerows(zip(*text, strict=True))
+            _write_rows(fh, header, columns, n, chunk)
     except BrokenPipeError:
         raise
     except OSError as exc:
@@ -167,7 +180,7 @@ def say_written(*pairs: tuple[str | None, str]) -> None:
     """Print ``wrote FILE (what)`` for each file the user asked for."""
     for path, what in pairs:
         if path:
-            print(f"  wrote {path} ({what})")
+            print(f"  wrote {'standard output' if path == '-' else path} ({what})")
 
 
 def save_figure(fig: Any, path: str) -> None:

@@ -937,6 +937,7 @@ _BRAKE_TIME = 0.02  # after a fault the motor is braked to rest with this time c
 _BRAKE_REST = 0.1  # ... exactly zero once the motor's reading has not changed for this long [s] (at rest)
 _RIGID_SAMPLES = 2.0  # a gap crossed within this many samples (at _CROSS_SHARE of the limit) is designed rigid
 _GAP_NOISE_TOL = 3.0  # the contact tolerance is at least this many times the measured gap's noise std
+_FLICKER_STD = 24.0  # alternating gap innovations within this many reading stds (7 counts) are an encoder's flicker
 _FRICTION_NOISE = 10.0  # the plan ramps the motor's Coulomb friction in over this many noise stds per sample
 _STALL_SAMPLES = 5  # a landing due for this many samples more than a crossing lasts has stalled ...
 _STALL_SHARE = 0.25  # ... if the gap stopped within this share of the flank
@@ -1334,6 +1335,7 @@ class MPC(Controller):
         if self._rigid:  # no gap (and no impact: the velocity-jump model below would be degenerate)
             self._Lg = ((0.0, 0.0), (0.0, 0.0))
             self._impact_innovation = math.inf
+            self._flicker_innovation = 0.0
             return
         Ag, Gg = m.A_sep[2:, 2:], m.B_sep[2:, :1]
         v_small = sp  # unmodelled torque on the motor
@@ -1344,6 +1346,7 @@ class MPC(Controller):
         Lg_big = _kalman_gain(Ag, Gv, np.array([[v_big**2]]), Cg, np.array([[r_s**2]]))
         self._Lg = (tuple(float(v) for v in Lg_small[:, 0]), tuple(float(v) for v in Lg_big[:, 0]))
         self._impact_innovation = 5.0 * r_s + 1e-3 * self._b
+        self._flicker_innovation = _FLICKER_STD * r_s  # about 7 counts of quantised encoders (a count: 3.5 std)
 
     # -- online --------------------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -1371,6 +1374,7 @@ class MPC(Controller):
         self._held = False  # holding at standstill (see _holding)
         self._rejects = 0  # samples in a row whose readings the gate rejected
         self._inn = [0.0, 0.0]  # the last accepted readings' innovations, motor and load [rad]
+        self._gap_inn = self._gap_inn2 = 0.0  # the floating gap's last two innovations [m] (0 in contact; _observe)
         self._restarts = [-_FAULT_WINDOW] * _FAULT_RESTARTS  # the samples of the last restarts of the estimate
         self._n_obs = 0  # samples observed (finite motor readings)
         self.fault = ""  # why the controller stopped (braking, then zero torque, until reset), "" while it runs
@@ -1428,6 +1432,7 @@ class MPC(Controller):
             load, s_m = False, 0.0
         if self._z is None:  # first sample: at rest, the gap from the encoders (mid-gap without them)
             self._inn = [0.0, 0.0]
+            self._gap_inn = self._gap_inn2 = 0.0
             phi_m = y_motor - m.kappa1 * s_m
             self._z = np.array([phi_m, 0.0, 0.0 if self._rigid else s_m, 0.0, 0.0])
             return note
@@ -1507,9 +1512,21 @@ class MPC(Controller):
                     fl = self._flanks[k] = min(fl, self._stall[k])
             if abs(s_m) >= fl - tol:  # contact: the reduced model's plastic impact
                 s_n, v_n = s_m, 0.0
+                self._gap_inn = self._gap_inn2 = 0.0
             else:
                 inn = s_m - s_p
-                lg = self._Lg[1] if abs(inn) > self._impact_innovation else self._Lg[0]
+                # a large innovation is an impact (the gap's speed jumped), unless it is an encoder's flicker: the
+                # third large innovation in a row, each of the other sign than the one before, none beyond a few
+                # counts of the gap reading. The impact gain took each flicker for an impact (a load encoder
+                # flickering by 2 counts on every other sample: 0.28 rad RMS on the sine, every status ok). A bounce
+                # or two between impacts is no flicker: plain runs keep their figures
+                big = abs(inn) > self._impact_innovation
+                g1, g2, lim = self._gap_inn, self._gap_inn2, self._flicker_innovation
+                flicker = (inn * g1 < 0.0 and g1 * g2 < 0.0 and min(abs(g1), abs(g2)) > self._impact_innovation
+                           and max(abs(inn), abs(g1), abs(g2)) <= lim)
+                impact = big and not flicker
+                self._gap_inn2, self._gap_inn = self._gap_inn, inn
+                lg = self._Lg[1] if impact else self._Lg[0]
                 s_n, v_n = s_p + lg[0] * inn, v_p + lg[1] * inn
         else:  # motor encoder alone: the gap is predicted, and pinned at the flank it reaches
             s_n, v_n = s_p, v_p

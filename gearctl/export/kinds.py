@@ -72,7 +72,7 @@ _struct("gcx_mpc_p", [
     ("n_pat", "int"), ("n_p", "int"), ("all_contact", "int"), ("rigid", "int"), ("uses_load", "int"),
     ("n_cross", "int"), ("n_lead", "int"), ("bound_landing", "int"),
     *[(f, "double") for f in ("Ts", "b", "tol", "umax", "tau_load", "rb1", "rb2", "kappa1", "kappa2", "ratio",
-                              "J_eq", "d_eq", "impact_innovation", "a_max", "v_land", "f_land", "deadband",
+                              "J_eq", "d_eq", "impact_innovation", "flicker_innovation", "a_max", "v_land", "f_land", "deadband",
                               "cross_share", "learn_below", "tc1", "w_friction", "tc2", "gap_limit",
                               "gate_motor", "gate_load", "c_centre")],
     ("gap_rows", "double[12]"), ("centre_rows", "double[7]"), ("Lc", "double[3]"), ("Lg_small", "double[2]"),
