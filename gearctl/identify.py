@@ -711,7 +711,8 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
         return G, h, E
 
     def corrected(G: NDArray[np.float64], E: NDArray[np.float64]) -> NDArray[np.float64]:
-        """A square root ``L`` of ``G - f E`` (``L L^T``), the largest ``f`` of 1, 1/2, ... 0 that is positive definite."""
+        """A square root ``L`` of ``G - f E`` (``L L^T``), with the largest ``f`` of 1, 1/2, ... 0 that is positive
+        definite."""
         for f in (1.0, 0.5, 0.25, 0.125, 0.0):
             try:
                 return np.linalg.cholesky(G - f * E)

@@ -285,9 +285,9 @@ def test_the_mpc_takes_a_load_reading_beyond_the_limit_as_missing(tmp_path: Path
 def test_the_mpc_tells_a_flickering_load_encoder_from_an_impact_as_its_python(tmp_path: Path) -> None:
     # a reviewer's C harness flickered y[1] by 2 counts on every other sample and the exported MPC ran away (0.18 rad
     # RMS, every status 0); the C now tells the flicker from an impact as the Python does, to the bit
-    from gearctl.export.sil import load_exported
-
     from test_mpc_robust import _flickered_run
+
+    from gearctl.export.sil import load_exported
 
     d, _ = _export(tmp_path, SERVO, "mpc", vectors=False)
     res_c, _ = _flickered_run(2, controller=load_exported(d))

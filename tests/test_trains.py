@@ -529,8 +529,9 @@ def test_three_stage_inverse_factor_is_that_of_the_pair(sine_rms: Callable[[str,
 @pytest.mark.xfail(strict=True, reason="the MPC plans on the equivalent one-gap pair (Plant.equivalent_pair), contact "
                    "declared within the share of the lost motion of the stages before the last, torques weighed in "
                    "shares of the torque limit: on the three-stage train it beats the PID by 4.8x (RMS 2.06e-4 rad "
-                   "against 9.87e-4; 5.2x on an earlier machine, a chaotic loop; 7.5x before its crossings were re-decided against staying, which keeps the "
-                   "train's load step from running away), not by half the pair's 226x. The intermediate shafts, "
+                   "against 9.87e-4; 5.2x on an earlier machine, a chaotic loop; 7.5x before its crossings were "
+                   "re-decided against staying, which keeps the train's load step from running away), not by half "
+                   "the pair's 226x. The intermediate shafts, "
                    "free between two gaps and unmeasured, are hit at the crossing's speed and bounce (986 impacts "
                    "in 3 s against 126 on the pair); on servo_2stage_phm09, whose intermediate shaft, reflected, is "
                    "half the motor shaft's inertia, the MPC gives 1.21e-3 against the PID's 1.52e-3")
