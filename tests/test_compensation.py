@@ -850,3 +850,14 @@ def test_the_reversal_offset_notes_a_load_torque_that_holds_one_flank(tmp_path: 
     assert any(n.startswith("load_torque: the model's -0.5 N m presses the load onto one flank") for n in notes), notes
     assert not any("load_torque" in n for n in load_controller("reversal_offset", build_plant(load_model(SERVO)))
                    .design_notes)
+
+
+def test_the_reversal_offset_notes_an_inertia_dominated_load() -> None:
+    """Where the load's friction decelerates it more slowly than a move does, the load reaches the braking flank before
+    the command reverses, and the offset at the reversal takes up a lost motion already crossed (frictionless servo:
+    ISO B 2644 urad against the PID's 1317; a review's heavy turntable: 3915 against 1984). The design says so; on
+    the friction servo (0.2 N m on 0.01 kg m^2: 20 rad/s^2) it does not."""
+    free = load_controller("reversal_offset", build_plant(load_model(SERVO))).design_notes
+    assert any(n.startswith("coulomb_friction2: the load's 0 N m of friction") for n in free), free
+    held = load_controller("reversal_offset", build_plant(load_model(FRICTION))).design_notes
+    assert not any("coulomb_friction2" in n for n in held), held

@@ -176,6 +176,11 @@ LAYOUT: Layout = {"": {**LOOP_KEYS, **{f.name: (ReversalSettings, f.name)
                                        for f in dataclasses.fields(ReversalSettings)}}, **PID_TABLES}
 
 
+#: The deceleration [rad/s^2 at the load] below which the load's friction must stop it for the offset to hold (the
+#: catalog move's): a design note names the axis where it does not.
+NOTE_DECELERATION = 10.0
+
+
 def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
           backlash: float | None = None) -> ReversalOffset:
     """The reversal offset of a ``kind = "reversal_offset"`` file; ``backlash`` overrides the file's estimate."""
@@ -202,6 +207,14 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
                             f"rad/s^2 at the load, so the offset at each reversal of the command may take up a lost "
                             f"motion the load did not cross (set gain = 0 for such an axis, or use the "
                             f"deadzone_inverse, which sees the torque)")
+    elif b > 0.0 and settings.gain > 0.0 and info.plant.tc2 < NOTE_DECELERATION * J2:
+        # an inertia-dominated load: friction does not hold it on the driving flank through a move's deceleration
+        pid.design_notes = (*pid.design_notes, f"coulomb_friction2: the load's {info.plant.tc2:.3g} N m of friction "
+                            f"decelerates it at {info.plant.tc2 / J2:.3g} rad/s^2; a move that decelerates faster "
+                            f"(the catalog move: {NOTE_DECELERATION:g} rad/s^2) brings the load onto the braking flank "
+                            f"before the command reverses, so the offset at the reversal takes up a lost motion the "
+                            f"load has already crossed (worse than no compensation): use the deadzone_inverse, which "
+                            f"changes flank on the torque's sign")
     try:
         return ReversalOffset(pid, backlash=b, take_up_time=take_up, ramp=settings.ramp, gain=settings.gain,
                               name=name)
