@@ -20,6 +20,7 @@ import re
 import shutil
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -256,20 +257,27 @@ def test_sil_track_equals_python(exported, servo, name: str, ref: str) -> None:
     np.testing.assert_array_equal(b.torque, a.torque)
 
 
+def _sil_iso_cycles(model: str, controller: str, tmp_path: Path, cycles: int) -> tuple[Any, ...]:
+    """ISO 230-2 cycles of the Python controller and of its export on the same plant: ``(python controller, python
+    result, C result, plant)``."""
+    from gearctl.export import export_controller, load_exported
+    from gearctl.precision import precision_test
+
+    m = load_model(model)
+    plant = build_plant(m)
+    export_controller(load_controller(controller, plant, sensors=m.sensors), tmp_path, plant=plant,
+                      sensors=m.sensors, model=m.name)
+    py = load_controller(controller, plant, sensors=m.sensors)
+    a = precision_test(plant, py, cycles=cycles, sensors=m.sensors)
+    b = precision_test(plant, load_exported(tmp_path), cycles=cycles, sensors=m.sensors)
+    return py, a, b, plant
+
+
 @needs_cc
 def test_sil_iso_cycle_on_a_friction_table_equals_python(tmp_path: Path) -> None:
     # the ISO 230-2 cycle on a reviewer's CNC table ends each move where a flank change comes too late to land
     # (DeadzoneInverse.flank): the C skips the same ones, and the loop is the Python's to the last bit
-    from gearctl.export import export_controller, load_exported
-    from gearctl.precision import precision_test
-
-    m = load_model(str(DATA / "cnc_table_tight.toml"))
-    plant = build_plant(m)
-    export_controller(load_controller("deadzone_inverse", plant, sensors=m.sensors), tmp_path, plant=plant,
-                      sensors=m.sensors, model=m.name)
-    py = load_controller("deadzone_inverse", plant, sensors=m.sensors)
-    a = precision_test(plant, py, cycles=1, sensors=m.sensors)
-    b = precision_test(plant, load_exported(tmp_path), cycles=1, sensors=m.sensors)
+    py, a, b, _ = _sil_iso_cycles(str(DATA / "cnc_table_tight.toml"), "deadzone_inverse", tmp_path, 1)
     assert py.late_changes_skipped > 0
     np.testing.assert_array_equal(b.run.torque, a.run.torque)
 
@@ -278,16 +286,7 @@ def test_sil_iso_cycle_on_a_friction_table_equals_python(tmp_path: Path) -> None
 def test_sil_adaptive_iso_cycle_measures_only_flank_changes_as_python(tmp_path: Path) -> None:
     # the adaptive inverse measures the gap only in a window where the inverse changed flank (not the centred
     # start-up's half gap): the C counts the same samples, and the ISO cycle is the Python's to the last bit
-    from gearctl.export import export_controller, load_exported
-    from gearctl.precision import precision_test
-
-    m = load_model("shing1993_servo_friction")
-    plant = build_plant(m)
-    export_controller(load_controller("adaptive_inverse", plant, sensors=m.sensors), tmp_path, plant=plant,
-                      sensors=m.sensors, model=m.name)
-    py = load_controller("adaptive_inverse", plant, sensors=m.sensors)
-    a = precision_test(plant, py, cycles=2, sensors=m.sensors)
-    b = precision_test(plant, load_exported(tmp_path), cycles=2, sensors=m.sensors)
+    py, a, b, plant = _sil_iso_cycles("shing1993_servo_friction", "adaptive_inverse", tmp_path, 2)
     assert len(py.history) >= 2 and all(abs(h[1] / plant.backlash - 1.0) < 0.05 for h in py.history)
     np.testing.assert_array_equal(b.run.torque, a.run.torque)
 
