@@ -453,14 +453,36 @@ GCX_FN void gcx_inv_check_contact(const gcx_inv_p *P, gcx_inv_s *S, double t, do
     }
 }
 
+/* DeadzoneInverse._take_up_time: a_max the acceleration bound [rad/s^2] (the torque limit's, or less) */
+GCX_FN double gcx_inv_take_up_time(const gcx_inv_p *P, const gcx_inv_s *S, double d0, double dd0, double a_max) {
+    double a_lim = P->take_up_acceleration * a_max;
+    double T = gcx_max(S->crossing_time, P->pid.Ts);
+    if (isfinite(a_lim)) /* without a torque limit no acceleration bound lengthens the take-up */
+        T = gcx_max(T, (4.0 * fabs(dd0) + sqrt(16.0 * dd0 * dd0 + 24.0 * fabs(d0) * a_lim)) / (2.0 * a_lim));
+    return T;
+}
+
+/* DeadzoneInverse._shift_in_contact: a flank change decided at rest, no crossing */
+GCX_FN void gcx_inv_shift_in_contact(const gcx_inv_p *P, gcx_inv_s *S, double t) {
+    double off[3], lag[3];
+    gcx_ramp_at(&S->ramp, S->ramp_shape, t, off);
+    gcx_inv_take_up(P, S, t, lag);
+    double o_new = S->sigma * S->offset, d0 = lag[0] + (o_new - off[0]);
+    gcx_ramp_reset(&S->ramp, o_new);
+    S->was_free = 0;
+    double brake = fabs(P->plant.load_torque + gcx_inv_disturbance(P, S)) / P->plant.J2;
+    S->lag[0] = d0, S->lag[1] = lag[1], S->lag[2] = t;
+    S->lag[3] = gcx_inv_take_up_time(P, S, d0, lag[1], brake > 0.0 ? gcx_min(P->a_limit, brake) : P->a_limit);
+    S->has_lag = 1;
+    if (P->plant.tc2 > 0.0) S->pid.integral = -gcx_inv_beyond_friction(P, S) / P->pid.N;
+    if (P->has_observer && S->obs.set) S->obs.x[0] -= o_new - off[0];
+}
+
 /* DeadzoneInverse._start_take_up */
 GCX_FN void gcx_inv_start_take_up(const gcx_inv_p *P, gcx_inv_s *S, double t, double r, double rd) {
     double th = S->free[0], om = S->free[1];
     double d0 = r - th, dd0 = rd - om;
-    double a_lim = P->take_up_acceleration * P->a_limit;
-    double T = gcx_max(S->crossing_time, P->pid.Ts);
-    if (isfinite(a_lim)) /* without a torque limit no acceleration bound lengthens the take-up */
-        T = gcx_max(T, (4.0 * fabs(dd0) + sqrt(16.0 * dd0 * dd0 + 24.0 * fabs(d0) * a_lim)) / (2.0 * a_lim));
+    double T = gcx_inv_take_up_time(P, S, d0, dd0, P->a_limit);
     if (fabs(d0) + T * fabs(dd0) < S->offset) {
         S->lag[0] = d0, S->lag[1] = dd0, S->lag[2] = t, S->lag[3] = T;
         S->has_lag = 1;
@@ -504,7 +526,9 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     S->rdd_prev = fabs(rdd);
     double sigma_old = S->sigma;
     double sigma = gcx_inv_flank(P, S, rd, rdd, rdd_prev);
-    if (sigma != sigma_old) {
+    if (sigma != sigma_old && rd == 0.0 && rdd == 0.0 && t >= S->cross_end && !P->pid.feedback_load) {
+        gcx_inv_shift_in_contact(P, S, t); /* decided at rest: the load is on the new flank already */
+    } else if (sigma != sigma_old) {
         /* a contact met during this crossing is trusted only if it starts from a settled flank */
         S->trusted = sigma_old != 0.0 && !S->has_lag && !S->rattling && t >= S->cross_end + S->crossing_time;
         if (t >= S->cross_end) gcx_inv_start_crossing(P, S, t, y_motor, y_load, has_yl, rd);
