@@ -97,9 +97,9 @@ def capped(server, commands: list[list[str]], tmp_path: Path, *, timeout: float,
 
 
 def only_warnings(err: str, command: str) -> list[str]:
-    """The ``gearctl <command>: warning:`` lines of stderr, asserting there is nothing else."""
+    """The ``gearctl <command>: warning:`` (and design ``note:``) lines of stderr, asserting there is nothing else."""
     lines = err.splitlines()
-    other = [ln for ln in lines if not ln.startswith(f"gearctl {command}: warning: ")]
+    other = [ln for ln in lines if not ln.startswith((f"gearctl {command}: warning: ", f"gearctl {command}: note: "))]
     assert other == [], err
     return lines
 
