@@ -1335,7 +1335,7 @@ class MPC(Controller):
         if self._rigid:  # no gap (and no impact: the velocity-jump model below would be degenerate)
             self._Lg = ((0.0, 0.0), (0.0, 0.0))
             self._impact_innovation = math.inf
-            self._flicker_innovation = 0.0
+            self._flicker_innovation = self._flicker_return = 0.0
             return
         Ag, Gg = m.A_sep[2:, 2:], m.B_sep[2:, :1]
         v_small = sp  # unmodelled torque on the motor
@@ -1347,6 +1347,7 @@ class MPC(Controller):
         self._Lg = (tuple(float(v) for v in Lg_small[:, 0]), tuple(float(v) for v in Lg_big[:, 0]))
         self._impact_innovation = 5.0 * r_s + 1e-3 * self._b
         self._flicker_innovation = _FLICKER_STD * r_s  # about 7 counts of quantised encoders (a count: 3.5 std)
+        self._flicker_return = 2.0 * r_s  # a flickering reading comes back to within this of where it was [m]
 
     # -- online --------------------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -1375,6 +1376,7 @@ class MPC(Controller):
         self._rejects = 0  # samples in a row whose readings the gate rejected
         self._inn = [0.0, 0.0]  # the last accepted readings' innovations, motor and load [rad]
         self._gap_inn = self._gap_inn2 = 0.0  # the floating gap's last two innovations [m] (0 in contact; _observe)
+        self._gap_s = (math.nan, math.nan)  # the floating gap's last two readings [m] (NaN in contact)
         self._restarts = [-_FAULT_WINDOW] * _FAULT_RESTARTS  # the samples of the last restarts of the estimate
         self._n_obs = 0  # samples observed (finite motor readings)
         self.fault = ""  # why the controller stopped (braking, then zero torque, until reset), "" while it runs
@@ -1433,6 +1435,7 @@ class MPC(Controller):
         if self._z is None:  # first sample: at rest, the gap from the encoders (mid-gap without them)
             self._inn = [0.0, 0.0]
             self._gap_inn = self._gap_inn2 = 0.0
+            self._gap_s = (math.nan, math.nan)
             phi_m = y_motor - m.kappa1 * s_m
             self._z = np.array([phi_m, 0.0, 0.0 if self._rigid else s_m, 0.0, 0.0])
             return note
@@ -1513,19 +1516,23 @@ class MPC(Controller):
             if abs(s_m) >= fl - tol:  # contact: the reduced model's plastic impact
                 s_n, v_n = s_m, 0.0
                 self._gap_inn = self._gap_inn2 = 0.0
+                self._gap_s = (math.nan, math.nan)
             else:
                 inn = s_m - s_p
                 # a large innovation is an impact (the gap's speed jumped), unless it is an encoder's flicker: the
-                # third large innovation in a row, each of the other sign than the one before, none beyond a few
-                # counts of the gap reading. The impact gain took each flicker for an impact (a load encoder
-                # flickering by 2 counts on every other sample: 0.28 rad RMS on the sine, every status ok). A bounce
-                # or two between impacts is no flicker: plain runs keep their figures
+                # reading back where it was two samples ago (within two reading stds), and the third large innovation
+                # in a row, each of the other sign than the one before, none beyond a few counts of the gap reading.
+                # The impact gain took each flicker for an impact (a load encoder flickering by 2 counts on every
+                # other sample: 0.28 rad RMS on the sine, every status ok). Bounces move the reading on: plain runs
+                # keep their figures to the bit
                 big = abs(inn) > self._impact_innovation
                 g1, g2, lim = self._gap_inn, self._gap_inn2, self._flicker_innovation
-                flicker = (inn * g1 < 0.0 and g1 * g2 < 0.0 and min(abs(g1), abs(g2)) > self._impact_innovation
+                flicker = (abs(s_m - self._gap_s[1]) <= self._flicker_return
+                           and inn * g1 < 0.0 and g1 * g2 < 0.0 and min(abs(g1), abs(g2)) > self._impact_innovation
                            and max(abs(inn), abs(g1), abs(g2)) <= lim)
                 impact = big and not flicker
                 self._gap_inn2, self._gap_inn = self._gap_inn, inn
+                self._gap_s = (s_m, self._gap_s[0])
                 lg = self._Lg[1] if impact else self._Lg[0]
                 s_n, v_n = s_p + lg[0] * inn, v_p + lg[1] * inn
         else:  # motor encoder alone: the gap is predicted, and pinned at the flank it reaches

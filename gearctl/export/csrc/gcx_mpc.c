@@ -90,6 +90,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
     if (!S->z_set) { /* first sample: at rest, the gap from the encoders (mid-gap without them) */
         S->inn[0] = S->inn[1] = 0.0;
         S->gap_inn[0] = S->gap_inn[1] = 0.0;
+        S->gap_s_n = 0;
         double phi_m = y_motor - P->kappa1 * s_m;
         S->z[0] = phi_m, S->z[1] = 0.0, S->z[2] = P->rigid ? 0.0 : s_m, S->z[3] = 0.0, S->z[4] = 0.0;
         S->z_set = 1;
@@ -169,16 +170,21 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         if (fabs(s_m) >= fl - tol) { /* contact: the reduced model's plastic impact */
             s_n = s_m, v_n = 0.0;
             S->gap_inn[0] = S->gap_inn[1] = 0.0;
+            S->gap_s_n = 0;
         } else {
             double inn = s_m - s_p;
-            /* a large innovation is an impact, unless it is an encoder's flicker: the third large one in a row, each
-             * of the other sign than the one before, none beyond a few counts of the gap reading */
+            /* a large innovation is an impact, unless it is an encoder's flicker: the reading back where it was two
+             * samples ago, and the third large innovation in a row, each of the other sign than the one before, none
+             * beyond a few counts of the gap reading */
             int big = fabs(inn) > P->impact_innovation;
             double g1 = S->gap_inn[0], g2 = S->gap_inn[1], lim = P->flicker_innovation;
-            int flicker = inn * g1 < 0.0 && g1 * g2 < 0.0 && gcx_min(fabs(g1), fabs(g2)) > P->impact_innovation
+            int flicker = S->gap_s_n >= 2 && fabs(s_m - S->gap_s[1]) <= P->flicker_return
+                          && inn * g1 < 0.0 && g1 * g2 < 0.0 && gcx_min(fabs(g1), fabs(g2)) > P->impact_innovation
                           && gcx_max(gcx_max(fabs(inn), fabs(g1)), fabs(g2)) <= lim;
             int impact = big && !flicker;
             S->gap_inn[1] = g1, S->gap_inn[0] = inn;
+            S->gap_s[1] = S->gap_s[0], S->gap_s[0] = s_m;
+            if (S->gap_s_n < 2) S->gap_s_n++;
             const double *lg = impact ? P->Lg_big : P->Lg_small;
             s_n = s_p + lg[0] * inn, v_n = v_p + lg[1] * inn;
         }

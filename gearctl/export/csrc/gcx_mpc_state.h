@@ -22,6 +22,8 @@ typedef struct {
     double gate[2];         /* the readings' gate on the motor and the load shaft [rad] */
     double inn[2];          /* the last accepted readings' innovations, motor and load [rad] */
     double gap_inn[2];      /* the floating gap's last two innovations, the latest first [m] (0 in contact) */
+    double gap_s[2];        /* the floating gap's last two readings, the latest first [m] */
+    int gap_s_n;            /* how many of them there are since contact (0..2; Python: NaN for a missing one) */
     int64_t n_obs;          /* samples observed (MPC._n_obs) */
     int64_t restarts[GCX_FAULT_RESTARTS]; /* the samples of the last restarts of the estimate */
     int fault;              /* latched: the motor braked, then zero torque (MPC.fault) */
