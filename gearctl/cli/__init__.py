@@ -75,8 +75,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise InputError("--csv - and --json: both would write standard output; give the CSV a file name",
                                  field="csv")
             common.CSV_STDOUT = sys.stdout
-            with contextlib.redirect_stdout(sys.stderr):
-                return commands[args.command](args)
+            try:
+                with contextlib.redirect_stdout(sys.stderr):
+                    return commands[args.command](args)
+            finally:
+                common.CSV_STDOUT = None
         return commands[args.command](args)
     except GearctlError as exc:
         print(f"gearctl {args.command}: error: {exc}", file=sys.stderr)

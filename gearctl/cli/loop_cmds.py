@@ -386,7 +386,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                    help="software in the loop: run the C controller of a `gearctl export` folder (compiled here) "
                         "in place of the Python one; CONTROLLER names the same kind")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--csv", metavar="FILE", help="write the run per sample")
+    p.add_argument("--csv", metavar="FILE", help="write the run per sample (- for standard output)")
     p.add_argument("--plot", metavar="FILE", help="write reference/load angle, error, torque and gap plot")
 
     p = sub.add_parser("precision", help="ISO 230-2 positioning test: reversal value, repeatability, accuracy")

@@ -160,10 +160,8 @@ def _cmd_stiffness(args: argparse.Namespace) -> int:
     where = "" if n == 1 else f" stage {args.stage}"
     print(f"{model.name}{where}: mesh stiffness over one mesh cycle ({ms.theta1.size} points): "
           f"mean {ms.mean:.5g} N/m, C1 {ms.c1:.4g}, C2 {ms.c2:.4g}, min {ms.min:.4g}, max {ms.max:.4g} N/m")
-    if args.csv:
-        print(f"  wrote {args.csv} (theta1 over the path of contact C->D, deflections per unit load [m/N])")
-    if args.plot:
-        print(f"  wrote {args.plot} (report Figures 8-11)")
+    say_written((args.csv, "theta1 over the path of contact C->D, deflections per unit load [m/N]"),
+                (args.plot, "report Figures 8-11"))
     return 0
 
 
@@ -422,7 +420,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("model", help="catalog name or path to a TOML file")
     p.add_argument("--points", type=spec_arg(POINTS), default=401, help="sample points, 2..1e6 (default 401)")
     p.add_argument("--stage", type=spec_arg(STAGE), default=1, help="stage of a train, 1..6 (default 1)")
-    p.add_argument("--csv", metavar="FILE", help="write theta1, K and the deflection components")
+    p.add_argument("--csv", metavar="FILE", help="write theta1, K and the deflection components (-: stdout)")
     p.add_argument("--plot", metavar="FILE", help="write the figure (png, pdf, svg)")
 
     p = sub.add_parser("simulate", help="simulate the report's free-vibration or constant-load case")
@@ -438,7 +436,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--omega2", type=spec_arg(OMEGA), help="initial velocity of the load shaft [rad/s]")
     p.add_argument("--torque1", type=spec_arg(TORQUE), help="torque on the motor shaft [N m]")
     p.add_argument("--torque2", type=spec_arg(TORQUE), help="torque on the load shaft [N m]")
-    p.add_argument("--csv", metavar="FILE", help="write the trajectory (t, angles, speeds, s, mode, force)")
+    p.add_argument("--csv", metavar="FILE", help="write the trajectory: t, angles, speeds, s, mode, force (-: stdout)")
     p.add_argument("--plot", metavar="FILE", help="write the figure (angles, velocities, s, force)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
