@@ -127,8 +127,8 @@ the reversal offset needs no model at all, and on a friction-dominated load with
 it is as good as the PID on the backlash-free plant.
 
 Limits (measured, see ``tests/test_compensation.py``): on a load without friction (``shing1993_servo``)
-nothing holds the load once it rests on a flank with no force on it. ISO 230-2 there gives A / B / R of 197 /
-45 / 131 urad (the PID's 1440 / 1319 / 1346; the backlash-free PID's 1.4 / 1.0 / 1.4). Two things leave the
+nothing holds the load once it rests on a flank with no force on it. ISO 230-2 there gives A / B / R of 218 /
+44 / 136 urad (the PID's 1484 / 1317 / 1348; the backlash-free PID's 1.4 / 0.9 / 1.2). Two things leave the
 load moving:
 
 - *The short overshoot moves* (0.02 rad after each end target) cross to the braking flank in the middle of
