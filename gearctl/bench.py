@@ -192,8 +192,7 @@ def _row(run: Run) -> dict[str, Any]:
 
 def _precision_row(job: dict[str, Any]) -> dict[str, Any]:
     """Worker: one ISO 230-2 test."""
-    from .metrics import loop_health
-    from .precision import precision_test, unreached_targets
+    from .precision import precision_health, precision_test
 
     out = {k: job[k] for k in ("model", "controller", "plant", "seed")}
     try:
@@ -204,8 +203,7 @@ def _precision_row(job: dict[str, Any]) -> dict[str, Any]:
         return out
     st = res.stats
     # the warnings `gearctl precision` gives: the loop's health, targets not reached, a constant offset
-    warnings = list(loop_health(res.run, settle=0.0).warnings)
-    warnings += unreached_targets(res, job["true"].lost_motion, ISO_SETTINGS["travel"])
+    warnings = list(precision_health(res, job["true"].lost_motion, ISO_SETTINGS["travel"]).warnings)
     out.update({"ok": True, "message": "ok", "accuracy": st["accuracy"], "reversal_value": st["reversal_value"],
                 "repeatability": st["repeatability"], "mean_deviation": st["mean_deviation"],
                 "largest_deviation": st["largest_deviation"], "lost_motion": job["true"].lost_motion,

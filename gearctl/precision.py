@@ -140,6 +140,15 @@ def iso230_statistics(up: NDArray[np.float64], down: NDArray[np.float64]) -> dic
     }
 
 
+def precision_health(res: PrecisionResult, lost_motion: float, travel: float) -> Any:
+    """The ISO run's :class:`gearctl.metrics.LoopHealth`, its warnings followed by :func:`unreached_targets`' (what
+    ``gearctl precision`` and the bench's ISO rows report)."""
+    from .metrics import loop_health
+
+    health = loop_health(res.run, settle=0.0)
+    return dataclasses.replace(health, warnings=health.warnings + tuple(unreached_targets(res, lost_motion, travel)))
+
+
 def unreached_targets(res: PrecisionResult, lost_motion: float, travel: float) -> list[str]:
     """Warnings for measurements that missed their target by more than backlash can explain, and for a constant
     offset the ISO figures leave out.

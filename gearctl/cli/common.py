@@ -134,8 +134,9 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
     """
     try:
         if path == "-":  # standard output (main sends the command's other output to stderr meanwhile)
-            _write_rows(CSV_STDOUT or sys.stdout, header, columns, n, chunk)
-            (CSV_STDOUT or sys.stdout).flush()
+            out = CSV_STDOUT or sys.stdout
+            _write_rows(out, header, columns, n, chunk)
+            out.flush()
             return
         p = Path(path)
         p.parent.mkdir(parents=True, exist_ok=True)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import sys
 import time
@@ -122,7 +121,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
 def _cmd_precision(args: argparse.Namespace) -> int:
     from ..catalog import load_controller, load_model
     from ..plant import build_plant
-    from ..precision import precision_test, unreached_targets
+    from ..precision import precision_health, precision_test
     from ..runs import true_model as true_model_of
 
     model = load_model(args.model)
@@ -135,11 +134,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     res = precision_test(plant, ctrl, targets=args.targets, cycles=args.cycles, travel=args.travel,
                          dwell=args.dwell, sensors=true_model.sensors, seed=args.seed)
     st = res.stats
-    from ..metrics import loop_health
-
-    health = loop_health(res.run, settle=0.0)
-    health = dataclasses.replace(health, warnings=health.warnings + tuple(
-        unreached_targets(res, plant.lost_motion, args.travel)))
+    health = precision_health(res, plant.lost_motion, args.travel)
     out = {
         "model": model.name, "controller": ctrl.describe(), "plant": args.plant,
         "backlash": plant.backlash if plant.n_stages == 1 else list(plant.backlashes),
