@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -131,7 +132,10 @@ def _missing(path: Path, cls: type, values: Values, where: Mapping[str, str]) ->
     for fname in sorted(required_fields(cls) - set(values)):
         label = where.get(fname, fname)
         meta = next(f.metadata for f in dataclasses.fields(cls) if f.name == fname)
-        what = f": {meta['doc']}, {describe_rule(dict(meta))}" if "doc" in meta and "low" in meta else ""
+        rule = describe_rule(dict(meta)) if "low" in meta else ""
+        if label.endswith("_deg") and "low" in meta:  # typed in degrees: the range in degrees
+            rule = f"{math.degrees(meta['low']):g} <= value <= {math.degrees(meta['high']):g} [deg]"
+        what = f": {meta['doc']}, {rule}" if "doc" in meta and rule else ""
         raise InputError(f"{path}: missing key {label}{what}", field=label.split()[-1])
 
 
@@ -240,6 +244,12 @@ def load_model(name_or_path: str | Path, **overrides: Any) -> GearModel:
         if table in data:
             common[cls] = table_values(path, table, data[table], keymap)
     _apply_overrides(path, common, {k: v for k, v in overrides.items() if k in _servo_sensor_fields()})
+    n_inter = len(stages) - 1
+    for key in ("intermediate_inertia", "intermediate_viscous_friction", "intermediate_coulomb_friction"):
+        given = data.get("servo", {}).get(key) if isinstance(data.get("servo"), dict) else None
+        if isinstance(given, list) and len(given) != n_inter:  # an empty list too: one value per intermediate shaft
+            raise InputError(f"{path}: [servo] {key} = {given!r} has {len(given)} values: expected one per "
+                             f"intermediate shaft ({n_inter}; leave the key out for none added)", field=key)
     servo = build_dataclass(path, Servo, common[Servo]) if Servo in common else Servo()
     sensors = build_dataclass(path, Sensors, common[Sensors]) if Sensors in common else Sensors()
     model = GearModel(name=path.stem, stages=stages, servo=servo, sensors=sensors, source=source, path=path)

@@ -53,6 +53,23 @@ def test_a_missing_key_states_its_range(tmp_path: Path, capsys) -> None:  # noqa
     assert "missing key [pair] module" in err and "1e-05 <= value <= 0.1 [m]" in err
 
 
+def test_a_missing_degree_key_states_its_range_in_degrees(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    # the key is typed in degrees: its range is said in degrees, not in the radians it is kept in
+    err = _refusal(capsys, ["info", str(_model_with(tmp_path, "pressure_angle_deg", None))])
+    assert "missing key [pair] pressure_angle_deg" in err and "10 <= value <= 35 [deg]" in err
+
+
+@pytest.mark.parametrize("value", ["[]", "[1e-5, 1e-5]"])
+def test_a_train_refuses_a_list_per_intermediate_shaft_of_the_wrong_length(tmp_path: Path, capsys,  # noqa: ANN001
+                                                                          value: str) -> None:
+    # servo_2stage_phm09 has one intermediate shaft: an explicit empty list is no value for it
+    text = (ROOT / "models" / "servo_2stage_phm09.toml").read_text()
+    p = tmp_path / "t.toml"
+    p.write_text(text.replace("[servo]\n", f"[servo]\nintermediate_inertia = {value}\n", 1))
+    err = _refusal(capsys, ["info", str(p)])
+    assert "[servo] intermediate_inertia" in err and "expected one per intermediate shaft (1" in err
+
+
 @pytest.mark.parametrize("old, new, said", [("teeth = 20", 'teeth = "20"', "a string"),
                                             ("backlash = ", "backlash = true #", "true/false")])
 def test_a_value_of_the_wrong_type_is_called_so(tmp_path: Path, capsys, old: str, new: str,  # noqa: ANN001
