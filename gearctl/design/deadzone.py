@@ -563,6 +563,9 @@ class DeadzoneInverse(Controller):
         self.uses_load_encoder = pid.feedback == "load"
         p = pid.info.plant
         self._J2, self._d2, self._tl = p.J2, p.d2, p.load_torque
+        #: what follows the motor when it backs off a flank at rest, on the load shaft [kg m^2]: the load and every
+        #: intermediate shaft (the design pair puts them on the motor shaft), reflected; the load's J2 on a pair
+        self._J_follow = p.J2 + pid.N ** 2 * (p.J1 - pid.info.nominal.shafts[0].J)
         self._tc2 = p.tc2
         self._a_limit = pid.limit / (pid.N * pid.info.J_eq)  # load acceleration at the torque limit [rad/s^2]
         self._J1, self._d1, self._tc1 = p.J1, p.d1, p.tc1
@@ -959,8 +962,9 @@ class DeadzoneInverse(Controller):
         d0 = lag + (o_new - o_old)  # the target r - lag + o is unchanged at this sample
         self._ramp.reset(o_new)
         self._was_free = False
-        # a flank pulls one way only: the take-up brakes with at most what holds the load on it, |need| / J2
-        brake = abs(self._tl + self.disturbance) / self._J2  # > 0: the rule that changed the flank at rest needs it
+        # a flank pulls one way only: the take-up brakes with at most what holds the load on it, |need| over the
+        # inertia that follows (the load's and, on a train, the intermediate shafts')
+        brake = abs(self._tl + self.disturbance) / self._J_follow  # > 0: the rule that changed the flank needs it
         self._lag = (d0, dlag, t, self._take_up_time(d0, dlag, min(self._a_limit, brake) if brake > 0.0 else None))
         if self._tc2 > 0.0:  # the load moves: as when a move starts, the friction feedforward takes over
             self.pid.integral = -self._disturbance_beyond_friction() / self.pid.N

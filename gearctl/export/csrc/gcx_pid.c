@@ -470,7 +470,7 @@ GCX_FN void gcx_inv_shift_in_contact(const gcx_inv_p *P, gcx_inv_s *S, double t)
     double o_new = S->sigma * S->offset, d0 = lag[0] + (o_new - off[0]);
     gcx_ramp_reset(&S->ramp, o_new);
     S->was_free = 0;
-    double brake = fabs(P->plant.load_torque + gcx_inv_disturbance(P, S)) / P->plant.J2;
+    double brake = fabs(P->plant.load_torque + gcx_inv_disturbance(P, S)) / P->follow_inertia;
     S->lag[0] = d0, S->lag[1] = lag[1], S->lag[2] = t;
     S->lag[3] = gcx_inv_take_up_time(P, S, d0, lag[1], brake > 0.0 ? gcx_min(P->a_limit, brake) : P->a_limit);
     S->has_lag = 1;
