@@ -296,18 +296,26 @@ def test_only_a_flank_change_is_measured(model: str, seed: int) -> None:
     # (the half gap from the centre to a flank, measured 0.50 b on the friction servo: the estimate fell to 0.70 b
     # and took 17 s of ISO cycles to return) and a frictionless load coasting off its flank at rest (0.29-0.46 b,
     # seed 1: the inverse went back to its learning crossing for a cycle). Only a window with a flank change
-    # measures now: every measurement of the ISO run within 5 % of b (measured: within 0.5 % and 2.7 %)
+    # measures now: every measurement of the ISO run within 5 % of b (measured: within 0.5 % and 1.1 %), but one
+    # on the frictionless servo: since the inverse's stop drops an integral that would push the load back (the
+    # load no longer launched off its flank at each stop: ISO A 2441 -> 378 urad here), the second window, while
+    # the estimate still learns (t = 1.1 s), reads 0.82 b: the load rested off its flank when the crossing began.
+    # The estimate steps to 0.89 b for one crossing and is back within 1 % at the next
     from gearctl.precision import precision_test
 
     m = load_model(model)
     plant = build_plant(m)
     ctrl = load_controller("adaptive_inverse", plant, sensors=m.sensors)
-    precision_test(plant, ctrl, sensors=m.sensors, seed=seed)
-    measured = np.array([h[1] for h in ctrl.history])
-    print(f"\n{model}: {measured.size} measurements, {measured.min() / plant.backlash:.3f}-"
-          f"{measured.max() / plant.backlash:.3f} b")
+    res = precision_test(plant, ctrl, sensors=m.sensors, seed=seed)
+    measured = np.array([h[1] for h in ctrl.history]) / plant.backlash
+    print(f"\n{model}: {measured.size} measurements, {measured.min():.3f}-{measured.max():.3f} b, "
+          f"ISO A {res.stats['accuracy'] * 1e6:.0f} urad")
     assert measured.size >= 5
-    assert np.all(np.abs(measured / plant.backlash - 1.0) <= 0.05)
+    off = np.flatnonzero(np.abs(measured - 1.0) > 0.05)
+    assert off.size <= (0 if model == "shing1993_servo_friction" else 1)
+    assert np.all(off < 2)  # only while learning, within the first two windows
+    assert abs(ctrl.backlash / plant.backlash - 1.0) <= 0.01
+    assert res.stats["accuracy"] <= (20e-6 if model == "shing1993_servo_friction" else 600e-6)
 
 
 def test_adaptive_positions_like_the_fixed_inverse_with_load_friction() -> None:

@@ -171,6 +171,7 @@ GCX_FN double gcx_offset_torque(const gcx_pid_p *P, gcx_pid_s *S, const gcx_plan
     if (one_way * e_p > 0.0) { /* the flank would push a coasting load back: no correction that way */
         e_p = 0.0;
         if (one_way * e_i > 0.0) e_i = 0.0;
+        if (one_way * S->integral > 0.0) S->integral = 0.0; /* nor what the integrator holds that way */
     }
     if (!free) return gcx_pid_torque(P, S, target, v, acc, e_p, ym, e_i, 0, 0.0, scale);
     double ff = 0.0;
