@@ -810,8 +810,8 @@ def test_at_rest_take_up_brakes_with_what_follows_on_a_train() -> None:
         follow = sum(sh[j].J * to_load[j] ** 2 for j in range(1, len(sh)))
         assert inv._J_follow == pytest.approx(follow, rel=1e-12), name
     # the featherweight train's load (1.7e-10 kg m^2) is nothing beside its intermediate shaft (6.1e-4): with the
-    # load's inertia alone the take-up braked far harder than the load torque could make the shafts follow. ISO 230-2 accuracy over 2 cycles, measured 0.61 mrad (the load's
-    # inertia alone: 2.28 mrad; the PID 0.96)
+    # load's inertia alone the take-up braked far harder than the load torque could make the shafts follow.
+    # ISO 230-2 accuracy over 2 cycles, measured 0.61 mrad (the load's inertia alone: 2.28 mrad; the PID 0.96)
     m = load_model(str(Path(__file__).parent / "data" / "featherweight_friction_train.toml"))
     plant = build_plant(m)
     res = precision_test(plant, load_controller("deadzone_inverse", plant), cycles=2, sensors=m.sensors)

@@ -94,10 +94,11 @@ How a flank change is made, and how a move is finished
   target at worst, instead of drifting (:meth:`DeadzoneInverse._one_way`). (Without the drop, an integral built
   while the crossing's landing was corrected kept pushing: after the 0.02 rad overshoot moves with ``b = 5 um`` it
   launched the load off its flank at 1.1e-3 rad/s, across the whole gap. With it, ISO 230-2 A on
-  ``shing1993_servo`` went from 218 to 171 urad, and with ``b = 10 um`` from 500 to 131, the PID's 282.) A dead stop (a ramp's or a trapezoid's end, which launches the load)
-  and a larger error are corrected as in motion. On that servo's ISO
-  230-2 test this took A / B / R from 2125 / 712 / 1562 to 210 / 47 / 139 urad (the shifted 17-tooth
-  pinion's from 3952 / 960 / 2754 to 227 / 43 / 143, and 217 / 48 / 153 with its load-scaled width); the
+  ``shing1993_servo`` went from 218 to 171 urad, and with ``b = 10 um`` from 500 to 131, the PID's 282.) A dead
+  stop (a ramp's or a trapezoid's end, which launches the load) and a larger error are corrected as in motion.
+  Before the drop, on that servo's ISO 230-2 test the rule took A / B / R from 2125 / 712 / 1562 to 210 / 47 /
+  139 urad (the shifted 17-tooth pinion's from 3952 / 960 / 2754 to 227 / 43 / 143, and 217 / 48 / 153 with its
+  load-scaled width; with the drop 166 / 54 / 94); the
   sine, the step, the ramp and trapezoidal moves are unchanged to the last bit, the S-curve move is a little
   better, and every figure on a load with friction is unchanged.
 - *Rattle guard.* A motor whose speed jumps by more than the torque explains (more than
