@@ -251,9 +251,27 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     rows = [r for r in results[:len(runs)] if r is not None]
     rows.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
     iso_rows = [r for r in results[len(runs):] if r is not None]
+    _warn_worse_than_pid(iso_rows)
     spec_d = dataclasses.asdict(spec)
     return {"spec": spec_d, "runs": rows, "precision": iso_rows, "ratios": _ratios(rows, iso_rows),
             "skipped": skipped}
+
+
+def _warn_worse_than_pid(iso: Sequence[dict[str, Any]]) -> None:
+    """Add a warning to each ISO row whose accuracy A is worse than the PID's on the same model and plant.
+
+    A compensator is built to position better than the PID; where it does not (a train whose intermediate shafts
+    the one-gap controllers do not see, a load the flanks cannot hold), the table says so beside the figure.
+    """
+    pid = {(r["model"], r["plant"]): r for r in iso if r["controller"] == "pid" and r.get("ok")}
+    for r in iso:
+        ref = pid.get((r["model"], r["plant"]))
+        if r["controller"] == "pid" or not r.get("ok") or ref is None:
+            continue
+        if r["accuracy"] > ref["accuracy"]:
+            r["warnings"] = [*r.get("warnings", ()), (
+                f"positions worse than the pid: ISO A {r['accuracy']:.3g} rad against the pid's "
+                f"{ref['accuracy']:.3g} rad on the same plant")]
 
 
 def _ratios(results: Sequence[dict[str, Any]], iso: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:

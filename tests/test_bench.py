@@ -257,3 +257,19 @@ def test_bench_names_an_unholdable_load_step_and_the_iso_warnings(capsys: pytest
                  "--duration", "1.5", "--jobs", "1", "--quiet", "--no-precision"]) == 0
     err = capsys.readouterr().err
     assert "the reference's load step, 0.5 N m" in err
+
+
+def test_iso_rows_worse_than_the_pid_carry_a_warning() -> None:
+    # the ISO table says where a compensator positions worse than the PID on the same model and plant (measured on
+    # servo_2stage_phm09: every compensator, the inverse's A 6.7 mrad against the PID's 3.3)
+    from gearctl.bench import _warn_worse_than_pid
+
+    def row(c: str, A: float, plant: str = "improved", ok: bool = True) -> dict:
+        return {"model": "m", "controller": c, "plant": plant, "ok": ok, "accuracy": A, "warnings": []}
+
+    rows = [row("pid", 3.3e-3), row("deadzone_inverse", 6.7e-3), row("mpc", 1e-3), row("pid", 1e-6, "backlash-free"),
+            row("reversal_offset", 2e-3, "backlash-free"), row("adaptive_inverse", 9.0, ok=False)]
+    _warn_worse_than_pid(rows)
+    warned = [r["controller"] for r in rows if r["warnings"]]
+    assert warned == ["deadzone_inverse", "reversal_offset"]
+    assert "6.7e-03" in rows[1]["warnings"][0] or "0.0067" in rows[1]["warnings"][0]
