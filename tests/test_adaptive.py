@@ -331,3 +331,23 @@ def test_adaptive_positions_like_the_fixed_inverse_with_load_friction() -> None:
         A[name] = res.stats["accuracy"]
     print(f"\nISO A: adaptive {A['adaptive_inverse'] * 1e6:.1f}, fixed {A['deadzone_inverse'] * 1e6:.1f} urad")
     assert A["adaptive_inverse"] <= 1.5 * A["deadzone_inverse"]
+
+
+def test_encoders_too_coarse_for_the_gap_are_noted_at_design() -> None:
+    # tests/data/coarse_noisy_4096.toml: 4096-count encoders with 2e-4 rad of noise read s to 2.1 b along the line
+    # of action (measured readings 1.2-1.8 b, the estimate ending 1.74 b): the design says so; the catalog servo's
+    # 2^20-count encoders (0.02 b) give no note
+    from gearctl.design.adaptive import READING_SHARE, reading_resolution
+
+    for path, noted in ((Path(__file__).parent / "data" / "coarse_noisy_4096.toml", True), ("shing1993_servo", False)):
+        m = load_model(path)
+        plant = build_plant(m)
+        ctrl = load_controller("adaptive_inverse", plant, sensors=m.sensors)
+        info = ctrl.inner.pid.info
+        s = m.sensors
+        by_hand = sum(rb * (math.pi / cpr + 3.0 * noise) for rb, cpr, noise in (
+            (info.plant.rb1, s.motor_encoder_cpr, s.motor_noise), (info.plant.rb2, s.load_encoder_cpr, s.load_noise)))
+        assert reading_resolution(info, s) == pytest.approx(by_hand, rel=1e-12)
+        notes = [n for n in ctrl.describe()["design_notes"] if n.startswith("adaptation:")]
+        assert bool(notes) is noted, notes
+        assert (by_hand > READING_SHARE * plant.backlash) is noted

@@ -81,6 +81,7 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import math
 from pathlib import Path
 from typing import Any
 
@@ -192,6 +193,7 @@ class AdaptiveInverse(Controller):
         self._window = max(10, int(round(st.window / self.Ts)))
         self.learning_crossing_time = float(inverse.crossing_time)
         self.history: list[tuple[float, float, float]] = []
+        self.notes: tuple[str, ...] = ()  # the adaptation's design notes (see build)
         self.reset()
 
     @property
@@ -291,13 +293,15 @@ class AdaptiveInverse(Controller):
 
     @property
     def design_notes(self) -> tuple[str, ...]:  # type: ignore[override]
-        """The wrapped PID's design notes (:attr:`gearctl.design.pid.PID.design_notes`)."""
-        return self.inner.design_notes
+        """The wrapped PID's design notes (:attr:`gearctl.design.pid.PID.design_notes`) and the adaptation's
+        (:func:`build`: encoders too coarse for the gap)."""
+        return (*self.inner.design_notes, *self.notes)
 
     def describe(self) -> dict[str, Any]:
         """The inverse's settings, the law's, and the estimate's history."""
         st = self.settings
-        return {**self.inner.describe(), "name": self.name, "kind": KIND, "backlash_initial": self.initial,
+        return {**self.inner.describe(), "name": self.name, "kind": KIND, "design_notes": list(self.design_notes),
+                "backlash_initial": self.initial,
                 "backlash_estimate": self.backlash, "backlash_applied": float(self.inner.backlash),
                 "gain": st.gain, "max_step": st.max_step,
                 "min_backlash": self.min_backlash, "max_backlash": self.max_backlash,
@@ -329,6 +333,32 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
     inner_spec["kind"] = deadzone.KIND
     inverse = deadzone.build(path, inner_spec, info, name=name + "/inverse", backlash=backlash, sensors=sensors)
     try:
-        return AdaptiveInverse(inverse, settings, name=name)
+        ctrl = AdaptiveInverse(inverse, settings, name=name)
     except InputError as exc:
         raise InputError(f"{path}: {exc}", field=exc.field, rule=exc.rule) from None
+    res = reading_resolution(info, sensors)
+    if ctrl.initial > 0.0 and res > READING_SHARE * ctrl.initial:
+        ctrl.notes = (f"adaptation: the encoders read s = rb1 theta1 - rb2 theta2 to {res:.2g} m (half a count and "
+                      f"three noise stds of each, along the line of action), {res / ctrl.initial:.2g} b: each gap "
+                      f"reading may be off by that much, and the estimate settles no closer (coarse encoders read "
+                      f"the gap too large); a fixed deadzone_inverse with a measured backlash may do better",)
+    return ctrl
+
+
+#: A gap reading whose resolution exceeds this share of the estimate is noted at design (:func:`build`).
+READING_SHARE = 0.1
+
+
+def reading_resolution(info: LoopInfo, sensors: Sensors | None) -> float:
+    """How finely the encoders read ``s = r_b1 theta1 - r_b2 theta2`` [m]: half a count and three noise stds of each
+    encoder, along the line of action, summed (each extreme of a window may be off by that much). 0 without a load
+    encoder (the adaptation then measures nothing)."""
+    if sensors is None or not sensors.load_encoder_cpr:
+        return 0.0
+    p = info.plant
+    out = 0.0
+    for rb, cpr, noise in ((p.rb1, sensors.motor_encoder_cpr, sensors.motor_noise),
+                           (p.rb2, sensors.load_encoder_cpr, sensors.load_noise)):
+        count = 2.0 * math.pi / cpr if cpr else 0.0
+        out += rb * (0.5 * count + 3.0 * (noise or 0.0))
+    return out
