@@ -330,7 +330,7 @@ from ..controller import ReferenceLike
 from ..errors import InputError, SolverError
 from ..files import Layout, build_dataclass, spec_values
 from ..params import FrictionLaw, Sensors
-from ..plant import input_matrix, mode_matrices
+from ..plant import Plant, input_matrix, mode_matrices
 from ..units import BACKLASH, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
 
@@ -577,10 +577,33 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         if sensors.load_encoder_cpr and _COUNT_PER_STD * load_std > 2.0 * settings.backlash / info.plant.rb2:
             load_noise = load_std
     try:
-        return MPC(info, settings, Ts=Ts, name=name, reading_error=reading_error, load_noise=load_noise,
-                   load_std=load_std, scaled_smoothing=scaled_smoothing)
+        mpc = MPC(info, settings, Ts=Ts, name=name, reading_error=reading_error, load_noise=load_noise,
+                  load_std=load_std, scaled_smoothing=scaled_smoothing)
     except InputError as exc:
         raise InputError(f"{path}: {exc}", field=exc.field) from None
+    share = intermediate_share(info.nominal)
+    if share > INTERMEDIATE_SHARE and not mpc.rigid_reason:
+        mpc.design_notes = (*mpc.design_notes, (
+            f"train: the intermediate shafts carry {share:.0%} of the motor side's inertia (reflected), which the "
+            f"one-gap plan does not see; on the catalog's and tests' trains above {INTERMEDIATE_SHARE:.0%} the MPC "
+            f"gained at most 1.5x over the PID on the sine and lost on two (0.2x, 0.37x), and it rattles at rest: "
+            f"the deadzone_inverse is the controller for such a train"))
+    return mpc
+
+
+#: Share of the motor side's inertia on the intermediate shafts above which :func:`build_mpc` notes that the
+#: one-gap plan does not suit the train (see *Trains* in the module docstring).
+INTERMEDIATE_SHARE = 0.15
+
+
+def intermediate_share(plant: Plant) -> float:
+    """Share of the motor side's inertia (the motor shaft and the intermediate shafts, reflected to the motor) that
+    the intermediate shafts carry: 0 for a pair."""
+    if plant.n_stages < 2:
+        return 0.0
+    ratio_to = [math.prod(s.ratio for s in plant.stages[:j]) for j in range(len(plant.shafts))]
+    inter = sum(plant.shafts[j].J / ratio_to[j] ** 2 for j in range(1, len(plant.shafts) - 1))
+    return inter / (plant.shafts[0].J + inter)
 
 
 #: The keys of an ``mpc`` controller file and the settings fields they feed.
