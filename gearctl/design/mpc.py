@@ -137,8 +137,10 @@ already carries the load: contact is then declared within :func:`contact_toleran
 for a pair; plus the share of the lost motion of every stage but the last for a train), otherwise the plan
 never leaves its landing patterns (the figures above). The intermediate shafts are still hit at the
 crossing's speed and bounce between their flanks at every reversal: that remains the limit of the
-equivalent model (7x better than the PID on the three-stage train, 226x on the pair; see
-``tests/test_trains.py``).
+equivalent model (4.8x better than the PID on the three-stage train, 226x on the pair; see
+``tests/test_trains.py``). Where the intermediate shafts carry over :data:`INTERMEDIATE_SHARE` (15 %) of the motor
+side's inertia (:func:`intermediate_share`) the plan is far off: 1.2x on ``servo_2stage_phm09`` (33 %), 0.2x on a
+two-stage gravity joint (19 %), a rattle at rest; :func:`build_mpc` adds a design note pointing to the inverse.
 
 *A backlash estimate that is too large.* The gap never reaches ``b - tol`` then, and the plan would keep
 landing. Where the measured gap turns back on one side (its furthest point on that side, come back to
