@@ -198,10 +198,32 @@ def test_wrong_backlash_estimate_frictionless_median(runs: _Runs, factor: float)
     "issue 12 claim not met on every seed of the frictionless servo: with the estimate 20 % off the inverse's B "
     "exceeds a third of the PID's 1317 urad on 4 of 16 seeds at 0.8 b (worst 542 urad, 2.4x) and 1 of 16 at 1.2 b "
     "(499 urad, 2.6x). The frictionless load leaves its flank at each stop and lands where its bounces "
-    "leave it; the friction servo meets the claim on every seed"))
+    "leave it; the friction servo meets the claim on every seed, and so does the adaptive inverse started 20 % off "
+    "on both servos (the test below)"))
 def test_wrong_backlash_estimate_frictionless_every_seed(runs: _Runs, factor: float) -> None:
     B, B_pid = _frictionless_wrong_estimate(runs, factor)
     assert B_pid >= 3.0 * B.max()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("model", "seeds"), [(SERVO, range(8)), (FRICTION, range(4))])
+@pytest.mark.parametrize("factor", [0.8, 1.2])
+def test_adaptive_inverse_keeps_b_with_a_wrong_start_on_every_seed(runs: _Runs, model: str, seeds: range,
+                                                                   factor: float) -> None:
+    # the catalog's answer to an uncertain backlash is the adaptive inverse (its estimate learnt from the two
+    # encoders). Started 20 % off, its B on every seed stays far below a third of the PID's (the issue's bound):
+    # measured over seeds 0-15, frictionless servo 0.8 b: 36-63 urad, 1.2 b: 94-125 urad (the PID's 1317); friction
+    # servo 0.8 b: 18-29 urad, 1.2 b: 19-38 urad (the PID's 1502). The fixed inverse misses the bound on 4 and 1 of
+    # the 16 frictionless seeds (the strict xfail above). Kept: a third of the PID's on every seed run here
+    m = load_model(model)
+    plant = build_plant(m)
+    B = []
+    for seed in seeds:
+        ctrl = load_controller("adaptive_inverse", plant, backlash=factor * plant.backlash, sensors=m.sensors)
+        B.append(precision_test(plant, ctrl, sensors=m.sensors, seed=seed).stats["reversal_value"])
+    B_pid = runs.iso(model, "pid")["reversal_value"]
+    print(f"\n{model}, adaptive started at {factor} b: B {np.round(np.array(B) * 1e6)} urad, PID {B_pid * 1e6:.0f}")
+    assert max(B) <= B_pid / 3.0
 
 
 @pytest.mark.parametrize("factor", [0.9, pytest.param(1.1, marks=pytest.mark.xfail(strict=True, reason=(
