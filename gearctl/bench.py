@@ -261,7 +261,8 @@ def _warn_worse_than_pid(iso: Sequence[dict[str, Any]]) -> None:
     """Add a warning to each ISO row whose accuracy A is worse than the PID's on the same model and plant.
 
     A compensator is built to position better than the PID; where it does not (a train whose intermediate shafts
-    the one-gap controllers do not see, a load the flanks cannot hold), the table says so beside the figure.
+    the one-gap controllers do not see, a load the flanks cannot hold), the bench's warnings and the row's
+    ``warnings`` in ``--json`` say so.
     """
     pid = {(r["model"], r["plant"]): r for r in iso if r["controller"] == "pid" and r.get("ok")}
     for r in iso:

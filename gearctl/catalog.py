@@ -133,8 +133,11 @@ def _missing(path: Path, cls: type, values: Values, where: Mapping[str, str]) ->
         label = where.get(fname, fname)
         meta = next(f.metadata for f in dataclasses.fields(cls) if f.name == fname)
         rule = describe_rule(dict(meta)) if "low" in meta else ""
-        if label.endswith("_deg") and "low" in meta:  # typed in degrees: the range in degrees
-            rule = f"{math.degrees(meta['low']):g} <= value <= {math.degrees(meta['high']):g} [deg]"
+        if label.endswith("_deg") and "low" in meta and math.isfinite(meta.get("high", math.inf)):
+            # typed in degrees: the range in degrees (a closed one: the only such key, pressure_angle_deg)
+            lo_op = "<" if meta.get("low_open") else "<="
+            hi_op = "<" if meta.get("high_open") else "<="
+            rule = f"{math.degrees(meta['low']):g} {lo_op} value {hi_op} {math.degrees(meta['high']):g} [deg]"
         what = f": {meta['doc']}, {rule}" if "doc" in meta and rule else ""
         raise InputError(f"{path}: missing key {label}{what}", field=label.split()[-1])
 
@@ -248,8 +251,9 @@ def load_model(name_or_path: str | Path, **overrides: Any) -> GearModel:
     for key in ("intermediate_inertia", "intermediate_viscous_friction", "intermediate_coulomb_friction"):
         given = data.get("servo", {}).get(key) if isinstance(data.get("servo"), dict) else None
         if isinstance(given, list) and len(given) != n_inter:  # an empty list too: one value per intermediate shaft
-            raise InputError(f"{path}: [servo] {key} = {given!r} has {len(given)} values: expected one per "
-                             f"intermediate shaft ({n_inter}; leave the key out for none added)", field=key)
+            count = f"{len(given)} value" + ("" if len(given) == 1 else "s")
+            raise InputError(f"{path}: [servo] {key} = {given!r} has {count}: expected one per intermediate shaft "
+                             f"({n_inter}; leave the key out for none added)", field=key)
     servo = build_dataclass(path, Servo, common[Servo]) if Servo in common else Servo()
     sensors = build_dataclass(path, Sensors, common[Sensors]) if Sensors in common else Sensors()
     model = GearModel(name=path.stem, stages=stages, servo=servo, sensors=sensors, source=source, path=path)

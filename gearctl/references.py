@@ -59,7 +59,7 @@ def move_point(tau: float, distance: float, velocity: float, accel: float,
         w = 2 * math.pi / ta
 
         def ramp(u: float) -> tuple[float, float, float]:
-            return ((v / ta) * (u * u / 2 + (math.cos(w * u) - 1) / w**2), (v / ta) * (u - math.sin(w * u) / w),
+            return ((v / ta) * (u * u / 2 + (math.cos(w * u) - 1) / (w * w)), (v / ta) * (u - math.sin(w * u) / w),
                     (v / ta) * (1 - math.cos(w * u)))
 
     if tau <= ta:

@@ -336,7 +336,7 @@ def test_adaptive_positions_like_the_fixed_inverse_with_load_friction() -> None:
 def test_encoders_too_coarse_for_the_gap_are_noted_at_design() -> None:
     # tests/data/coarse_noisy_4096.toml: 4096-count encoders with 2e-4 rad of noise read s to 2.1 b along the line
     # of action (measured readings 1.2-1.8 b, the estimate ending 1.74 b): the design says so; the catalog servo's
-    # 2^20-count encoders (0.02 b) give no note
+    # 2^20-count encoders (0.006 b) give no note
     from gearctl.design.adaptive import READING_SHARE, reading_resolution
 
     for path, noted in ((Path(__file__).parent / "data" / "coarse_noisy_4096.toml", True), ("shing1993_servo", False)):

@@ -302,7 +302,7 @@ class OffsetRamp:
         x = (t - self._t0) / self._T
         s, ds, dds = ramp_shape(self.shape, x)
         d = self._o1 - self._o0
-        return self._o0 + d * s, d * ds / self._T, d * dds / self._T**2
+        return self._o0 + d * s, d * ds / self._T, d * dds / (self._T * self._T)
 
 
 def offset_torque(pid: PID, t: float, r: float, rd: float, a: float, offset: tuple[float, float, float],
@@ -739,11 +739,12 @@ class DeadzoneInverse(Controller):
         if x >= 1.0:
             self._lag = None
             return 0.0, 0.0, 0.0
-        h00, h10 = 2 * x**3 - 3 * x**2 + 1, x**3 - 2 * x**2 + x
-        h00d, h10d = 6 * x**2 - 6 * x, 3 * x**2 - 4 * x + 1
+        x2 = x * x  # a product, not x ** 2: the C mirror's compiler makes pow(x, 2) a product (bit for bit)
+        h00, h10 = 2 * x**3 - 3 * x2 + 1, x**3 - 2 * x2 + x
+        h00d, h10d = 6 * x2 - 6 * x, 3 * x2 - 4 * x + 1
         xm = min(x + 0.5 * self.Ts / T, 1.0)
         h00dd, h10dd = 12 * xm - 6, 6 * xm - 4
-        return d0 * h00 + T * dd0 * h10, (d0 * h00d + T * dd0 * h10d) / T, (d0 * h00dd + T * dd0 * h10dd) / T**2
+        return d0 * h00 + T * dd0 * h10, (d0 * h00d + T * dd0 * h10d) / T, (d0 * h00dd + T * dd0 * h10dd) / (T * T)
 
     def _start_crossing(self, t: float, sigma_old: float, y_motor: float, y_load: float | None, rd: float) -> None:
         """Where the load is when the motor leaves its flank: the state the crossing lands on."""

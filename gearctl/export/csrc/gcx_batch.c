@@ -72,7 +72,7 @@ static void gcx_move_point(const gcx_ref_p *R, double tau, double distance, doub
         p = 0.5 * a * u * u, dp = a * u, ddp = a;
     } else {
         double w = 2 * GCX_PI / ta;
-        p = (v / ta) * (u * u / 2 + (cos(w * u) - 1) / pow(w, 2.0));
+        p = (v / ta) * (u * u / 2 + (cos(w * u) - 1) / (w * w));
         dp = (v / ta) * (u - sin(w * u) / w);
         ddp = (v / ta) * (1 - cos(w * u));
     }

@@ -5,8 +5,9 @@
  * inverse with its load-disturbance observer (deadzone.py) and the adaptive inverse (adaptive.py).
  *
  * Each function mirrors the Python method of the same name line by line: the same state variables, the
- * same operations in the same order (Python's a * b + c is (a * b) + c, x ** 2 is pow(x, 2.0), min(a, b)
- * is (b < a ? b : a)), so that compiled without floating-point contraction (ISO C, -std=c99) it gives
+ * same operations in the same order (Python's a * b + c is (a * b) + c, x ** 3 is pow(x, 3.0), a square is
+ * x * x on both sides: a compiler turns pow(x, 2.0) into that product, which libm's pow may miss by an ulp;
+ * min(a, b) is (b < a ? b : a)), so that compiled without floating-point contraction (ISO C, -std=c99) it gives
  * the Python controller's torques bit for bit. The sample time t of the Python step is k * Ts, k the
  * number of steps since init (what gearctl's closed loop passes).
  *
@@ -132,7 +133,7 @@ GCX_FN void gcx_ramp_at(const gcx_ramp_s *R, int shape, double t, double out[3])
     double d = R->o1 - R->o0;
     out[0] = R->o0 + d * s;
     out[1] = d * ds / R->T;
-    out[2] = d * dds / pow(R->T, 2.0);
+    out[2] = d * dds / (R->T * R->T);
 }
 
 /* OffsetRamp.progress */
@@ -425,13 +426,14 @@ GCX_FN void gcx_inv_take_up(const gcx_inv_p *P, gcx_inv_s *S, double t, double o
         S->has_lag = 0;
         return;
     }
-    double h00 = 2 * pow(x, 3.0) - 3 * pow(x, 2.0) + 1, h10 = pow(x, 3.0) - 2 * pow(x, 2.0) + x;
-    double h00d = 6 * pow(x, 2.0) - 6 * x, h10d = 3 * pow(x, 2.0) - 4 * x + 1;
+    double x2 = x * x; /* the Python's product (a compiler may make pow(x, 2.0) one, but not libm's pow) */
+    double h00 = 2 * pow(x, 3.0) - 3 * x2 + 1, h10 = pow(x, 3.0) - 2 * x2 + x;
+    double h00d = 6 * x2 - 6 * x, h10d = 3 * x2 - 4 * x + 1;
     double xm = gcx_min(x + 0.5 * P->pid.Ts / T, 1.0);
     double h00dd = 12 * xm - 6, h10dd = 6 * xm - 4;
     out[0] = d0 * h00 + T * dd0 * h10;
     out[1] = (d0 * h00d + T * dd0 * h10d) / T;
-    out[2] = (d0 * h00dd + T * dd0 * h10dd) / pow(T, 2.0);
+    out[2] = (d0 * h00dd + T * dd0 * h10dd) / (T * T);
 }
 
 /* DeadzoneInverse._check_contact: motor the motor's angle, load the predicted free load's (load units) */
