@@ -29,7 +29,7 @@ and 386 / 369 / 369 urad (friction) to the ones above: the reference the compens
 12x and 50x closer to zero. The loops with impacts are chaotic: these figures are from one machine (numpy 2.4,
 SciPy 1.17, CasADi 3.8); an earlier one gave the frictionless MPC 312 / 139 / 241 with the same code.
 
-The ISO runs take 0.5-2.5 s each; the module takes about 25 s. Those that only confirm an unmet claim on
+The ISO runs take 0.5-2.5 s each; the module takes about 50 s. Those that only confirm an unmet claim on
 the frictionless servo are marked ``slow``.
 """
 
