@@ -789,6 +789,15 @@ FOUND_CASES = {
         fixed="an unshifted gear's pointed tip names its teeth: '[gear2] teeth = 12 makes the tip of gear 2 pointed "
               "at a pressure angle of 35 deg and addendum 1 ...; use more teeth, a smaller pressure angle or a "
               "shorter addendum'"),
+    "mpc_riccati_pencil": Found("mpc_riccati_pencil.toml", (("track", "MODEL", "mpc", "--reference", "move",
+                                                             "--duration", "0.1"),), 30.0,
+                                "traceback: a 10 um module, 100 kg/m^3 and a 1.2e-15 kg m^2 load: the MPC's observer "
+                                "design (scipy.linalg.solve_discrete_are) raised LinAlgError 'The associated "
+                                "symplectic pencil has eigenvalues too close to the unit circle'",
+        fixed=(
+        "fixed in gearctl/design/mpc.py (_kalman_gain): where SciPy's solver fails, the filter's Riccati recursion "
+        "is iterated to its fixed point (the same gain to 4e-11 on a regular plant); the run ends normally and "
+        "warns of its rattle, and a recursion that does not converge is refused naming process_noise")),
 }
 
 

@@ -688,10 +688,45 @@ def _gap_model(info: LoopInfo, Ts: float) -> _GapModel:
 
 
 def _kalman_gain(A: NDArray, G: NDArray, Qw: NDArray, C: NDArray, R: NDArray) -> NDArray:
-    """Steady-state gain of the filtered (measurement-updated) Kalman filter."""
+    """Steady-state gain of the filtered (measurement-updated) Kalman filter.
+
+    SciPy's Riccati solver first; where it finds the symplectic pencil's eigenvalues too close to the unit circle
+    (a plant whose scales span many decades: a fuzzed pair with a 10 um module and a 1e-15 kg m^2 load raised its
+    ``LinAlgError`` as a traceback), the filter's own Riccati recursion, iterated to its fixed point.
+
+    Raises
+    ------
+    InputError
+        If neither gives a finite, converged solution (naming the observer's keys).
+    """
     Q = G @ Qw @ G.T
-    P = scipy.linalg.solve_discrete_are(A.T, C.T, Q, R)
-    return P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+    try:
+        P = scipy.linalg.solve_discrete_are(A.T, C.T, Q, R)
+    except (np.linalg.LinAlgError, ValueError):
+        P = _riccati_iteration(A, Q, C, R)
+    K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+    if not np.all(np.isfinite(K)):
+        raise InputError("process_noise / measurement_noise: the MPC's observer has no steady-state Kalman gain on "
+                         "this plant (its Riccati equation gives no finite solution); the plant's scales span too "
+                         "many decades for it: use the pid or the deadzone_inverse", field="process_noise")
+    return K
+
+
+def _riccati_iteration(A: NDArray, Q: NDArray, C: NDArray, R: NDArray, steps: int = 100_000) -> NDArray:
+    """The predicted covariance's fixed point of the Kalman filter's Riccati recursion (see :func:`_kalman_gain`)."""
+    P = Q.copy()
+    for _ in range(steps):
+        S = C @ P @ C.T + R
+        Pn = A @ (P - P @ C.T @ np.linalg.solve(S, C @ P)) @ A.T + Q
+        Pn = 0.5 * (Pn + Pn.T)
+        if not np.all(np.isfinite(Pn)):
+            break
+        if np.allclose(Pn, P, rtol=1e-12, atol=0.0):
+            return Pn
+        P = Pn
+    raise InputError("process_noise / measurement_noise: the MPC's observer has no steady-state Kalman gain on this "
+                     "plant (its Riccati equation did not converge); the plant's scales span too many decades for "
+                     "it: use the pid or the deadzone_inverse", field="process_noise")
 
 
 # --- the QP solver ---------------------------------------------------------------------------------------
