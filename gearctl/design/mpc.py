@@ -603,9 +603,8 @@ def intermediate_share(plant: Plant) -> float:
     the intermediate shafts carry: 0 for a pair."""
     if plant.n_stages < 2:
         return 0.0
-    ratio_to = [math.prod(s.ratio for s in plant.stages[:j]) for j in range(len(plant.shafts))]
-    inter = sum(plant.shafts[j].J / ratio_to[j] ** 2 for j in range(1, len(plant.shafts) - 1))
-    return inter / (plant.shafts[0].J + inter)
+    motor_side = plant.equivalent_pair().J1  # the motor shaft and every intermediate shaft, reflected
+    return (motor_side - plant.shafts[0].J) / motor_side
 
 
 #: The keys of an ``mpc`` controller file and the settings fields they feed.
@@ -707,13 +706,14 @@ def _kalman_gain(A: NDArray, G: NDArray, Qw: NDArray, C: NDArray, R: NDArray) ->
     K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
     if not np.all(np.isfinite(K)):
         raise InputError("process_noise / measurement_noise: the MPC's observer has no steady-state Kalman gain on "
-                         "this plant (its Riccati equation gives no finite solution); the plant's scales span too "
-                         "many decades for it: use the pid or the deadzone_inverse", field="process_noise")
+                         "this plant (its Riccati equation gives no finite, converged solution); the plant's scales "
+                         "span too many decades for it: use the pid or the deadzone_inverse", field="process_noise")
     return K
 
 
 def _riccati_iteration(A: NDArray, Q: NDArray, C: NDArray, R: NDArray, steps: int = 100_000) -> NDArray:
-    """The predicted covariance's fixed point of the Kalman filter's Riccati recursion (see :func:`_kalman_gain`)."""
+    """The predicted covariance's fixed point of the Kalman filter's Riccati recursion (see :func:`_kalman_gain`);
+    NaN where it diverges or does not converge within ``steps``."""
     P = Q.copy()
     for _ in range(steps):
         S = C @ P @ C.T + R
@@ -724,9 +724,7 @@ def _riccati_iteration(A: NDArray, Q: NDArray, C: NDArray, R: NDArray, steps: in
         if np.allclose(Pn, P, rtol=1e-12, atol=0.0):
             return Pn
         P = Pn
-    raise InputError("process_noise / measurement_noise: the MPC's observer has no steady-state Kalman gain on this "
-                     "plant (its Riccati equation did not converge); the plant's scales span too many decades for "
-                     "it: use the pid or the deadzone_inverse", field="process_noise")
+    return np.full_like(P, np.nan)
 
 
 # --- the QP solver ---------------------------------------------------------------------------------------
