@@ -176,6 +176,19 @@ def test_prefixed_export_runs_in_the_loop_and_checks(tmp_path: Path) -> None:
     assert np.array_equal(a.torque, b.torque)
 
 
+@pytest.mark.parametrize("prefix", ["gcx", "gcx_a"])
+def test_a_prefix_like_the_internal_names_is_applied_once(tmp_path: Path, prefix: str) -> None:
+    # a C harness's --prefix gcx gave gcx_gcx_ctrl.h and gcx_gcx_ctrl_step (the internal gcx_ names were renamed after
+    # the API's, and the API's new names with them); the README promises PREFIX_ctrl.h and PREFIX_ctrl_step
+    d, _ = _export(tmp_path, SERVO, "pid", vectors=False, prefix=prefix)
+    names = {p.name for p in d.iterdir()}
+    assert {f"{prefix}_ctrl.h", f"{prefix}_ctrl.c"} <= names, names
+    h = (d / f"{prefix}_ctrl.h").read_text()
+    assert f"int {prefix}_ctrl_step(" in h and f"#define {prefix.upper()}_TS " in h
+    assert f"{prefix}_{prefix}_ctrl" not in h and f"{prefix}_gcx_pid_s" in h
+    assert f"lib{prefix}_ctrl.a" in (d / "Makefile").read_text()
+
+
 @pytest.mark.parametrize("prefix", ["1axis", "Axis", "axis_", "a__b", "", "x" * 25])
 def test_a_bad_prefix_is_refused(tmp_path: Path, prefix: str) -> None:
     with pytest.raises(InputError, match="prefix"):

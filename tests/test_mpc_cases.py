@@ -246,6 +246,57 @@ def test_a_fault_brakes_the_motor_to_rest(tmp_path: Path, ref: str) -> None:
     assert not np.any((u == 0.0) & np.signbit(u))
 
 
+class _JumpingConnector(_LooseConnector):
+    """A motor encoder that reads 0.1 rad off for 20 of every 40 samples from sample 100 on, for good (a C harness's
+    broken encoder): the fault latches, and the reading never settles."""
+
+    def step(self, t: float, y_motor: float, y_load: float | None, ref) -> float:  # noqa: ANN001
+        k = round(t / self._c.Ts)
+        return self._c.step(t, y_motor + 0.1 if k >= 100 and k % 40 < 20 else y_motor, y_load, ref)
+
+
+def _jumping(ctrl, path: Path):  # noqa: ANN001, ANN202
+    from gearctl import load_model
+    from gearctl.closedloop import simulate_closed_loop
+    from gearctl.plant import build_plant
+    from gearctl.references import reference
+
+    m = load_model(path)
+    return simulate_closed_loop(build_plant(m), _JumpingConnector(ctrl), reference("sine"), 2.0, sensors=m.sensors)
+
+
+def test_a_reading_that_keeps_jumping_after_the_fault_does_not_drive_the_brake(tmp_path: Path) -> None:
+    # a C harness's motor reading jumped 0.1 rad back and forth for good: the latched fault's brake took the jumps for
+    # the motor's speed and drove up to the full 1 N m (here: 1 N m within 40 ms of the fault, the motor left at 2.6
+    # rad/s). A braked motor does not speed up: the brake's speed is never above the lowest it measured since the
+    # fault. Measured: at most 0.032 N m after the fault, the motor under 0.3 rad/s over the last 0.5 s (it swings
+    # with the free load; bounds 0.1 N m and 0.5 rad/s)
+    path = _servo_4096(tmp_path)
+    ctrl, _ = _mpc(path)
+    res = _jumping(ctrl, path)
+    assert ctrl.fault.startswith("fault: the estimate restarted 3 times"), ctrl.fault
+    t_fault = next(f["t"] for f in ctrl.fallbacks if f["reason"].startswith("fault"))
+    after, last = res.t >= t_fault, res.t >= res.t[-1] - 0.5
+    u_max, w_max = float(np.max(np.abs(res.torque[after]))), float(np.max(np.abs(res.x[2, last])))
+    print(f"\nfault at {t_fault:.3f} s; largest torque after it {u_max:.3g} N m, motor speed at the end {w_max:.3g}")
+    assert u_max <= 0.1 and w_max < 0.5
+
+
+@needs_cc
+def test_the_jumping_reading_replays_in_c(tmp_path: Path) -> None:
+    from gearctl.export import export_controller
+    from gearctl.export.sil import load_exported
+    from gearctl.plant import build_plant
+
+    path = _servo_4096(tmp_path)
+    ctrl, m = _mpc(path)
+    export_controller(ctrl, tmp_path / "c", plant=build_plant(m), sensors=m.sensors)
+    a = _jumping(ctrl, path)
+    b = _jumping(load_exported(tmp_path / "c"), path)
+    assert ctrl.fault
+    np.testing.assert_array_equal(b.torque, a.torque)
+
+
 @needs_cc
 def test_the_fault_replays_in_c(tmp_path: Path) -> None:
     from gearctl.export import export_controller

@@ -1438,7 +1438,9 @@ class MPC(Controller):
         self._restarts = [-_FAULT_WINDOW] * _FAULT_RESTARTS  # the samples of the last restarts of the estimate
         self._n_obs = 0  # samples observed (finite motor readings)
         self.fault = ""  # why the controller stopped (braking, then zero torque, until reset), "" while it runs
-        self._brake = [0.0, 0, 0.0, 0.0]  # after a fault: last motor reading, its sample, its step, the speed [rad/s]
+        #: after a fault: last motor reading, its sample, its step, the speed [rad/s] and the lowest speed measured
+        #: since the fault (a braked motor never turns faster than that: a reading that says so is the fault's)
+        self._brake = [0.0, 0, 0.0, 0.0, 1e300]
         self._k = 0
         self._p = np.zeros(self.n_p)
         self._ref: ReferenceLike | None = None
@@ -1610,20 +1612,26 @@ class MPC(Controller):
 
         The speed is the last change of the reading over the samples it took, if the change before was in the
         same direction (else the shaft turned round at a count's edge: zero); while the reading stands still it
-        is at most that change over the samples since (so it decays to zero at rest).
+        is at most that change over the samples since (so it decays to zero at rest). It is never above the
+        lowest speed measured since the fault: a braked motor does not speed up, and a reading that says it does
+        is the broken encoder's. Why: a C harness's motor reading that jumped 0.1 rad for 20 of every 40 samples
+        kept the brake at up to the full torque limit for the 4.4 s it ran; now the brake stops at the first
+        turn and the torque is zero.
         """
-        y0, k0, dy, w = self._brake
+        y0, k0, dy, w, cap = self._brake
         n = self._n_obs
         if n == self._restarts[-1]:  # the sample of the fault: the reading's origin
-            y0, k0, dy, w = y_motor, n, 0.0, 0.0
+            y0, k0, dy, w, cap = y_motor, n, 0.0, 0.0, 1e300
         elif y_motor != y0:  # a change in the direction of the last one: a speed; else it turned at an edge
-            w = (y_motor - y0) / ((n - k0) * self.Ts) if (y_motor - y0) * dy > 0.0 else 0.0
+            if dy != 0.0:  # (the first change since the fault measures nothing: its start is unknown)
+                w = (y_motor - y0) / ((n - k0) * self.Ts) if (y_motor - y0) * dy > 0.0 else 0.0
+                w, cap = math.copysign(min(abs(w), cap), w), min(cap, abs(w)) if w != 0.0 else cap
             dy, y0, k0 = y_motor - y0, y_motor, n
         elif (n - k0) * self.Ts >= _BRAKE_REST:  # still for _BRAKE_REST: at rest (a 1/n tail of uN m lasted seconds)
             w = 0.0
         else:  # what the braking leaves of it, and at most the last change over the samples since
             w = math.copysign(min(abs(w) * (1.0 - self.Ts / _BRAKE_TIME), abs(dy) / ((n - k0) * self.Ts)), w)
-        self._brake[:] = (y0, k0, dy, w)
+        self._brake[:] = (y0, k0, dy, w, cap)
         return min(max(-self.info.J_eq * w / _BRAKE_TIME, -self._umax), self._umax) + 0.0  # + 0.0: never -0.0
 
     def _planned_load_friction(self, i: int) -> float:

@@ -103,6 +103,13 @@ def _state_type(spec: KindSpec) -> str:
     return f"gcx_{spec.prefix}_s"
 
 
+#: The MPC header's word on a load reading that no gap explains (:attr:`gearctl.design.mpc.MPC.gap_limit`).
+_GAP_RULE = (" * A load reading whose gap from the motor's (rb1 y[0] - rb2 y[1] along the line of action) exceeds\n"
+             " * the MPC's gap limit (2.5 b, four mesh deflections under the torque limit, the contact tolerance and\n"
+             " * a count and six noise stds of each encoder) is taken as wrong (zeroed off, or broken): the step runs\n"
+             " * on the motor encoder alone and returns GEARCTL_STEP_FALLBACK.\n")
+
+
 def header_text(spec: KindSpec) -> str:
     """``gearctl_ctrl.h``: the API of issue 14, with this controller's constants and state."""
     from .. import __version__
@@ -129,6 +136,7 @@ def header_text(spec: KindSpec) -> str:
             " * the encoder, with its noise) from the last accepted reading's is rejected: the step runs on the\n"
             " * prediction, returns GEARCTL_STEP_FALLBACK;\n"
             " * one that persists 5 samples restarts the estimate.\n"
+            + (_GAP_RULE if spec.uses_load_encoder else "")
             if spec.prefix == "mpc" else
             " * as missed: the clock k still advances). A wild reading within the limit is the caller's to\n"
             " * screen: the integral action is bounded (twice the torque limit), but the measurement filter decays\n"
@@ -182,7 +190,10 @@ extern "C" {{
 #define GEARCTL_STEP_BAD_INPUT 2 /* an input not finite or beyond GEARCTL_INPUT_LIMIT: u = 0, the state unchanged
                                     but for the clock k, which advances */
 #define GEARCTL_STEP_FAULT 3     /* the MPC's latched fault (its estimate restarted 3 times within 1000 samples):
-                                    the motor braked to rest, then u = 0, on every step until gearctl_ctrl_init */
+                                    the motor braked to rest from its own reading (at a speed never above the
+                                    lowest it measured since the fault: a reading that jumps back and forth stops
+                                    the brake at its first turn), then u = 0, on every step until gearctl_ctrl_init;
+                                    a bad input then returns it too, with u = 0 */
 
 /* ---- internal sizes and state types (read them if you like; never write them) ---- */
 {defines(spec.dims)}{state}
@@ -214,6 +225,8 @@ def _implementation(spec: KindSpec) -> str:
     mpc = spec.prefix == "mpc"
     check_load = spec.uses_load_encoder and not mpc  # the MPC takes a load reading beyond the limit as missing
     load_screen = " || !gcx_finite(y[1]) || fabs(y[1]) > GEARCTL_INPUT_LIMIT" if check_load else ""
+    # the MPC's latched fault is reported on every step, a bad input's too (its torque is zero either way)
+    bad_status = "c->s.fault ? GEARCTL_STEP_FAULT : GEARCTL_STEP_BAD_INPUT" if mpc else "GEARCTL_STEP_BAD_INPUT"
     parts = [
         f"/* gearctl_ctrl.c -- exported controller \"{spec.name}\" (kind {spec.kind}): the kind's C, which mirrors\n"
         " * gearctl's Python methods line by line. SPDX-License-Identifier: MIT (see LICENSE) */\n",
@@ -242,7 +255,7 @@ int gearctl_ctrl_step(gearctl_ctrl_t *c, const double y[2], const double *ref, d
     if (bad) {{ /* a missed sample: no update, a zero torque */
         *u = 0.0;
         c->k++;
-        return GEARCTL_STEP_BAD_INPUT;
+        return {bad_status};
     }}
     int flag = gcx_{spec.prefix}_run(&GCX_PARAMS, &c->s, c->k, y, ref, u);
     c->k++;
@@ -312,8 +325,9 @@ int status = gearctl_ctrl_step(&ctrl, y, ref, &u);
   `y[1]` not finite or beyond the limit as a missing reading and returns `GEARCTL_STEP_FALLBACK`): `u = 0`, the state
   unchanged but for the sample clock, which advances;
   `GEARCTL_STEP_FAULT` (3, the MPC's latched fault: its estimate restarted 3 times within 1000 samples, e.g. encoders
-  too coarse to follow, or an encoder that keeps jumping; the motor is braked to rest, then `u = 0`, until
-  `gearctl_ctrl_init`).
+  too coarse to follow, or an encoder that keeps jumping; the motor is braked to rest from its own reading, at a speed
+  never above the lowest it measured since the fault, then `u = 0`, until `gearctl_ctrl_init`; a bad input during
+  the fault returns it too, with `u = 0`).
 
 The step at sample `k` is the Python controller's step at `t = k * GEARCTL_TS`.
 
@@ -437,11 +451,16 @@ def prefixed(text: str, prefix: str) -> str:
     if prefix == DEFAULT_PREFIX:
         return text
     up = prefix.upper()
-    text = re.sub(r"\bgearctl_(ctrl|qp|vectors|sil)", prefix + r"_\1", text)
-    text = text.replace("libgearctl_ctrl", f"lib{prefix}_ctrl")
-    text = re.sub(r"\bGEARCTL_", up + "_", text)
-    text = re.sub(r"\bgcx_", prefix + "_gcx_", text)
-    return re.sub(r"\bGCX_", up + "_GCX_", text)
+    # one pass: a prefix that is itself a name's start (``gcx``, ``gcx_a``) must not be renamed again (it made
+    # ``gcx_gcx_ctrl_step`` of ``--prefix gcx``)
+    new = {"gearctl_": prefix + "_", "libgearctl_ctrl": f"lib{prefix}_ctrl", "GEARCTL_": up + "_",
+           "gcx_": prefix + "_gcx_", "GCX_": up + "_GCX_"}
+    return _NAMES_RE.sub(lambda m: new[m.group(1)], text)
+
+
+#: The names :func:`prefixed` renames: gearctl's API (``gearctl_ctrl...``, ``GEARCTL_...``, ``libgearctl_ctrl``) and
+#: the internal ``gcx_`` / ``GCX_`` names.
+_NAMES_RE = re.compile(r"\b(gearctl_(?=ctrl|qp|vectors|sil)|libgearctl_ctrl|GEARCTL_|gcx_|GCX_)")
 
 
 def prefixed_name(name: str, prefix: str) -> str:
