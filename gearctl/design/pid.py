@@ -574,9 +574,11 @@ def pid_from_values(path: Path, values: dict[type, Values], info: LoopInfo, loop
             raise restate(path, exc, values) from None
         if bw < design.bandwidth_hz:
             shaft = info.nominal.shafts[0]
-            notes = (f"bandwidth_hz = {design.bandwidth_hz:g} lowered to {bw:.3g} Hz. Designed on the rigid train, "
+            # enough digits to show the change (the gap search can shave off a tenth of a percent: "20 lowered to 20")
+            shown = f"{bw:.3g}" if float(f"{bw:.3g}") < design.bandwidth_hz else f"{bw:.6g}"
+            notes = (f"bandwidth_hz = {design.bandwidth_hz:g} lowered to {shown} Hz. Designed on the rigid train, "
                      f"the PID has {info.J_eq / shaft.J:.3g}x the loop gain on the motor shaft alone "
-                     f"({shaft.J:.3g} kg m^2), which the load leaves in the gap; above {bw:.3g} Hz the motor-alone "
+                     f"({shaft.J:.3g} kg m^2), which the load leaves in the gap; above {shown} Hz the motor-alone "
                      f"loop is unstable, or within gap_gain_margin_db = {design.gap_gain_margin_db:g} dB of it, and "
                      f"the motor rattles between the flanks. To keep {design.bandwidth_hz:g} Hz anyway, and "
                      f"risk that rattle, set gap_gain_margin_db = 0 in [design]",)
