@@ -82,7 +82,9 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
         if scheme not in _SCHEMES:
             raise ValueError(f"unknown scheme {scheme!r}")
         if scheme in ("tcp", "tls", "ws", "wss"):
-            parse_host_port(loc)
+            port = parse_host_port(loc)[1]
+            if not 0 < port < 65536:
+                raise ValueError(f"invalid port {port}: expected 1..65535")
     except (ValueError, TypeError) as exc:
         raise refuse(str(exc)) from None
 
@@ -107,7 +109,10 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
         reply = asyncio.run(asyncio.wait_for(identity(), timeout))
     except TimeoutError:
         raise refuse(f"no Dask answer within {timeout:g} s") from None
-    except (Exception, MemoryError) as exc:  # another protocol's bytes, a connection dropped
+    except MemoryError:  # Dask read a frame length off another protocol's first bytes (an HTTP server's reply)
+        raise refuse("the server there does not answer as a Dask scheduler (its reply is in another protocol: an "
+                     "HTTP server's, say)") from None
+    except Exception as exc:  # another protocol's bytes, a connection dropped
         raise refuse(f"the server there does not answer as a Dask scheduler ({type(exc).__name__}: "
                      f"{str(exc)[:120]})") from None
     if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
@@ -191,15 +196,25 @@ class Engine:
             self.client = distributed.Client(self.cluster, set_as_default=False)
             self.where = f"local cluster ({n} process{'es' if n > 1 else ''})"
         if self.cluster is None:
-            try:
-                versions = set(self.client.run(code_id).values())
-            except Exception as exc:  # the workers' environment, not gearctl: say it in one line
+            try:  # each worker's answer, or its exception: the refusal names the workers at fault
+                ids = self.client.run(code_id, on_error="return")
+            except Exception as exc:  # the cluster itself, not a worker: say it in one line
                 self.close()
                 raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",
                                  field="scheduler") from None
-            if versions - {code_id()}:
+            broken = {w: v for w, v in ids.items() if isinstance(v, BaseException)}
+            if broken:
                 self.close()
-                raise InputError(f"the workers of {self.where} run gearctl {', '.join(sorted(versions))}, this is "
+                w, exc = sorted(broken.items())[0]
+                raise InputError(f"the worker{'s' if len(broken) > 1 else ''} {', '.join(sorted(broken))} of "
+                                 f"{self.where} cannot run gearctl ({w}: {type(exc).__name__}: {exc})",
+                                 field="scheduler")
+            other = {w: v for w, v in ids.items() if v != code_id()}
+            if other:
+                self.close()
+                theirs = ", ".join(sorted(set(other.values())))
+                raise InputError(f"the worker{'s' if len(other) > 1 else ''} {', '.join(sorted(other))} of "
+                                 f"{self.where} run{'' if len(other) > 1 else 's'} gearctl {theirs}, this is "
                                  f"{code_id()} (version+code hash): install the same gearctl on every worker, and "
                                  f"restart workers started before an edit", field="scheduler")
 

@@ -311,11 +311,13 @@ class Vary:
             span = ", ".join(f"{v:.4g}" for v in self.args[:6]) + (", ..." if len(self.args) > 6 else "")
         elif self.kind in ("range", "loguniform"):
             span = f"{self.args[0]:.4g} .. {self.args[1]:.4g}"
-        else:
+        else:  # the unit follows each value of the key (a log-std has none)
             m, s, lo, hi = self.args
-            span = f"{'mean' if self.kind == 'normal' else 'median'} {m:.4g}, " + \
-                   f"{'std' if self.kind == 'normal' else 'log-std'} {s:.4g}" + \
-                   (f", in [{lo:.4g}, {hi:.4g}]" if math.isfinite(lo) or math.isfinite(hi) else "")
+            normal = self.kind == "normal"
+            span = f"{'mean' if normal else 'median'} {m:.4g}{unit}, " + \
+                   f"{'std' if normal else 'log-std'} {s:.4g}{unit if normal else ''}" + \
+                   (f", in [{lo:.4g}, {hi:.4g}]{unit}" if math.isfinite(lo) or math.isfinite(hi) else "")
+            return f"{self.key} = {self.text} ({span})"
         return f"{self.key} = {self.text} ({span}{unit})"
 
 

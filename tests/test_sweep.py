@@ -145,6 +145,20 @@ def test_bad_spec_at_the_cli_is_exit_2_one_line() -> None:
     assert err.count("\n") == 1 and err.startswith("gearctl sweep: error: --vary backlash=normal(5e-5)")
 
 
+@pytest.mark.parametrize(("flag", "make"), [("--out", "file"), ("--json", "folder"), ("--json", "under a file")])
+def test_an_output_it_cannot_write_is_refused_before_the_runs(tmp_path: Path, flag: str, make: str) -> None:
+    # a reviewer's sweep ran to its end on a cluster, then could not write its results (--out naming a file, --json
+    # under a path that cannot be made) and exited 2 with nothing: the outputs are now checked first
+    f = tmp_path / "afile"
+    f.write_text("keep")
+    target = {"file": f, "folder": tmp_path, "under a file": f / "x.json"}[make]
+    t0 = time.monotonic()
+    rc, out, err = _cli(["sweep", MODEL, "pid", "--vary", "backlash=1x", "--runs", "100000", "--quiet", flag,
+                         str(target)])
+    assert rc == 2 and out == "" and err.count("\n") == 1 and f"{flag} {target}" in err, err
+    assert time.monotonic() - t0 < 5.0 and f.read_text() == "keep"
+
+
 def test_parse_set() -> None:
     assert parse_set("backlash=7e-05") == ("backlash", 7e-05)
     key, v = parse_set("motor_encoder_cpr=4096")
@@ -523,7 +537,8 @@ def _server(reply: bytes | None) -> Iterator[str]:
 
 @pytest.mark.parametrize(("kind", "said"), [("garbage", "Invalid url scheme"), ("http", "unknown scheme 'http'"),
                                             ("no port", "missing port"), ("banner", "does not answer as a Dask"),
-                                            ("silent", "no Dask answer within 1 s")])
+                                            ("silent", "no Dask answer within 1 s"),
+                                            ("port", "invalid port 99999: expected 1..65535")])
 def test_an_address_that_is_no_dask_scheduler_is_one_line(monkeypatch: pytest.MonkeyPatch, kind: str,
                                                           said: str) -> None:
     # a review against a real cluster: "garbage" and http://... gave a ValueError traceback and a 20 s hang in
@@ -533,7 +548,8 @@ def test_an_address_that_is_no_dask_scheduler_is_one_line(monkeypatch: pytest.Mo
 
     monkeypatch.setattr(gearctl.parallel, "CONNECT_TIMEOUT", 1.0)
     with contextlib.ExitStack() as stack:
-        address = {"garbage": "garbage", "http": "http://127.0.0.1:8786", "no port": "tcp://127.0.0.1"}.get(kind)
+        address = {"garbage": "garbage", "http": "http://127.0.0.1:8786", "no port": "tcp://127.0.0.1",
+                   "port": "tcp://127.0.0.1:99999"}.get(kind)
         if address is None:
             address = stack.enter_context(_server(b"SSH-2.0-OpenSSH_9.6\r\n" * 100 if kind == "banner" else None))
         t0 = time.monotonic()
@@ -555,7 +571,9 @@ def test_workers_running_other_code_are_refused(monkeypatch: pytest.MonkeyPatch,
     with Client(cluster, set_as_default=False) as client:
         gearctl.parallel.Engine(client=client).close()  # the same code: accepted, the client left open
         monkeypatch.setattr(gearctl.parallel, "_CODE_ID", "0.1.0+000000000000")
-        with pytest.raises(InputError, match=r"run gearctl .*\+[0-9a-f]{12}, this is 0\.1\.0\+000000000000"):
+        # the refusal names the workers that run other code
+        with pytest.raises(InputError, match=r"the workers? tcp://\S+( tcp://\S+)* of \S+ runs? gearctl "
+                                             r".*\+[0-9a-f]{12}, this is 0\.1\.0\+000000000000"):
             gearctl.parallel.Engine(client=client)
 
 

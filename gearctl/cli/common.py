@@ -177,6 +177,33 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
                                  f"lose it; write to another file", field=key)
 
 
+def check_writable(path: str, *, directory: bool = False, key: str = "out") -> None:
+    """Refuse, before a long run, an output path it could not write at its end: one line naming ``--KEY``.
+
+    ``directory``: the path is a folder the run writes into (created now, as it would be then); else a file, whose
+    folder is created now. Writing is tried with a temporary file in that folder (removed at once): permissions,
+    a read-only file system or a path through a file fail here, not after the run.
+    """
+    import os
+    import tempfile
+
+    p = Path(path)
+    flag = f"--{key.replace('_', '-')}"
+    if directory and p.exists() and not p.is_dir():
+        raise InputError(f"{flag} {path}: is a file, expected a folder to write into", field=key)
+    if not directory and p.is_dir():
+        raise InputError(f"{flag} {path}: is a folder, expected a file name", field=key)
+    folder = p if directory else (p.parent if str(p.parent) else Path("."))
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".gearctl-write-test-"):
+            pass
+    except OSError as exc:
+        raise InputError(f"{flag} {path}: cannot write there ({exc.strerror or exc})", field=key) from None
+    if not directory and p.exists() and not os.access(p, os.W_OK):
+        raise InputError(f"{flag} {path}: cannot write there (the file is read-only)", field=key)
+
+
 def say_written(*pairs: tuple[str | None, str]) -> None:
     """Print ``wrote FILE (what)`` for each file the user asked for."""
     for path, what in pairs:

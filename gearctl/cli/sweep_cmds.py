@@ -12,7 +12,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..units import DURATION, SEED, Spec
-from .common import dump_json, save_figure, spec_arg, warn
+from .common import check_writable, dump_json, save_figure, spec_arg, warn
 
 __all__ = ["register"]
 
@@ -158,28 +158,51 @@ def _write_out(result: Any, out: Path) -> None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    import logging
+
     from ..sweep import sweep
 
     if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.workers:
         warn("sweep", ["--workers sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the "
                        "cluster's own workers run the sweep"])
-    bar = None
-    if not args.quiet:
-        from tqdm import tqdm
-
-        bar = tqdm(total=0, desc="gearctl sweep", unit="run", file=sys.stderr, leave=False, disable=None)
+    # where the results go is checked before the runs: a sweep of hours must not end unable to write them
+    if args.json:
+        check_writable(args.json, key="json")
+    if args.out:
+        check_writable(args.out, directory=True, key="out")
+    if not args.vary:
+        warn("sweep", ["nothing varied (no --vary): every run is the nominal plant, the runs differ only in their "
+                       "sensor-noise seeds"], kind="note")
+    bar: Any = None
 
     def progress(done: int, total: int) -> None:
-        if bar is not None:
-            bar.total = total
-            bar.update(done - bar.n)
+        nonlocal bar
+        if args.quiet:
+            return
+        if bar is None:  # made once the total is known (a bar of total 0 showed "0run")
+            from tqdm import tqdm
 
+            bar = tqdm(total=total, desc="gearctl sweep", unit="run", file=sys.stderr, leave=False, disable=None)
+        bar.total = total
+        bar.update(done - bar.n)
+
+    # the Dask client's own log (a scheduler lost mid-sweep: 35 lines and two tracebacks before the one line that
+    # says it) stays quiet at the command line; the sweep's error says what happened
+    import distributed  # noqa: F401 - its loggers (distributed.client, ...) set their own levels on import
+
+    quiet = [lg for name, lg in logging.root.manager.loggerDict.items()
+             if (name == "distributed" or name.startswith("distributed.")) and isinstance(lg, logging.Logger)]
+    levels = [lg.level for lg in quiet]
+    for lg in quiet:
+        lg.setLevel(logging.CRITICAL + 1)
     try:
         result = sweep(args.model, args.controller, vary=args.vary or [], runs=args.runs, grid=args.grid,
                        reference_kind=args.reference, duration=args.duration, seed=args.seed, plant=args.plant,
                        precision=args.precision, workers=args.workers, scheduler=args.scheduler, batch=args.batch,
                        progress=progress)
     finally:
+        for lg, lv in zip(quiet, levels, strict=True):
+            lg.setLevel(lv)
         if bar is not None:
             bar.close()
     if args.json:
@@ -212,7 +235,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                    help="controller: catalog name or TOML path (default deadzone_inverse)")
     p.add_argument("--vary", action="append", metavar="KEY=SPEC", help="a key and its tolerance (repeat for more)")
     p.add_argument("--runs", type=spec_arg(_COUNT), help="Monte Carlo runs (default 100); with --grid, points per "
-                                                         "key (default 5)")
+                                                         "range (default 5; 1: its midpoint)")
     p.add_argument("--grid", action="store_true", help="a full grid over the keys instead of Monte Carlo draws")
     p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved",
                    help="true plant (default improved; the design is on the improved plant)")
