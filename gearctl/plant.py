@@ -397,15 +397,40 @@ class Plant:
         return np.where(s > b, 1, np.where(s < -b, -1, 0))
 
     def energy(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Kinetic plus mesh-spring energy [J] (the improved plant's ``k``; states ``(nx, ...)``)."""
+        """Kinetic plus mesh-spring energy [J], ``sum J_j omega_j^2 / 2 + sum k_i delta_i^2 / 2``.
+
+        ``k_i`` is the stage's stiffness where its pinion stands (:meth:`stiffness_at`: the mean ``k`` but on the
+        ``tvms`` plant; Yang–Sun's ``k`` of eq 39). Conserved without damping and friction on the improved plant.
+        The ``tvms`` plant's force ``K(theta) delta`` has no potential (the mesh's elastic torque on the pinion,
+        ``-K'(theta) delta^2 / 2``, is left out, as in the parametric mesh models of the literature): its energy
+        changes by the work of the stiffness variation, ``integral of delta^2 dK / 2`` (:meth:`stiffness_work`).
+        """
         x = np.asarray(x)
         w = len(self.shafts)
         E = sum(0.5 * sh.J * x[w + j] ** 2 for j, sh in enumerate(self.shafts))
         for i, st in enumerate(self.stages):
             s = st.rb1 * x[i] - st.rb2 * x[i + 1]
             pen = np.maximum(np.abs(s) - st.backlash, 0.0)
-            E = E + 0.5 * st.k * pen**2
+            E = E + 0.5 * self.stiffness_at(x[i], i) * pen * pen
         return E
+
+    def stiffness_work(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The energy the ``tvms`` plant's stiffness variation puts in along a trajectory, from its first state [J].
+
+        ``W(t) = sum_i integral of delta_i^2 dK_i / 2`` (trapezoids between the states ``x[:, j]``, so as exact as
+        they are dense): without damping and friction ``energy(x) - energy(x[:, 0]) = W``. Zeros on a plant whose
+        stiffness does not vary.
+        """
+        x = np.asarray(x, dtype=float)
+        W = np.zeros(x.shape[1])
+        for i, st in enumerate(self.stages):
+            if st.kv_table is None:
+                continue
+            s = st.rb1 * x[i] - st.rb2 * x[i + 1]
+            pen2 = np.maximum(np.abs(s) - st.backlash, 0.0) ** 2
+            K = self.stiffness_at(x[i], i)
+            W[1:] += np.cumsum(0.25 * (pen2[1:] + pen2[:-1]) * np.diff(K))
+        return W
 
     def equivalent_pair(self) -> Plant:
         """The one-gap pair a controller designs on: the plant itself for a pair.
