@@ -133,6 +133,18 @@ class TrackingMetrics(_Mapping):
     health: LoopHealth
 
 
+def scored_from(res: ClosedLoopResult, settle: float | None = None) -> float:
+    """Start of the interval the error statistics cover [s]: ``settle`` as given, else the reference's settle time,
+    or 0 where the run leaves less than half of that after it (a 0.5 s sine, whose settle time is 0.5 s, was scored
+    on its last sample alone: RMS and max equal, a "not following" warning at 5e13 times the reference's excursion
+    there)."""
+    if settle is not None:
+        return settle
+    t0 = res.settle
+    end = float(res.t[-1]) if res.t.size else 0.0
+    return 0.0 if t0 > 0.0 and end - t0 < 0.5 * t0 else t0
+
+
 def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHealth:
     """Say what is wrong with a loop that ran to its end.
 
@@ -182,7 +194,7 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
     (the catalog's healthy runs score at most 0.30).
     """
     lim = HEALTH_LIMITS
-    t0 = res.settle if settle is None else settle
+    t0 = scored_from(res, settle)
     T = float(res.t[-1])
     span = max(T - t0, 1e-12)
     log = res.event_log
@@ -260,7 +272,7 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         The run.
     settle : float, optional
         Time [s] excluded at the start from the RMS and max error (start-up transient); default the
-        reference's ``settle``.
+        reference's ``settle``; none where the run is shorter than one and a half of it (:func:`scored_from`).
 
     Returns
     -------
@@ -274,7 +286,7 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         ``duration`` [s], ``wall_time`` [s], ``health`` (:func:`loop_health`).
     """
     e = res.error
-    keep = res.t >= (res.settle if settle is None else settle)
+    keep = res.t >= scored_from(res, settle)
     ek = e[keep] if np.any(keep) else e
     c = res.counts
     front = int(np.sum(c["impacts_front"] + c["plastic_front"]))
