@@ -214,14 +214,24 @@ def _pid_parts(controller: Any, Ts: float | None, feedback: str | None) -> tuple
     return gains, float(Ts), feedback
 
 
+def _check_coulomb(plant: Plant) -> None:
+    """Refuse Coulomb friction (the describing function's linear part has viscous friction only), naming the model's
+    keys that hold it: on a train the design pair's motor side lumps the intermediate shafts' (a reviewer was told to
+    zero coulomb_friction1/2, both already 0)."""
+    sh = plant.shafts
+    keys = [k for k, v in (("coulomb_friction1", sh[0].tc), ("coulomb_friction2", sh[-1].tc),
+                           ("intermediate_coulomb_friction", any(x.tc for x in sh[1:-1]))) if v]
+    if keys:
+        tcs = ", ".join(f"{x.tc!r}" for x in sh)
+        raise InputError(f"coulomb friction = ({tcs}) N m on the shafts, motor first: the linear part of the loop has "
+                         f"viscous friction only; set the model's {', '.join(keys)} to 0", field=keys[0])
+
+
 def _check_plant(plant: Plant) -> None:
     if plant.kind is not PlantKind.IMPROVED or plant.kv_table is not None:
         raise InputError(f"plant = {plant.kind.value!r}: the describing function is derived for the improved "
                          f"plant's piecewise-linear contact law", field="plant")
-    if plant.tc1 or plant.tc2:
-        raise InputError(f"coulomb friction = ({plant.tc1!r}, {plant.tc2!r}) N m: the linear part of the loop "
-                         f"has viscous friction only; set the model's coulomb_friction1/2 to 0",
-                         field="coulomb_friction")
+    _check_coulomb(plant)
     if plant.load_torque != 0.0:
         raise InputError(f"load_torque = {plant.load_torque!r} N m: a constant load torque preloads one flank and "
                          f"biases s, which the symmetric describing function does not cover; analyse the model "
@@ -987,6 +997,7 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
     """
     gm = model if isinstance(model, GearModel) else load_model(model)
     train = build_plant(gm)
+    _check_coulomb(train)  # on the train itself: its keys are named (the pair lumps the intermediate shafts')
     plant = train.equivalent_pair()  # a train is analysed as its one-gap pair (the controllers' design model)
     ctrl = load_controller(controller, train, sensors=gm.sensors)  # (refused if it reads a missing load encoder)
     if not isinstance(ctrl, PID):

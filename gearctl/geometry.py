@@ -307,7 +307,16 @@ def _check_interference(pair: GearPair, g: dict[str, Any]) -> None:
                 f"length {reach * 1e3:.6g} mm > {room * 1e3:.6g} mm available on the line of action); expected a "
                 f"shorter addendum, another profile shift or more teeth on the other gear"
             )
-            raise _input_error(pair, _shift_field(pair, j), rule)
+            field = _shift_field(pair, j)
+            other = "x2" if field == "x1" else "x1"
+            if field in ("x1", "x2") and getattr(pair, other) != 0.0 and not _SEARCHING.get():
+                # both shifts move the tips and the involutes' starts: the other key may be the one that changed (a
+                # reviewer raised x1 to 1.2 and was told of x2 = -0.1 alone)
+                limit = _shift_limit(pair, other)
+                if limit is not None:
+                    side = "at most" if getattr(pair, other) > limit else "at least"
+                    rule += f"; or {other} = {getattr(pair, other):g} {side} {limit:g} with the other keys as given"
+            raise _input_error(pair, field, rule)
 
 
 def _check_tips(pair: GearPair, g: dict[str, Any]) -> None:

@@ -85,7 +85,8 @@ def model_summary(model: GearModel) -> dict[str, Any]:
         those per-stage keys, each with its ``ratio``), ``plant`` {J (per shaft), k, c (per stage),
         gear_ratio, natural_frequency_hz (the highest resonance of the coupled contact model, `linearize`'s mesh
         mode), resonances_hz (every resonance in contact, lowest first)}, ``lost_motion`` [rad at the output] and
-        ``equivalent_stiffness`` [N m/rad at the output]. Both have ``model``, ``stages_count``,
+        ``equivalent_stiffness`` [N m/rad at the output], and ``ratio`` (the whole train's, as a pair's ``ratio``).
+        Both have ``model``, ``stages_count``,
         ``sensors`` {``motor_encoder_cpr``, ``load_encoder_cpr`` (null: ideal), ``motor_noise``,
         ``load_noise`` [rad], ``load_encoder`` (false: the servo has none)} and ``source``.
     """
@@ -101,7 +102,7 @@ def model_summary(model: GearModel) -> dict[str, Any]:
     from .modes import linearize_modes  # python-control: only for a train's summary
 
     modes = linearize_modes(plant)  # a train's resonances are the coupled contact model's, as `linearize` gives them
-    return {**common, "stages": stages, "plant": {
+    return {**common, "ratio": plant.gear_ratio, "stages": stages, "plant": {
         "J": [s.J for s in plant.shafts], "k": [s.k for s in plant.stages], "c": [s.c for s in plant.stages],
         "gear_ratio": plant.gear_ratio, "contact_law": plant.contact_law.value,
         "natural_frequency_hz": modes.mesh.natural_frequency_hz, "resonances_hz": list(modes.resonances_hz)}}

@@ -148,3 +148,35 @@ def test_a_bad_option_value_is_one_line(capsys, argv: list[str], says: str) -> N
 def test_an_unknown_option_keeps_the_usage(capsys) -> None:  # noqa: ANN001
     err = _refusal(capsys, ["track", "--bogus"])
     assert err.startswith("usage: gearctl track") and "unrecognized arguments: --bogus" in err
+
+
+def test_interference_names_the_other_shift_too(capsys) -> None:  # noqa: ANN001
+    # a reviewer raised stage 2's x1 to 1.2 (x2 = -0.1) and was told of x2 alone: gear 2's tip reaches below the
+    # pinion's involute, which both shifts move. The other key's limit is given too
+    err = _refusal(capsys, ["info", str(ROOT / "tests" / "data" / "interference_x1_raised.toml")])
+    assert "[stage 2] x2 = -0.1" in err and "interference" in err
+    assert "or x1 = 1.2 at most 1.07" in err
+
+
+def test_describe_names_the_intermediate_shafts_coulomb_friction(capsys, tmp_path: Path) -> None:  # noqa: ANN001
+    # on a train the design pair's motor side lumps the intermediate shafts' Coulomb friction: a reviewer was told to
+    # set coulomb_friction1/2 to 0, both already 0
+    text = (ROOT / "models" / "servo_3stage_quanser_srv02.toml").read_text()
+    text = text.replace("load_torque = 0.0", "load_torque = 0.0\nintermediate_coulomb_friction = [1e-4, 2e-4]", 1)
+    path = tmp_path / "train.toml"
+    path.write_text(text)
+    err = _refusal(capsys, ["describe", str(path), "pid"])
+    assert "set the model's intermediate_coulomb_friction to 0" in err and "coulomb_friction1" not in err
+
+
+def test_a_stage_mode_on_a_pair_says_it_is_a_pair(capsys) -> None:  # noqa: ANN001
+    err = _refusal(capsys, ["linearize", "shing1993_servo", "--mode", "stage1"])
+    assert "is a pair" in err and "1 <= K <= 1" not in err
+    err = _refusal(capsys, ["linearize", "servo_3stage_quanser_srv02", "--mode", "stage4"])
+    assert "1 <= K <= 3" in err
+
+
+def test_info_json_of_a_train_has_its_ratio(capsys) -> None:  # noqa: ANN001
+    assert main(["info", "servo_3stage_quanser_srv02", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["ratio"] == pytest.approx(70.0, rel=1e-12) and len(d["stages"]) == 3

@@ -303,9 +303,13 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
     n = modes.plant.n_stages
     if args.mode.startswith("stage"):
         k = int(args.mode[5:]) if args.mode[5:].isdigit() else 0
-        if n == 1 or not 1 <= k <= n:
-            raise InputError(f"mode = {args.mode!r}: 'stageK' (stage K separated, the others in contact) needs a train "
-                             f"and 1 <= K <= {n}", field="mode")
+        if n == 1:
+            raise InputError(f"mode = {args.mode!r}: 'stageK' (stage K separated, the others in contact) needs a "
+                             f"train; {args.model} is a pair: its modes are contact, separation and rigid",
+                             field="mode")
+        if not 1 <= k <= n:
+            raise InputError(f"mode = {args.mode!r}: 'stageK' (stage K separated, the others in contact) needs "
+                             f"1 <= K <= {n} (the train's stages)", field="mode")
         sys_ = modes.stage_separated[k - 1]
         if sys_ is None:
             raise InputError(f"mode = {args.mode!r}: stage {k} has no backlash (backlash = 0), so it cannot separate: "
