@@ -135,14 +135,14 @@ class TrackingMetrics(_Mapping):
 
 def scored_from(res: ClosedLoopResult, settle: float | None = None) -> float:
     """Start of the interval the error statistics cover [s]: ``settle`` as given, else the reference's settle time,
-    or 0 where the run leaves less than half of that after it (a 0.5 s sine, whose settle time is 0.5 s, was scored
-    on its last sample alone: RMS and max equal, a "not following" warning at 5e13 times the reference's excursion
-    there)."""
+    or 0 where the run leaves less than a tenth of that after it (a 0.5 s sine, whose settle time is 0.5 s, was
+    scored on its last sample alone: RMS and max equal, a "not following" warning at 5e13 times the reference's
+    excursion there). A tenth, not more: a 0.85 s step run scored whole would count the step itself (0.05 rad)."""
     if settle is not None:
         return settle
     t0 = res.settle
     end = float(res.t[-1]) if res.t.size else 0.0
-    return 0.0 if t0 > 0.0 and end - t0 < 0.5 * t0 else t0
+    return 0.0 if t0 > 0.0 and end - t0 < 0.1 * t0 else t0
 
 
 def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHealth:
@@ -272,7 +272,7 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         The run.
     settle : float, optional
         Time [s] excluded at the start from the RMS and max error (start-up transient); default the
-        reference's ``settle``; none where the run is shorter than one and a half of it (:func:`scored_from`).
+        reference's ``settle``; none where the run is shorter than 1.1 times it (:func:`scored_from`).
 
     Returns
     -------

@@ -581,22 +581,43 @@ def _shifted(log: EncoderLog, rows: int) -> EncoderLog:
     return dataclasses.replace(log, torque=u)
 
 
-@pytest.mark.parametrize("rows", [1, -1])
-def test_a_torque_column_a_sample_off_is_named(logs: Callable, rows: int) -> None:
+@pytest.mark.parametrize("rows", [1, 2, -1, -2])
+def test_a_torque_column_rows_off_is_named_or_left_alone(logs: Callable, rows: int) -> None:
     # a reviewer's log whose torque column was written a row late gave J1 21 % low with a tight interval and no word.
-    # The motor's acceleration steps follow the torque's: the lag that correlates best is named, the torque balances
-    # are widened to the model's range, and b from the plateaus is kept. The same log as recorded: lag 0 (0.40 against
-    # 0.28 and -0.02 a row off; lag 0 led on 34 logs of another simulator too, by 0.02 at least)
+    # A shift is named where the logged torque does not correlate with the motor's acceleration steps and a shifted
+    # one clearly does; the torque balances are then widened to the model's range, b from the plateaus kept. Where
+    # the signature is not that clear it says nothing, and never names the wrong way. On gearctl's own identify log:
+    # moved down one or two rows (written late), named (correlation 0.40 against -0.02 as logged); moved up (a
+    # command logged before it acts), the logged row still correlates (0.28) and nothing is named
     path, b = logs("identify", 1.0)
     log = read_log(path)
-    lag0, corr0 = ident.torque_lag(log)
-    assert lag0 == 0 and corr0[0] > max(corr0[-1], corr0[1]) + ident.LAG_MARGIN, corr0
+    assert ident.torque_lag(log)[0] == 0
     bad = _shifted(log, rows)
     lag, corr = ident.torque_lag(bad)
-    print(f"\nas recorded {corr0}; shifted {rows:+d} row: {corr}")
-    assert lag == -rows  # moved down: each row's torque acted a row earlier
+    print(f"\nshifted {rows:+d} rows: lag {lag}, {corr}")
+    assert lag in (0, -rows)  # named right, or not at all
+    if rows < 0:
+        return
+    assert lag == -rows  # moved down: each row's torque acted rows earlier
     res = identify(bad, START_MODEL)
-    assert any("a sample off the motion" in w and ("up" if rows > 0 else "down") in w for w in res.warnings), \
-        res.warnings
+    assert any(f"{rows} row" in w and f"up {rows} row" in w for w in res.warnings), res.warnings
     assert {"J1", "J2", "viscous1", "viscous2", "coulomb1", "coulomb2"} <= set(res.not_identified)
     _check_backlash(res, b, 0.05)
+
+
+def test_no_stored_log_is_read_as_shifted_but_the_late_one() -> None:
+    # the stored logs (other simulators, closed loops, hunting, chirps, glitches) as logged: no shift named, but on
+    # the reviewer's triangle log whose torque is a row late (0.83 a row up against -0.42 as logged). A second
+    # reviewer's 160 logs (excite at 250 Hz to 4 kHz, a 500 Hz PID logged at 1 kHz, load feedback, MPC): none named
+    named = {}
+    for path in sorted(DATA.glob("*.csv")):
+        try:
+            log = read_log(path)
+        except InputError:
+            continue
+        lag, corr = ident.torque_lag(log)
+        if lag:
+            named[path.name] = (lag, corr)
+    assert set(named) == {"reviewer_triangle_torque_late.csv"} and named["reviewer_triangle_torque_late.csv"][0] == -1
+
+

@@ -159,6 +159,13 @@ def test_an_output_it_cannot_write_is_refused_before_the_runs(tmp_path: Path, fl
     assert time.monotonic() - t0 < 5.0 and f.read_text() == "keep"
 
 
+def test_the_output_check_leaves_nothing_behind(tmp_path: Path) -> None:
+    # the check made the folders before the model was read: a refused sweep left new/deep/dir behind
+    rc, _, err = _cli(["sweep", "no_such_model", "--quiet", "--out", str(tmp_path / "new" / "deep" / "dir"),
+                       "--json", str(tmp_path / "new2" / "x" / "out.json")])
+    assert rc == 2 and "no_such_model" in err and list(tmp_path.iterdir()) == []
+
+
 def test_parse_set() -> None:
     assert parse_set("backlash=7e-05") == ("backlash", 7e-05)
     key, v = parse_set("motor_encoder_cpr=4096")

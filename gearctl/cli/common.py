@@ -180,28 +180,42 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
 def check_writable(path: str, *, directory: bool = False, key: str = "out") -> None:
     """Refuse, before a long run, an output path it could not write at its end: one line naming ``--KEY``.
 
-    ``directory``: the path is a folder the run writes into (created now, as it would be then); else a file, whose
-    folder is created now. Writing is tried with a temporary file in that folder (removed at once): permissions,
-    a read-only file system or a path through a file fail here, not after the run.
+    ``directory``: the path is a folder the run writes into; else a file. Nothing is left behind: the path (through
+    any link) must not be of the other kind, the nearest folder that exists on the way to it must be one that can be
+    written, the folders missing below it are made and removed again, and an existing file must be writable.
+    (Permissions as ``os.access`` sees them: a read-only file system or root's rights can still fail at the end,
+    with the same one line.)
     """
     import os
-    import tempfile
 
-    p = Path(path)
+    p = Path(os.path.realpath(path))
     flag = f"--{key.replace('_', '-')}"
     if directory and p.exists() and not p.is_dir():
         raise InputError(f"{flag} {path}: is a file, expected a folder to write into", field=key)
     if not directory and p.is_dir():
         raise InputError(f"{flag} {path}: is a folder, expected a file name", field=key)
-    folder = p if directory else (p.parent if str(p.parent) else Path("."))
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".gearctl-write-test-"):
-            pass
+    if p.exists() and not p.is_dir():
+        if not os.access(p, os.W_OK):
+            raise InputError(f"{flag} {path}: cannot write there (the file is read-only)", field=key)
+        return
+    folder = p if directory else p.parent
+    here, missing = folder, []
+    while not here.exists() and here != here.parent:
+        missing.append(here)
+        here = here.parent
+    if not here.is_dir():
+        raise InputError(f"{flag} {path}: cannot write there ({here} is a file, not a folder)", field=key)
+    if not os.access(here, os.W_OK | os.X_OK):
+        raise InputError(f"{flag} {path}: cannot write there ({here} is not writable)", field=key)
+    try:  # the folders the run would make: made and removed again (a special file system refuses them here)
+        for d in reversed(missing):
+            d.mkdir()
     except OSError as exc:
         raise InputError(f"{flag} {path}: cannot write there ({exc.strerror or exc})", field=key) from None
-    if not directory and p.exists() and not os.access(p, os.W_OK):
-        raise InputError(f"{flag} {path}: cannot write there (the file is read-only)", field=key)
+    finally:
+        for d in missing:
+            if d.is_dir():
+                d.rmdir()
 
 
 def say_written(*pairs: tuple[str | None, str]) -> None:

@@ -170,9 +170,6 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         check_writable(args.json, key="json")
     if args.out:
         check_writable(args.out, directory=True, key="out")
-    if not args.vary:
-        warn("sweep", ["nothing varied (no --vary): every run is the nominal plant, the runs differ only in their "
-                       "sensor-noise seeds"], kind="note")
     bar: Any = None
 
     def progress(done: int, total: int) -> None:
@@ -190,8 +187,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     # says it) stays quiet at the command line; the sweep's error says what happened
     import distributed  # noqa: F401 - its loggers (distributed.client, ...) set their own levels on import
 
+    # the client's side of a lost connection only: a local cluster's nannies log in this process too, and their word
+    # on a worker killed for its memory must stay
     quiet = [lg for name, lg in logging.root.manager.loggerDict.items()
-             if (name == "distributed" or name.startswith("distributed.")) and isinstance(lg, logging.Logger)]
+             if name.startswith(("distributed.client", "distributed.comm", "distributed.core", "distributed.batched",
+                                 "distributed.utils")) and isinstance(lg, logging.Logger)]
     levels = [lg.level for lg in quiet]
     for lg in quiet:
         lg.setLevel(logging.CRITICAL + 1)
@@ -215,6 +215,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         _write_out(result, Path(args.out))
     design = result.settings.get("design", {})
     warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
+    if not args.vary:
+        warn("sweep", ["nothing varied (no --vary): every run is the nominal plant, the runs differ only in their "
+                       "sensor-noise seeds"], kind="note")
     print("\n".join(_text(result)))
     if result.summary["failed"]:
         warn("sweep", [f"{result.summary['failed']} of {result.summary['runs']} runs failed: see their message "

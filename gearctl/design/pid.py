@@ -575,7 +575,7 @@ def pid_from_values(path: Path, values: dict[type, Values], info: LoopInfo, loop
         if bw < design.bandwidth_hz:
             shaft = info.nominal.shafts[0]
             # enough digits to show the change (the gap search can shave off a tenth of a percent: "20 lowered to 20")
-            shown = f"{bw:.3g}" if float(f"{bw:.3g}") < design.bandwidth_hz else f"{bw:.6g}"
+            shown = next((f"{bw:.{d}g}" for d in (3, 6, 10) if float(f"{bw:.{d}g}") < design.bandwidth_hz), repr(bw))
             notes = (f"bandwidth_hz = {design.bandwidth_hz:g} lowered to {shown} Hz. Designed on the rigid train, "
                      f"the PID has {info.J_eq / shaft.J:.3g}x the loop gain on the motor shaft alone "
                      f"({shaft.J:.3g} kg m^2), which the load leaves in the gap; above {shown} Hz the motor-alone "

@@ -190,10 +190,11 @@ extern "C" {{
 #define GEARCTL_STEP_BAD_INPUT 2 /* an input not finite or beyond GEARCTL_INPUT_LIMIT: u = 0, the state unchanged
                                     but for the clock k, which advances */
 #define GEARCTL_STEP_FAULT 3     /* the MPC's latched fault (its estimate restarted 3 times within 1000 samples):
-                                    the motor braked to rest from its own reading (at a speed never above the
-                                    lowest it measured since the fault: a reading that jumps back and forth stops
-                                    the brake at its first turn), then u = 0, on every step until gearctl_ctrl_init;
-                                    a bad input then returns it too, with u = 0 */
+                                    the motor braked to rest from its own reading (the speed its changes give,
+                                    damped with a 20 ms time constant, within the torque limit), then u = 0 once
+                                    the reading has stood still for 0.1 s, on every step until gearctl_ctrl_init.
+                                    A reading that keeps jumping keeps the brake acting on what it reads. A bad
+                                    input during the fault returns it too, with u = 0 */
 
 /* ---- internal sizes and state types (read them if you like; never write them) ---- */
 {defines(spec.dims)}{state}
@@ -325,9 +326,10 @@ int status = gearctl_ctrl_step(&ctrl, y, ref, &u);
   `y[1]` not finite or beyond the limit as a missing reading and returns `GEARCTL_STEP_FALLBACK`): `u = 0`, the state
   unchanged but for the sample clock, which advances;
   `GEARCTL_STEP_FAULT` (3, the MPC's latched fault: its estimate restarted 3 times within 1000 samples, e.g. encoders
-  too coarse to follow, or an encoder that keeps jumping; the motor is braked to rest from its own reading, at a speed
-  never above the lowest it measured since the fault, then `u = 0`, until `gearctl_ctrl_init`; a bad input during
-  the fault returns it too, with `u = 0`).
+  too coarse to follow, or an encoder that keeps jumping; the motor is braked to rest from its own reading, then
+  `u = 0` once the reading has stood still for 0.1 s, until `gearctl_ctrl_init`; a reading that keeps jumping keeps
+  the brake acting on what it reads, within the torque limit; a bad input during the fault returns it too, with
+  `u = 0`).
 
 The step at sample `k` is the Python controller's step at `t = k * GEARCTL_TS`.
 

@@ -67,8 +67,7 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
     S->n_obs = 0;
     for (int i = 0; i < GCX_FAULT_RESTARTS; i++) S->restarts[i] = -GCX_FAULT_WINDOW;
     S->fault = 0;
-    /* brake_cap: no speed measured yet (finite, for -ffinite-math-only builds) */
-    S->brake_y = 0.0, S->brake_k = 0, S->brake_dy = 0.0, S->brake_w = 0.0, S->brake_cap = 1e300;
+    S->brake_y = 0.0, S->brake_k = 0, S->brake_dy = 0.0, S->brake_w = 0.0;
     /* the readings' gate (MPC.reading_gate): along the line of action, a sample of full torque and twice the
      * lost motion, on each shaft, plus twice each reading's own error [rad] */
     S->gate[0] = P->gate_motor;
@@ -202,28 +201,22 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
     return note;
 }
 
-/* MPC._brake_torque: after a fault, the motor's speed from the changes of its reading alone (never above the lowest
- * measured since the fault), braked with the time constant GCX_BRAKE_TIME; zero once the reading has not changed
- * for GCX_BRAKE_REST */
+/* MPC._brake_torque: after a fault, the motor's speed from the changes of its reading alone, braked with the
+ * time constant GCX_BRAKE_TIME; zero once the reading has not changed for GCX_BRAKE_REST */
 GCX_FN double gcx_mpc_brake_torque(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor) {
-    double y0 = S->brake_y, dy = S->brake_dy, w = S->brake_w, cap = S->brake_cap;
+    double y0 = S->brake_y, dy = S->brake_dy, w = S->brake_w;
     int64_t k0 = S->brake_k, n = S->n_obs;
     if (n == S->restarts[GCX_FAULT_RESTARTS - 1]) { /* the sample of the fault: the reading's origin */
-        y0 = y_motor, k0 = n, dy = 0.0, w = 0.0, cap = 1e300;
+        y0 = y_motor, k0 = n, dy = 0.0, w = 0.0;
     } else if (y_motor != y0) { /* a change in the direction of the last one: a speed; else it turned round */
-        if (dy != 0.0) { /* (the first change since the fault measures nothing) never above the lowest speed since */
-            w = (y_motor - y0) * dy > 0.0 ? (y_motor - y0) / ((double)(n - k0) * P->Ts) : 0.0;
-            double w_meas = w; /* a turn (0) is no speed: it leaves the lowest speed measured as it is */
-            w = copysign(gcx_min(fabs(w), cap), w);
-            if (w_meas != 0.0) cap = gcx_min(cap, fabs(w_meas));
-        }
+        w = (y_motor - y0) * dy > 0.0 ? (y_motor - y0) / ((double)(n - k0) * P->Ts) : 0.0;
         dy = y_motor - y0, y0 = y_motor, k0 = n;
     } else if ((double)(n - k0) * P->Ts >= GCX_BRAKE_REST) { /* still that long: at rest */
         w = 0.0;
     } else {
         w = copysign(gcx_min(fabs(w) * (1.0 - P->Ts / GCX_BRAKE_TIME), fabs(dy) / ((double)(n - k0) * P->Ts)), w);
     }
-    S->brake_y = y0, S->brake_k = k0, S->brake_dy = dy, S->brake_w = w, S->brake_cap = cap;
+    S->brake_y = y0, S->brake_k = k0, S->brake_dy = dy, S->brake_w = w;
     return gcx_min(gcx_max(-P->J_eq * w / GCX_BRAKE_TIME, -P->umax), P->umax) + 0.0; /* + 0.0: never -0.0 */
 }
 

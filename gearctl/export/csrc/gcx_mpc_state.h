@@ -28,7 +28,6 @@ typedef struct {
     int64_t restarts[GCX_FAULT_RESTARTS]; /* the samples of the last restarts of the estimate */
     int fault;              /* latched: the motor braked, then zero torque (MPC.fault) */
     double brake_y, brake_dy, brake_w; /* after a fault: last motor reading, its step, the speed (MPC._brake) */
-    double brake_cap;       /* ... the lowest speed measured since the fault (MPC._brake[4]) */
     int64_t brake_k;        /* the sample of the last motor reading's change */
     /* QP buffers */
     double g[GCX_MPC_N], lbx[GCX_MPC_N], ubx[GCX_MPC_N], lba[GCX_MPC_N + 2], uba[GCX_MPC_N + 2];
