@@ -257,7 +257,7 @@ def _shift_limit(pair: GearPair, field: str) -> float | None:
         token = _SEARCHING.set(True)  # the trial pairs' own errors do not search again
         try:
             dataclasses.replace(pair, **{field: v})
-        except InputError:
+        except (InputError, ValueError, ArithmeticError):  # a trial whose tips fall below the base circle: no pair
             return False
         finally:
             _SEARCHING.reset(token)

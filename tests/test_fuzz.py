@@ -789,6 +789,12 @@ FOUND_CASES = {
         fixed="an unshifted gear's pointed tip names its teeth: '[gear2] teeth = 12 makes the tip of gear 2 pointed "
               "at a pressure angle of 35 deg and addendum 1 ...; use more teeth, a smaller pressure angle or a "
               "shorter addendum'"),
+    "interference_shift_limit_domain": Found("interference_shift_limit_domain.toml", (("info", "MODEL"),), 4.0,
+        "traceback: a 3 x 3 tooth stage with x1 = x2 = 1.5 interferes; the error's search for the other shift's limit "
+        "built a trial pair whose tip fell below its base circle, and math.acos raised 'math domain error' "
+        "(ValueError), not InputError",
+        fixed="fixed in gearctl/geometry.py (_shift_limit): a trial pair that cannot be built is a failing trial; "
+              "the line names [stage 1] x1 and the interference"),
     "mpc_riccati_pencil": Found("mpc_riccati_pencil.toml", (("track", "MODEL", "mpc", "--reference", "move",
                                                              "--duration", "0.1"),), 30.0,
                                 "traceback: a 10 um module, 100 kg/m^3 and a 1.2e-15 kg m^2 load: the MPC's observer "
