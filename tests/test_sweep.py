@@ -166,6 +166,15 @@ def test_the_output_check_leaves_nothing_behind(tmp_path: Path) -> None:
     assert rc == 2 and "no_such_model" in err and list(tmp_path.iterdir()) == []
 
 
+def test_json_to_standard_output() -> None:
+    # `--json -` wrote a file named '-'; it is standard output now (as `--csv -` elsewhere), the summary on stderr
+    rc, out, err = _cli(["sweep", MODEL, "pid", "--vary", "backlash=0.5x:2x", "--runs", "2", "--duration", "0.2",
+                         "--workers", "1", "--quiet", "--json", "-"])
+    assert rc == 0 and not Path("-").exists()
+    d = json.loads(out)
+    assert len(d["runs"]) == 2 and "RMS error [urad]" in err
+
+
 def test_parse_set() -> None:
     assert parse_set("backlash=7e-05") == ("backlash", 7e-05)
     key, v = parse_set("motor_encoder_cpr=4096")

@@ -166,7 +166,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         warn("sweep", ["--workers sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the "
                        "cluster's own workers run the sweep"])
     # where the results go is checked before the runs: a sweep of hours must not end unable to write them
-    if args.json:
+    to_stdout = args.json == "-"  # the JSON on standard output, the summary then on standard error
+    if args.json and not to_stdout:
         check_writable(args.json, key="json")
     if args.out:
         check_writable(args.out, directory=True, key="out")
@@ -205,7 +206,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             lg.setLevel(lv)
         if bar is not None:
             bar.close()
-    if args.json:
+    if to_stdout:
+        print(dump_json(result.as_dict()))
+    elif args.json:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
             Path(args.json).write_text(dump_json(result.as_dict()))
@@ -218,14 +221,15 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if not args.vary:
         warn("sweep", ["nothing varied (no --vary): every run is the nominal plant, the runs differ only in their "
                        "sensor-noise seeds"], kind="note")
-    print("\n".join(_text(result)))
+    summary = sys.stderr if to_stdout else sys.stdout
+    print("\n".join(_text(result)), file=summary)
     if result.summary["failed"]:
         warn("sweep", [f"{result.summary['failed']} of {result.summary['runs']} runs failed: see their message "
                        f"and command in the table"])
-    if args.json:
+    if args.json and not to_stdout:
         print(f"  wrote {args.json} (JSON)")
     if args.out:
-        print(f"  wrote {args.out}/runs.csv, summary.md and plots")
+        print(f"  wrote {args.out}/runs.csv, summary.md and plots", file=summary)
     return 0
 
 
@@ -255,7 +259,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--batch", type=spec_arg(_COUNT),
                    help="runs per Dask task (default: about 0.5 s of work, at least 4 tasks per worker)")
     p.add_argument("--precision", action="store_true", help="also the ISO 230-2 test on each plant (slow)")
-    p.add_argument("--json", metavar="FILE", help="write settings, summary and every run as JSON")
+    p.add_argument("--json", metavar="FILE", help="write settings, summary and every run as JSON (- for standard "
+                                                  "output; the summary then goes to standard error)")
     p.add_argument("--out", metavar="DIR", help="write runs.csv, plots and summary.md")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return {"sweep": _cmd_sweep}
