@@ -446,11 +446,15 @@ def test_design_on_the_identified_model_performs_on_the_true_plant(results: Call
 
     res, _ = results("identify", 1.0, "motor")  # the harder case: the motor encoder alone
     model_path = ident.write_identified_model(tmp_path / "m.toml", res, START_MODEL)
-    # what the log does not identify is written at the fit's best value and said so, in the header and [source]
+    # what the log does not identify is written as said in the header and [source]: the fit's best value, but the
+    # inertias: the motor's from the model (its data sheet), the load's from the sum J1 + J2/N^2 the log sees
     text = model_path.read_text()
-    assert res.not_identified and all(f"Not identified from this log (the fit's best value, kept: it holds the sums "
-                                      f"the log sees): {k}:" in text for k in res.not_identified)
+    assert res.not_identified and all(line in text for line in ident._unidentified(res))
     assert all(k in load_model(model_path).source["notes"] for k in res.not_identified)
+    written = build_plant(load_model(model_path))
+    N2 = res.gear_ratio**2
+    assert "J1" in res.not_identified and written.J1 == pytest.approx(res.nominal["J1"], rel=1e-12)
+    assert written.J1 + written.J2 / N2 == pytest.approx(res.inertia["J1"] + res.inertia["J2"] / N2, rel=1e-12)
     truth = load_model(TRUE_MODEL)
     true_plant = build_plant(truth)
     spec, label = controller_spec("deadzone_inverse")
