@@ -25,7 +25,7 @@ def available_memory() -> int | None:
         return None
 
 
-def check_output_size(samples: int, columns: int, *, field: str, fix: str) -> None:
+def check_output_size(samples: int, columns: int, *, field: str, fix: str, what: str | None = None) -> None:
     """Refuse an output of ``samples`` rows and ``columns`` float columns that would not fit.
 
     Parameters
@@ -36,6 +36,8 @@ def check_output_size(samples: int, columns: int, *, field: str, fix: str) -> No
         The input that sets ``samples`` (``error.field``).
     fix : str
         What to change, in words (e.g. ``"a larger output interval --dt"``).
+    what : str, optional
+        What is sized, in words, for a footprint that is not an output's columns (e.g. ``"the closed loop"``).
 
     Raises
     ------
@@ -47,6 +49,7 @@ def check_output_size(samples: int, columns: int, *, field: str, fix: str) -> No
     cap = MAX_OUTPUT_BYTES if avail is None else min(MAX_OUTPUT_BYTES, avail // 2)
     if need > cap:
         why = "half the memory available" if cap < MAX_OUTPUT_BYTES else "the cap"
-        raise InputError(
-            f"{field}: the output would hold {samples:,} samples x {columns} columns = {need / 1e9:.3g} GB, more than "
-            f"the {cap / 1e9:.3g} GB this run may use ({why}); ask for fewer samples: {fix}", field=field)
+        size = (f"the output would hold {samples:,} samples x {columns} columns = {need / 1e9:.3g} GB" if what is None
+                else f"{what} would take about {need / 1e9:.3g} GB ({samples:,} samples of {8 * columns} bytes)")
+        raise InputError(f"{field}: {size}, more than the {cap / 1e9:.3g} GB this run may use ({why}); ask for fewer "
+                         f"samples: {fix}", field=field)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .closedloop import ClosedLoopResult, simulate_closed_loop
+from .closedloop import ClosedLoopResult, check_loop_memory, simulate_closed_loop
 from .design.base import Controller
 from .errors import InputError
 from .params import Sensors
@@ -260,6 +260,8 @@ def precision_test(
         raise InputError(f"the test program lasts {t:.6g} s ({targets} targets, {cycles} cycles over travel = "
                          f"{travel:g} rad at velocity = {velocity:g} rad/s, dwell = {dwell:g} s): expected at most "
                          f"{DURATION.high:g} s; lower travel, dwell, cycles or targets", field="travel")
+    check_loop_memory(plant, int(round((t + controller.Ts) / controller.Ts)), field="travel",
+                      fix=f"the test program lasts {t:.6g} s; lower travel, dwell, cycles or targets")
     run = simulate_closed_loop(plant, controller, program, t + controller.Ts, sensors=sensors, seed=seed,
                                progress=progress)
     up = np.zeros((targets, cycles))

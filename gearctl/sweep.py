@@ -127,7 +127,9 @@ def sweep_keys() -> dict[str, dict[str, Any]]:
 _KEYS = sweep_keys()
 
 
-def _key_meta(key: str) -> dict[str, Any]:
+def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:
+    """The metadata of a key a sweep varies or ``--set`` changes (``what`` names it in the error: a ``--set`` key is
+    a model key, the sweep's may also be the controller's estimate)."""
     if key in _KEYS:
         return _KEYS[key]
     every = {f.name for cls in MODEL_CLASSES for f in dataclasses.fields(cls)}
@@ -138,9 +140,9 @@ def _key_meta(key: str) -> dict[str, Any]:
 
     close = difflib.get_close_matches(key, list(_KEYS), n=1)
     hint = f"; did you mean {close[0]!r}?" if close else ""
-    raise InputError(f"unknown sweep key {key!r}: expected a model key (backlash, mesh_stiffness, "
-                     f"coulomb_friction2, load_inertia, load_noise, ...), estimate or estimate_error{hint}",
-                     field=key)
+    also = ", estimate or estimate_error" if what == "sweep key" else ""
+    raise InputError(f"unknown {what} {key!r}: expected a model key (backlash, mesh_stiffness, "
+                     f"coulomb_friction2, load_inertia, load_noise, ...){also}{hint}", field=key)
 
 
 def parse_set(text: str) -> tuple[str, float | int]:
@@ -159,7 +161,7 @@ def parse_set(text: str) -> tuple[str, float | int]:
     key = key.strip()
     if not sep or not key:
         raise InputError(f"{text!r} is not KEY=VALUE (e.g. backlash=6e-5)", field="set")
-    meta = _key_meta(key)
+    meta = _key_meta(key, what="model key")
     if meta["owner"] == "controller":
         raise InputError(f"{key} is not a model key: the estimate is an option of its own (--estimate)", field=key)
     text_v = value.strip()

@@ -212,6 +212,20 @@ def test_cli_bench_writes_json_report_and_plots(tmp_path: Path, capsys: pytest.C
         assert f"]({name})" in report  # the report embeds each plot
 
 
+def test_cli_bench_json_to_standard_output(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    # a new user's `bench --json -` wrote a 2.8 MB file named '-'; it is standard output (as `--csv -`), the tables go
+    # to standard error
+    monkeypatch.chdir(tmp_path)
+    argv = ["bench", "--controllers", "pid", "--plants", "improved", "--references", "sine", "--duration", "1",
+            "--jobs", "1", "--no-precision", "--quiet", "--json", "-"]
+    assert main(argv) == 0
+    cap = capsys.readouterr()
+    data = json.loads(cap.out)
+    assert {"runs", "ratios", "spec", "wall_time", "jobs"} <= set(data) and "runs in" in cap.err
+    assert not (tmp_path / "-").exists()
+
+
 def test_cli_bench_unknown_plant(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["bench", "--plants", "foo", "--quiet"]) == 2
     cap = capsys.readouterr()
@@ -264,11 +278,15 @@ def test_iso_rows_worse_than_the_pid_carry_a_warning() -> None:
     # servo_2stage_phm09: every compensator, the inverse's A 6.7 mrad against the PID's 3.3)
     from gearctl.bench import _warn_worse_than_pid
 
-    def row(c: str, A: float, plant: str = "improved", ok: bool = True) -> dict:
-        return {"model": "m", "controller": c, "plant": plant, "ok": ok, "accuracy": A, "warnings": []}
+    def row(c: str, A: float, plant: str = "improved", ok: bool = True, largest: float | None = None) -> dict:
+        return {"model": "m", "controller": c, "plant": plant, "ok": ok, "accuracy": A, "warnings": [],
+                "largest_deviation": A if largest is None else largest}
 
+    # (a gravity load: the PID's A is small but it misses every target by 569 urad; an inverse with a slightly
+    # larger A and 2 urad off is no worse, and is not warned of)
     rows = [row("pid", 3.3e-3), row("deadzone_inverse", 6.7e-3), row("mpc", 1e-3), row("pid", 1e-6, "backlash-free"),
-            row("reversal_offset", 2e-3, "backlash-free"), row("adaptive_inverse", 9.0, ok=False)]
+            row("reversal_offset", 2e-3, "backlash-free"), row("adaptive_inverse", 9.0, ok=False),
+            row("pid", 6.58e-6, "gravity", largest=5.7e-4), row("deadzone_inverse", 6.83e-6, "gravity", largest=8e-6)]
     _warn_worse_than_pid(rows)
     warned = [r["controller"] for r in rows if r["warnings"]]
     assert warned == ["deadzone_inverse", "reversal_offset"]

@@ -16,7 +16,7 @@ from .common import (
     CYCLES,
     JOBS,
     TARGETS,
-    WHOLE,
+    check_writable,
     dump_json,
     positive_float,
     progress_bar,
@@ -191,6 +191,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                      realtime=args.realtime, precision=not args.no_precision)
     runs = spec.runs()
     n = len(runs)
+    to_stdout = args.json == "-"  # the JSON on standard output, the tables then on standard error
+    if args.json and not to_stdout:  # checked before the runs, as the sweep's
+        check_writable(args.json, key="json")
+    if args.out:
+        check_writable(args.out, directory=True, key="out")
     bar = None
     if not args.quiet:
         from tqdm import tqdm
@@ -212,14 +217,17 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     where = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
     result["jobs"] = None if where else (args.jobs or default_workers())
     text = bench_table(result)
-    print(text, end="")
+    tables = sys.stderr if to_stdout else sys.stdout
+    print(text, end="", file=tables)
     print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
-                                          f"on {result['jobs']} process(es)"))
+                                          f"on {result['jobs']} process(es)"), file=tables)
     warn("bench", dict.fromkeys(f"{r['model']}, {r['controller']}: {n}" for r in result["runs"]
                                 for n in r.get("design_notes", ())), kind="note")
     warn("bench", _grouped_warnings(result["runs"]))
     warn("bench", _grouped_warnings(result.get("precision") or [], iso=True))
-    if args.json:
+    if to_stdout:
+        print(dump_json(result))
+    elif args.json:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
             Path(args.json).write_text(dump_json(result))
@@ -243,7 +251,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             (out / "report.md").write_text("\n".join(md) + "\n")
         except OSError as exc:
             raise InputError(f"cannot write {out / 'report.md'}: {exc.strerror}") from None
-        print(f"wrote {out}/report.md and plots")
+        print(f"wrote {out}/report.md and plots", file=tables)
     return 0
 
 
@@ -388,8 +396,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
     p.add_argument("controller", nargs="?", default="deadzone_inverse", help="controller (default deadzone_inverse)")
     # whole numbers here; their ranges are checked by the test itself (one line naming the key)
-    p.add_argument("--targets", type=spec_arg(WHOLE), default=5, help="target positions, 2..50 (default 5)")
-    p.add_argument("--cycles", type=spec_arg(WHOLE), default=5, help="cycles, 1..50 (default 5, as ISO 230-2)")
+    p.add_argument("--targets", type=spec_arg(TARGETS), default=5, help="target positions, 2..50 (default 5)")
+    p.add_argument("--cycles", type=spec_arg(CYCLES), default=5, help="cycles, 1..50 (default 5, as ISO 230-2)")
     p.add_argument("--travel", type=positive_float, default=0.5, help="span of the targets [rad] (default 0.5)")
     p.add_argument("--dwell", type=positive_float, default=0.3, help="rest before each measurement [s] (default 0.3)")
     p.add_argument("--plant", choices=plants, default="improved", help="plant")
@@ -418,7 +426,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                    help="optimisations that overrun their time budget fall back, as on the target "
                         "(default: overruns are counted, results are deterministic)")
     p.add_argument("--no-precision", action="store_true", help="skip the ISO 230-2 row per controller")
-    p.add_argument("--json", metavar="FILE", help="write every figure as JSON")
+    p.add_argument("--json", metavar="FILE", help="write every figure as JSON (- for standard output; the tables then "
+                                                  "go to standard error)")
     p.add_argument("--out", metavar="DIR", help="write plots and a Markdown report")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 

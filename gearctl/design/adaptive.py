@@ -341,7 +341,9 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
         ctrl.notes = (f"adaptation: the encoders read s = rb1 theta1 - rb2 theta2 to {res:.2g} m (half a count and "
                       f"three noise stds of each, along the line of action), {res / ctrl.initial:.2g} b: each gap "
                       f"reading may be off by that much, and the estimate settles no closer (coarse encoders read "
-                      f"the gap too large); a fixed deadzone_inverse with a measured backlash may do better",)
+                      f"the gap too large); compare it with the pid and a fixed deadzone_inverse on a measured "
+                      f"backlash before trusting it (gearctl bench MODEL: on a reviewer's 4096-count servo both "
+                      f"inverses positioned worse than the pid)",)
     return ctrl
 
 
