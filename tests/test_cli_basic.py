@@ -156,3 +156,22 @@ def test_a_negative_number_in_exponent_form_is_a_value(argv: list[str], fragment
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert fragment in err and "expected one argument" not in err
+
+
+def test_every_schema_option_states_its_range_in_the_help() -> None:
+    # the README: "gearctl COMMAND --help gives every option with its unit and range"; a new user found the ranges of
+    # --duration, --travel, --seed ... only in the errors
+    import argparse
+
+    from gearctl.cli import _parser
+
+    ap, _ = _parser()
+    sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
+    checked = 0
+    for name, p in sub.choices.items():
+        for action in p._actions:
+            spec = getattr(action.type, "spec", None)
+            if spec is not None and action.help:
+                checked += 1
+                assert "<=" in action.help or ".." in action.help, (name, action.option_strings, action.help)
+    assert checked >= 20

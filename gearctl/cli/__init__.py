@@ -13,7 +13,7 @@ import contextlib
 import os
 import re
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import NoReturn
 
 from .. import __version__
@@ -56,7 +56,21 @@ def _parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Nam
     for group in GROUPS:
         commands.update(group.register(sub))
     ap.set_defaults(_subparsers=sub.choices)
+    _state_ranges(sub.choices.values())
     return ap, commands
+
+
+def _state_ranges(parsers: Iterable[argparse.ArgumentParser]) -> None:
+    """Append the allowed range to the help of every option parsed against the schema (:func:`common.spec_arg`)
+    that does not state one: `gearctl COMMAND --help` gives every option with its unit and range, as the README says
+    (a new user found the ranges of --duration, --dt, --travel, --seed ... only in the errors)."""
+    for p in parsers:
+        for action in p._actions:
+            spec = getattr(action.type, "spec", None)
+            if spec is None or not action.help or action.help == argparse.SUPPRESS:
+                continue
+            if "<=" not in action.help and ".." not in action.help:
+                action.help = f"{action.help}; {spec.rule()}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -45,6 +45,7 @@ def spec_arg(spec: Spec) -> Callable[[str], Any]:
         return int(v) if spec.integer else v
 
     parse.__name__ = spec.doc.replace(" ", "_")
+    parse.spec = spec  # type: ignore[attr-defined]  # (the help states its range: cli._state_ranges)
     return parse
 
 
