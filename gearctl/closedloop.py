@@ -155,8 +155,8 @@ def loop_samples(plant: Plant, controller: Controller, duration: float, seed: in
         raise InputError(f"duration = {duration!r} is shorter than one sample ({controller.Ts:g} s)",
                          field="duration")
     # what a sample costs while the loop runs, not only the arrays it returns: the per-sample lists of the loop and
-    # of the controller (torques, statuses, solve and step times), measured at 500 B (a pair's PID), 600 B (its MPC)
-    # and 720 B (the three-stage train's inverse) per sample. The arrays alone, nx + 8 doubles, let a reviewer's
+    # of the controller (torques, statuses, solve and step times), measured at 488 B (a pair's PID), 600 B (its MPC)
+    # and 715 B (the three-stage train's inverse) per sample. The arrays alone, nx + 8 doubles, let a reviewer's
     # 97 000 s ISO program through that would have needed about 57 GB (3.3 GB measured for 5568 s)
     check_loop_memory(plant, n, field="duration", fix="a shorter --duration")
     return n
@@ -165,11 +165,14 @@ def loop_samples(plant: Plant, controller: Controller, duration: float, seed: in
 def check_loop_memory(plant: Plant, samples: int, *, field: str, fix: str) -> None:
     """Refuse a closed loop of ``samples`` controller samples that would not fit in memory (see
     :func:`loop_samples`), naming ``field`` and what to change."""
-    check_output_size(samples + 1, LOOP_SAMPLE_BYTES // 8 + plant.nx, field=field, fix=fix, what="the closed loop")
+    per = LOOP_SAMPLE_BYTES + LOOP_STATE_BYTES * plant.nx
+    check_output_size(samples + 1, -(-per // 8), field=field, fix=fix, what="the closed loop")
 
 
-#: Memory a closed-loop sample takes while the run lasts [bytes], beside its state's doubles (see loop_samples).
-LOOP_SAMPLE_BYTES = 1024
+#: Memory a closed-loop sample takes while the run lasts [bytes]: a fixed part and a part per state (see
+#: loop_samples): 736 B for a pair, 832 B for a three-stage train, against 488-600 B and 705-718 B measured
+#: (tracemalloc's peak over 1e5 samples, PID, inverse and MPC).
+LOOP_SAMPLE_BYTES, LOOP_STATE_BYTES = 640, 24
 
 
 def simulate_closed_loop(

@@ -257,7 +257,7 @@ def _shift_limit(pair: GearPair, field: str) -> float | None:
         token = _SEARCHING.set(True)  # the trial pairs' own errors do not search again
         try:
             dataclasses.replace(pair, **{field: v})
-        except (InputError, ValueError, ArithmeticError):  # a trial whose tips fall below the base circle: no pair
+        except InputError:
             return False
         finally:
             _SEARCHING.reset(token)
@@ -432,6 +432,11 @@ def _gear_geometry(pair: GearPair, j: int, k: float) -> dict[str, float]:
     ra = r + (ha + x + k) * m
     tp = math.pi * m / 2
     s = tp + 2 * x * m * math.tan(phi)  # reference-circle thickness (ISO 21771); tp without shift
+    if ra <= rb:  # the tip alteration of a large shift sum on few teeth: no involute flank is left (acos(rb / ra))
+        rule = (f"with the tip alteration k* = {k:.4g} of the shift sum x1 + x2 = {pair.x1 + pair.x2:g} puts the tip "
+                f"circle of gear {j} ({ra * 1e3:.6g} mm) inside its base circle ({rb * 1e3:.6g} mm): no involute "
+                f"flank; expected a smaller shift sum or more teeth")
+        raise _input_error(pair, _shift_field(pair), rule)
     return {
         "r": r, "rb": rb, "ra": ra, "rd": r - (hf - x) * m, "tp": tp, "s": s,
         "sa": _tooth_thickness(rb, r, s, phi, ra),  # eq 28

@@ -132,15 +132,19 @@ def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:
     a model key, the sweep's may also be the controller's estimate)."""
     if key in _KEYS:
         return _KEYS[key]
+    sweep = what == "sweep key"
     every = {f.name for cls in MODEL_CLASSES for f in dataclasses.fields(cls)}
     if key in every:
-        raise InputError(f"{key} is not a number a sweep can vary: vary numeric keys (e.g. backlash, "
-                         f"mesh_stiffness, coulomb_friction2, load_inertia, load_noise, estimate)", field=key)
+        doing = "a sweep can vary" if sweep else "--set can change"
+        raise InputError(f"{key} is not a number {doing}: numeric keys only (e.g. backlash, mesh_stiffness, "
+                         f"coulomb_friction2, load_inertia, load_noise{', estimate' if sweep else ''})", field=key)
     import difflib
 
-    close = difflib.get_close_matches(key, list(_KEYS), n=1)
+    # a --set key is the model's: the controller's estimate has an option of its own, so it is no suggestion there
+    keys = [k for k, meta in _KEYS.items() if sweep or meta["owner"] != "controller"]
+    close = difflib.get_close_matches(key, keys, n=1)
     hint = f"; did you mean {close[0]!r}?" if close else ""
-    also = ", estimate or estimate_error" if what == "sweep key" else ""
+    also = ", estimate or estimate_error" if sweep else ""
     raise InputError(f"unknown {what} {key!r}: expected a model key (backlash, mesh_stiffness, "
                      f"coulomb_friction2, load_inertia, load_noise, ...){also}{hint}", field=key)
 

@@ -795,6 +795,12 @@ FOUND_CASES = {
         "(ValueError), not InputError",
         fixed="fixed in gearctl/geometry.py (_shift_limit): a trial pair that cannot be built is a failing trial; "
               "the line names [stage 1] x1 and the interference"),
+    "tip_inside_base_circle": Found("tip_inside_base_circle.toml", (("info", "MODEL"),), 4.0,
+        "traceback: the same 3 x 3 tooth stage with x2 = 0.4548: the tip alteration k* = -1.21 of the shift sum puts "
+        "gear 2's tip circle inside its base circle, and the tip thickness's acos raised 'math domain error' "
+        "(found by a reviewer of the previous case's fix, which had only caught it inside the limit search)",
+        fixed="fixed in gearctl/geometry.py (_gear_geometry): a tip circle inside the base circle is refused naming "
+              "the shift, with both radii"),
     "mpc_riccati_pencil": Found("mpc_riccati_pencil.toml", (("track", "MODEL", "mpc", "--reference", "move",
                                                              "--duration", "0.1"),), 30.0,
                                 "traceback: a 10 um module, 100 kg/m^3 and a 1.2e-15 kg m^2 load: the MPC's observer "

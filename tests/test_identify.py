@@ -625,3 +625,23 @@ def test_no_stored_log_is_read_as_shifted_but_the_late_one() -> None:
     assert set(named) == {"reviewer_triangle_torque_late.csv"} and named["reviewer_triangle_torque_late.csv"][0] == -1
 
 
+
+
+def test_a_written_model_keeps_the_inertia_sum_when_an_inertia_is_at_its_bound(tmp_path: Path) -> None:
+    # a heavy motor (14 kg m^2) beside a 0.013 kg m^2 load: the fit puts the load's inertia at its bound and reports
+    # it at the model's value, the motor's holding the whole sum J1 + J2/N^2. The written model once added the two
+    # (a reviewer: the load 0.0257 against 0.0126, the sums 26 % and 74 % high on edited results); it keeps the fit's
+    # own sum now (measured: 14.06335 kg m^2 both, the truth 14.06098)
+    from gearctl import build_plant
+
+    m = load_model(Path(__file__).parent / "data" / "heavy_motor_no_limit.toml")
+    ex = record_excitation(m, motion="identify", duration=10.0, seed=0)
+    log = tmp_path / "heavy.csv"
+    write_log(log, ex.log)
+    res = identify(log, m)
+    assert {"J1", "J2"} <= set(res.not_identified)
+    written = build_plant(load_model(ident.write_identified_model(tmp_path / "out.toml", res, m)))
+    N2 = res.gear_ratio**2
+    assert written.J1 + written.J2 / N2 == pytest.approx(res.inertia_sum, rel=1e-12)
+    true = build_plant(m)
+    assert res.inertia_sum == pytest.approx(true.J1 + true.J2 / N2, rel=1e-3)
