@@ -109,7 +109,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--motion", choices=("identify", "moves"), default="identify",
                    help="identify: reversals at several accelerations, dwells, moves at two speeds; moves: plain "
                         "back-and-forth moves (default identify)")
-    p.add_argument("--amplitude", type=float, default=0.1, help="largest excursion of the load [rad] (default 0.1)")
+    p.add_argument("--amplitude", type=float, default=0.1,
+                   help="largest excursion of the load [rad] (default 0.1); 0 < value <= 10 [rad]")
     p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved",
                    help="true plant (default improved)")
     p.add_argument("--controller", default="pid", help="the position loop: catalog name or TOML path (default pid)")

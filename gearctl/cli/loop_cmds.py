@@ -398,8 +398,10 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     # whole numbers here; their ranges are checked by the test itself (one line naming the key)
     p.add_argument("--targets", type=spec_arg(TARGETS), default=5, help="target positions, 2..50 (default 5)")
     p.add_argument("--cycles", type=spec_arg(CYCLES), default=5, help="cycles, 1..50 (default 5, as ISO 230-2)")
-    p.add_argument("--travel", type=positive_float, default=0.5, help="span of the targets [rad] (default 0.5)")
-    p.add_argument("--dwell", type=positive_float, default=0.3, help="rest before each measurement [s] (default 0.3)")
+    p.add_argument("--travel", type=positive_float, default=0.5,
+                   help="span of the targets [rad] (default 0.5); value > 0, the whole program at most 100000 s")
+    p.add_argument("--dwell", type=positive_float, default=0.3,
+                   help="rest before each measurement [s] (default 0.3); value > 0, the whole program at most 100000 s")
     p.add_argument("--plant", choices=plants, default="improved", help="plant")
     p.add_argument("--backlash", type=bl, help="override the model's backlash [m]")
     p.add_argument("--estimate", type=bl, help="the controller's backlash estimate [m] (default: the model's)")

@@ -435,7 +435,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                    help="mesh law (default improved)")
     p.add_argument("--duration", type=dur, default=0.02, help="simulated time [s] (default 0.02)")
     p.add_argument("--dt", type=positive_float, default=None,
-                   help="output interval [s] (default: 1 us up to 20 ms, then about 20 000 rows)")
+                   help="output interval [s] (default: 1 us up to 20 ms, then about 20 000 rows); value > 0, the "
+                        "output at most 4 GB")
     p.add_argument("--omega1", type=spec_arg(OMEGA), help="initial velocity of the motor shaft [rad/s]")
     p.add_argument("--omega2", type=spec_arg(OMEGA), help="initial velocity of the load shaft [rad/s]")
     p.add_argument("--torque1", type=spec_arg(TORQUE), help="torque on the motor shaft [N m]")
