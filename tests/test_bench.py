@@ -291,3 +291,10 @@ def test_iso_rows_worse_than_the_pid_carry_a_warning() -> None:
     warned = [r["controller"] for r in rows if r["warnings"]]
     assert warned == ["deadzone_inverse", "reversal_offset"]
     assert "6.7e-03" in rows[1]["warnings"][0] or "0.0067" in rows[1]["warnings"][0]
+
+
+def test_a_run_that_would_not_fit_is_refused_before_the_bench(capsys: pytest.CaptureFixture[str]) -> None:
+    # `bench --duration 5000` reported every run as FAILED and exited 0; it is refused first, with the figure
+    assert main(["bench", "--duration", "7000", "--quiet", "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the closed loop would take about" in err and "--duration" in err

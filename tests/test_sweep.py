@@ -175,6 +175,13 @@ def test_json_to_standard_output() -> None:
     assert len(d["runs"]) == 2 and "RMS error [urad]" in err
 
 
+def test_a_run_that_would_not_fit_is_refused_before_the_sweep() -> None:
+    # `sweep --duration 5000` reported "diverged 100 %" and exited 0; it is refused first, with the figure
+    rc, out, err = _cli(["sweep", MODEL, "pid", "--vary", "backlash=1x", "--runs", "2", "--duration", "7000",
+                         "--quiet"])
+    assert rc == 2 and out == "" and "the closed loop would take about" in err and err.count("\n") == 1
+
+
 def test_parse_set() -> None:
     assert parse_set("backlash=7e-05") == ("backlash", 7e-05)
     key, v = parse_set("motor_encoder_cpr=4096")

@@ -165,6 +165,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.workers:
         warn("sweep", ["--workers sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the "
                        "cluster's own workers run the sweep"])
+    from ..catalog import load_model
+    from ..closedloop import check_loop_memory
+    from ..plant import build_plant
+    from ..runs import DEFAULT_DURATION
+
+    # a run that would not fit in memory is refused before the sweep, not reported as every run failed (at the
+    # catalog's 1 ms loop: a controller with a shorter sample time is checked again by each run)
+    dur = args.duration if args.duration is not None else DEFAULT_DURATION[args.reference]
+    check_loop_memory(build_plant(load_model(args.model)), int(round(dur / 1e-3)), field="duration",
+                      fix="a shorter --duration")
     # where the results go is checked before the runs: a sweep of hours must not end unable to write them
     to_stdout = args.json == "-"  # the JSON on standard output, the summary then on standard error
     if args.json and not to_stdout:
