@@ -158,15 +158,21 @@ def loop_samples(plant: Plant, controller: Controller, duration: float, seed: in
     # of the controller (torques, statuses, solve and step times), measured at 488 B (a pair's PID), 600 B (its MPC)
     # and 715 B (the three-stage train's inverse) per sample. The arrays alone, nx + 8 doubles, let a reviewer's
     # 97 000 s ISO program through that would have needed about 57 GB (3.3 GB measured for 5568 s)
-    check_loop_memory(plant, n, field="duration", fix="a shorter --duration")
+    check_loop_memory(plant, duration, controller.Ts)
     return n
 
 
-def check_loop_memory(plant: Plant, samples: int, *, field: str, fix: str) -> None:
-    """Refuse a closed loop of ``samples`` controller samples that would not fit in memory (see
+#: The catalog controllers' sample time [s] (``LoopSettings.sample_time``): what a run is sized at before its
+#: controller is designed (``bench``, ``sweep``); each run checks again at its own.
+DEFAULT_TS = 1e-3
+
+
+def check_loop_memory(plant: Plant, duration: float, Ts: float = DEFAULT_TS, *, field: str = "duration",
+                      fix: str = "a shorter --duration") -> None:
+    """Refuse a closed loop of ``duration`` [s] sampled every ``Ts`` [s] that would not fit in memory (see
     :func:`loop_samples`), naming ``field`` and what to change."""
     per = LOOP_SAMPLE_BYTES + LOOP_STATE_BYTES * plant.nx
-    check_output_size(samples + 1, -(-per // 8), field=field, fix=fix, what="the closed loop")
+    check_output_size(int(round(duration / Ts)) + 1, -(-per // 8), field=field, fix=fix, what="the closed loop")
 
 
 #: Memory a closed-loop sample takes while the run lasts [bytes]: a fixed part and a part per state (see

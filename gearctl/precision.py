@@ -260,7 +260,7 @@ def precision_test(
         raise InputError(f"the test program lasts {t:.6g} s ({targets} targets, {cycles} cycles over travel = "
                          f"{travel:g} rad at velocity = {velocity:g} rad/s, dwell = {dwell:g} s): expected at most "
                          f"{DURATION.high:g} s; lower travel, dwell, cycles or targets", field="travel")
-    check_loop_memory(plant, int(round((t + controller.Ts) / controller.Ts)), field="travel",
+    check_loop_memory(plant, t + controller.Ts, controller.Ts, field="travel",
                       fix=f"the test program lasts {t:.6g} s; lower travel, dwell, cycles or targets")
     run = simulate_closed_loop(plant, controller, program, t + controller.Ts, sensors=sensors, seed=seed,
                                progress=progress)

@@ -194,7 +194,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from ..closedloop import check_loop_memory
 
     for r in {(id(run.plant), run.duration): run for run in runs}.values():  # a run that would not fit: refused first
-        check_loop_memory(r.plant, int(round(r.duration / 1e-3)), field="duration", fix="a shorter --duration")
+        check_loop_memory(r.plant, r.duration)
     to_stdout = args.json == "-"  # the JSON on standard output, the tables then on standard error
     if args.json and not to_stdout:  # checked before the runs, as the sweep's
         check_writable(args.json, key="json")

@@ -173,8 +173,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     # a run that would not fit in memory is refused before the sweep, not reported as every run failed (at the
     # catalog's 1 ms loop: a controller with a shorter sample time is checked again by each run)
     dur = args.duration if args.duration is not None else DEFAULT_DURATION[args.reference]
-    check_loop_memory(build_plant(load_model(args.model)), int(round(dur / 1e-3)), field="duration",
-                      fix="a shorter --duration")
+    check_loop_memory(build_plant(load_model(args.model)), dur)
     # where the results go is checked before the runs: a sweep of hours must not end unable to write them
     to_stdout = args.json == "-"  # the JSON on standard output, the summary then on standard error
     if args.json and not to_stdout:
