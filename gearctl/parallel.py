@@ -9,9 +9,12 @@ and returns the results in order. ``gearctl bench`` and ``gearctl sweep`` both g
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import hashlib
 import logging
 import os
+import signal
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator, Sequence
@@ -127,16 +130,61 @@ def local_cluster(workers: int) -> Any:
     scheduler's HTTP server (its health routes, which run even without a dashboard) listens on a free local port:
     on the default 8787, which another cluster or notebook often holds, it warns (an error under pytest's
     warnings-as-errors). The workers ignore SIGINT (:mod:`gearctl._worker_setup`): Ctrl-C reaches the whole process
-    group, and each worker printed a traceback while the command ended with its one line.
+    group, and each worker printed a traceback while the command ended with its one line. A Ctrl-C while the
+    cluster starts is held until it is up (:func:`_sigint_held`), then closes it and raises ``KeyboardInterrupt``.
     """
     import dask
     import distributed
 
-    with dask.config.set({"distributed.worker.profile.enabled": False}):
-        return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=logging.ERROR,
-                                        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
-                                        preload=["gearctl._worker_setup"])
+    with _sigint_held() as interrupted, dask.config.set({"distributed.worker.profile.enabled": False}):
+        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                           dashboard_address=None, silence_logs=logging.CRITICAL,
+                                           scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+                                           preload=["gearctl._worker_setup"])
+    if interrupted():  # Ctrl-C while the workers started: close them, then end as a Ctrl-C does
+        cluster.close()
+        raise KeyboardInterrupt
+    return cluster
+
+
+@contextlib.contextmanager
+def _sigint_held() -> Iterator[Callable[[], bool]]:
+    """Hold a Ctrl-C while the local cluster's processes start; yields a function that tells, after the block,
+    whether one came.
+
+    The worker processes ignore SIGINT only once their preload has run (:mod:`gearctl._worker_setup`). A Ctrl-C
+    in the second or two before, which the terminal sends to the whole process group, printed a traceback from
+    each starting worker (``spawn_main``), or reached this process inside Dask's start-up, which turned it into
+    another exception (exit 1 with a traceback). Here, while the cluster starts:
+
+    - SIGINT is blocked in this thread, so the threads Dask starts (its IO loop, which starts the workers) inherit
+      the mask, and so do the processes they start: a worker keeps a Ctrl-C pending until its preload ignores it;
+    - a Ctrl-C that reaches this process is only noted (a handler that raises nothing), to act on once the cluster
+      is up.
+
+    Multiprocessing's resource tracker is launched first: launched by the IO loop, it unblocks SIGINT in that
+    thread. Only from the main thread (where Python handles signals) and where the platform has signal masks;
+    elsewhere a no-op.
+    """
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield lambda: False
+        return
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    came = False
+
+    def note(signum: int, frame: Any) -> None:  # noqa: ARG001 (a signal handler's signature)
+        nonlocal came
+        came = True
+
+    old_handler = signal.signal(signal.SIGINT, note)
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield lambda: came
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)  # one pending here is noted now
+        signal.signal(signal.SIGINT, old_handler)
 
 
 class Engine:

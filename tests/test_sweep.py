@@ -679,6 +679,41 @@ def test_ctrl_c_in_a_terminal_leaves_no_worker_traceback(tmp_path: Path) -> None
     assert err.strip().splitlines()[-1] == "gearctl sweep: interrupted"
 
 
+HELD_SCRIPT = """
+import os, signal, sys, threading, time
+import distributed  # noqa: F401 (imported before the pelting: the hold starts at once)
+from gearctl.parallel import local_cluster
+signal.signal(signal.SIGINT, lambda *a: None)  # this script's own handler: SIGINTs after the hold do nothing
+
+def pelt():  # Ctrl-C, as a terminal sends it, to the whole group while the workers start
+    for _ in range(8):
+        os.killpg(0, signal.SIGINT)
+        time.sleep(0.05)
+
+threading.Thread(target=pelt, daemon=True).start()
+try:
+    cluster = local_cluster(2)
+except KeyboardInterrupt:
+    print("held")
+else:
+    print("not held")
+    cluster.close()
+"""
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_the_local_cluster_starts_is_held_then_raised(tmp_path: Path) -> None:
+    # a Ctrl-C in the second or two while the workers start printed a traceback from each starting worker, or reached
+    # this process inside Dask's start-up, which made it "RuntimeError: Nanny failed to start" (exit 1, a traceback).
+    # It is held until the cluster is up, which then closes, and raised as a KeyboardInterrupt; the workers never
+    # see it (_sigint_held)
+    proc = subprocess.run([sys.executable, "-c", HELD_SCRIPT], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=120, start_new_session=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "held", proc.stderr
+    assert "Traceback" not in proc.stderr and "KeyboardInterrupt" not in proc.stderr, proc.stderr
+
+
 def test_ctrl_c_is_one_line_and_the_sigint_code(monkeypatch: pytest.MonkeyPatch) -> None:
     import gearctl.sweep
 
