@@ -1585,7 +1585,8 @@ def torque_lag(lg: EncoderLog) -> tuple[int, dict[int, float]]:
 
 
 def _check_log(lg: EncoderLog) -> None:
-    """What :func:`read_log` guarantees, for a log made in Python: equal lengths, finite, enough samples."""
+    """What :func:`read_log` guarantees, for a log made in Python: equal lengths, finite, enough samples, time
+    stamps increasing on the grid of ``sample_time``."""
     cols = {"t": lg.t, "torque": lg.torque, "theta1": lg.theta1}
     if lg.theta2 is not None:
         cols["theta2"] = lg.theta2
@@ -1599,6 +1600,31 @@ def _check_log(lg: EncoderLog) -> None:
     if lg.n < MIN_LOG_SAMPLES:
         raise InputError(f"{lg.name}: {lg.n} samples is too short: expected at least {MIN_LOG_SAMPLES}", field="log")
     SAMPLE_TIME.check("sample_time", lg.sample_time)
+    # the time stamps as read_log refuses them from a file: increasing, on the grid of sample_time
+    t = np.asarray(lg.t, dtype=float)
+    bad = np.flatnonzero(np.diff(t) <= 0.0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise InputError(f"{lg.name}: column t: sample {k} (t = {float(t[k]):.10g}) does not increase (previous "
+                         f"sample t = {float(t[k - 1]):.10g}): expected time in increasing order", field="t")
+    Ts = sample_period(t)
+    if abs(Ts - lg.sample_time) > PERIOD_TOLERANCE * lg.sample_time:
+        raise InputError(f"{lg.name}: column t: its period {Ts:.6g} s differs from sample_time = "
+                         f"{lg.sample_time:.6g} s by more than {PERIOD_TOLERANCE:.0%}: expected t [s] sampled at "
+                         f"sample_time", field="t")
+    dev = _grid_deviation(t, lg.sample_time)
+    k = int(np.argmax(np.abs(dev)))
+    if abs(dev[k]) > JITTER_TOLERANCE * lg.sample_time:
+        off = np.flatnonzero(np.abs(np.diff(t) - lg.sample_time) > JITTER_TOLERANCE * lg.sample_time)
+        if off.size:  # a sample missing or doubled: named where it is, not where the grid ends up furthest
+            k = int(off[0]) + 1
+            raise InputError(f"{lg.name}: column t: sample {k} (t = {float(t[k]):.10g}) is "
+                             f"{float(t[k] - t[k - 1]):.6g} s after the previous sample; sample_time = "
+                             f"{lg.sample_time:.6g} s: expected samples at a fixed period (each interval within "
+                             f"{JITTER_TOLERANCE:.0%} of it)", field="t")
+        raise InputError(f"{lg.name}: column t: sample {k} (t = {float(t[k]):.10g}) is {abs(dev[k]):.3g} s off the "
+                         f"grid of sample_time = {lg.sample_time:.6g} s: expected samples at a fixed period (time "
+                         f"stamps within {JITTER_TOLERANCE:.0%} of it)", field="t")
 
 
 #: Largest angle a reading may hold [rad] (160 000 revolutions): beyond it a value is no encoder angle

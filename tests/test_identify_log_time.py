@@ -1,0 +1,48 @@
+"""A log made in Python (an EncoderLog, not a file) has its time stamps checked as read_log checks a file's: before,
+identify ignored t and ran on sample_time alone, so unsorted, repeated or reversed stamps, t in ms, or a sample_time
+that disagrees with t were accepted without a word."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gearctl import InputError
+from gearctl.identify import identify, read_log
+
+LOG = Path(__file__).resolve().parent / "data" / "logs" / "other_sim_chirp_5khz.csv"
+MODEL = "shing1993_servo"
+
+
+def _swap(t: np.ndarray) -> np.ndarray:
+    t = t.copy()
+    t[[1000, 1001]] = t[[1001, 1000]]
+    return t
+
+
+@pytest.mark.parametrize("change, fragment", [
+    (lambda lg: {"t": _swap(lg.t)}, "column t: sample 1001 .* does not increase"),
+    (lambda lg: {"t": np.zeros(lg.n)}, "column t: sample 1 .* does not increase"),
+    (lambda lg: {"t": lg.t[::-1].copy()}, "column t: sample 1 .* does not increase"),
+    (lambda lg: {"t": lg.t * 1000.0}, "column t: its period 0.2 s differs from sample_time"),
+    (lambda lg: {"sample_time": lg.sample_time * 2.0}, "column t: its period 0.0002 s differs from sample_time"),
+    (lambda lg: {"t": np.concatenate([lg.t[:1000], lg.t[1005:], lg.t[-1] + lg.sample_time * np.arange(1, 6)])},
+     "column t: sample 1000 .* is 0.0012 s after the previous sample"),
+    (lambda lg: {"t": lg.t + np.where(np.arange(lg.n) >= lg.n // 2, 0.01 * (lg.t - lg.t[lg.n // 2]), 0.0)},
+     "column t: sample .* off the grid of sample_time"),
+])
+def test_time_stamps_of_a_python_log_are_checked(change, fragment) -> None:
+    log = read_log(LOG)
+    with pytest.raises(InputError, match=fragment) as exc:
+        identify(dataclasses.replace(log, **change(log)), MODEL, encoders="motor+load")
+    assert exc.value.field == "t"
+
+
+def test_a_python_log_on_its_grid_is_accepted() -> None:
+    log = read_log(LOG)
+    t = 12.5 + np.arange(log.n) * log.sample_time  # another clock origin, evenly stamped
+    res = identify(dataclasses.replace(log, t=t), MODEL, encoders="motor+load")
+    assert res.backlash == pytest.approx(5e-5, rel=0.01)
