@@ -46,3 +46,21 @@ def test_a_python_log_on_its_grid_is_accepted() -> None:
     t = 12.5 + np.arange(log.n) * log.sample_time  # another clock origin, evenly stamped
     res = identify(dataclasses.replace(log, t=t), MODEL, encoders="motor+load")
     assert res.backlash == pytest.approx(5e-5, rel=0.01)
+
+
+def test_a_file_whose_clock_changes_rate_is_refused(tmp_path: Path) -> None:
+    """Every interval within 1 % of the period (0.5 % short, then 0.5 % long) but the stamps 10 periods off the
+    fixed grid: read_log checked the grid only when an interval was more than 1 % off, and read the log as if
+    evenly stamped, without a word."""
+    lines = LOG.read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith("#") or not ln.strip()]
+    rows = [ln for ln in lines if ln.strip() and not ln.startswith("#")]
+    header, body = rows[0], rows[1:]
+    n, Ts = len(body), 2e-4
+    dt = np.where(np.arange(n) < n // 2, 0.995 * Ts, 1.005 * Ts)
+    t = np.concatenate([[0.0], np.cumsum(dt[:-1])])
+    out = head + [header] + [f"{t[k]:.17g}," + row.split(",", 1)[1] for k, row in enumerate(body)]
+    (tmp_path / "drift.csv").write_text("\n".join(out) + "\n")
+    with pytest.raises(InputError, match=r"drift.csv: line \d+: t = .* off the grid of the log's period") as exc:
+        read_log(tmp_path / "drift.csv")
+    assert exc.value.field == "t"
