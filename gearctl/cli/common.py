@@ -157,7 +157,8 @@ OUTPUT_ARGS = ("csv", "plot", "out", "write_model", "reference_only")
 
 
 def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
-    """Refuse an output path that is one of the command's input files (``--write-model LOG``): it would be lost.
+    """Refuse an output path that is one of the command's input files (``--write-model LOG``): it would be lost;
+    and two outputs naming one file (``--reference-only F --out F``): the second would overwrite the first.
 
     The same file under another name (a link, ``./``) counts (:func:`os.path.samefile`).
     """
@@ -176,6 +177,13 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
             if same:
                 raise InputError(f"--{key.replace('_', '-')} {out} is the input file {inp}: writing there would "
                                  f"lose it; write to another file", field=key)
+    # two outputs of one run to one file (excite --reference-only F --out F): the second overwrote the first
+    outs = [(k, v) for k in OUTPUT_ARGS if isinstance(v := getattr(args, k, None), str) and v != "-"]
+    for i, (k1, o1) in enumerate(outs):
+        for k2, o2 in outs[i + 1:]:
+            if os.path.realpath(o1) == os.path.realpath(o2):
+                raise InputError(f"--{k1.replace('_', '-')} {o1} and --{k2.replace('_', '-')} {o2} name the same "
+                                 f"file: one would overwrite the other; write to two files", field=k2)
 
 
 def check_writable(path: str, *, directory: bool = False, key: str = "out") -> None:
