@@ -1662,6 +1662,16 @@ def _check_readings(lg: EncoderLog) -> None:
                              f"log's steps are at most {thr / SPIKE_FACTOR:.3g} rad in 99 % of the samples); repair "
                              f"or cut the log there",
                              field=col)
+        # a single-turn encoder wrapping round: a step of whole revolutions that stays (named as a dead or swapped
+        # load encoder before, under theta2 also when theta1 wrapped)
+        rev = np.abs(d) / (2.0 * math.pi)
+        wrap = np.flatnonzero((np.abs(d) > max(thr, math.pi)) & (np.abs(rev - np.round(rev)) < 0.02))
+        if wrap.size:
+            k = int(wrap[0]) + 1
+            raise InputError(f"{lg.name}: column {col}: sample {k} (t = {float(lg.t[k]):.6g} s) jumps "
+                             f"{float(d[k - 1]):.4g} rad ({int(round(rev[k - 1]))} revolution(s)) and stays (a "
+                             f"single-turn encoder wrapping round?): expected a continuous angle in rad (unwrap it, "
+                             f"as numpy.unwrap does)", field=col)
 
 
 def _load_encoder_direction(log: EncoderLog) -> tuple[EncoderLog, bool]:
