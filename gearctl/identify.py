@@ -1586,6 +1586,31 @@ def torque_lag(lg: EncoderLog) -> tuple[int, dict[int, float]]:
     return lag, out
 
 
+def _as_arrays(lg: EncoderLog) -> EncoderLog:
+    """A log made in Python with its columns as 1-D float arrays (lists, integer arrays): one that holds something
+    else (text, nested rows) is refused naming the column."""
+    cols = {}
+    for name in ("t", "torque", "theta1", "theta2"):
+        v = getattr(lg, name)
+        if v is None and name == "theta2":
+            continue
+        try:
+            a = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"{lg.name}: column {name} holds {type(v).__name__} values that are not numbers: expected "
+                             f"a 1-D array of floats", field=name) from None
+        if a.ndim != 1:
+            raise InputError(f"{lg.name}: column {name} has shape {a.shape}: expected a 1-D array (one value per "
+                             f"sample)", field=name)
+        cols[name] = a
+    try:
+        Ts = float(lg.sample_time)
+    except (TypeError, ValueError):
+        raise InputError(f"{lg.name}: sample_time = {lg.sample_time!r} is not a number: expected the period [s]",
+                         field="sample_time") from None
+    return dataclasses.replace(lg, sample_time=Ts, **cols)
+
+
 def _check_log(lg: EncoderLog) -> None:
     """What :func:`read_log` guarantees, for a log made in Python: equal lengths, finite, enough samples, time
     stamps increasing on the grid of ``sample_time``."""
@@ -1779,9 +1804,12 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
     from .geometry import pair_geometry
     from .plant import build_plant
 
-    lg = log if isinstance(log, EncoderLog) else read_log(log)
+    lg = _as_arrays(log) if isinstance(log, EncoderLog) else read_log(log)
     _check_log(lg)
     _check_readings(lg)
+    if not isinstance(model, GearModel | str | Path):
+        raise InputError(f"model = {model!r} is not a model: expected a GearModel, a catalog name or a TOML file's "
+                         f"path", field="model")
     mdl = model if isinstance(model, GearModel) else load_model(model)
     if mdl.n_stages != 1:
         raise InputError(f"{mdl.name}: a train of {mdl.n_stages} stages; identify handles a gear pair (one stage)",

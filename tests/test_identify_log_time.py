@@ -64,3 +64,21 @@ def test_a_file_whose_clock_changes_rate_is_refused(tmp_path: Path) -> None:
     with pytest.raises(InputError, match=r"drift.csv: line \d+: t = .* off the grid of the log's period") as exc:
         read_log(tmp_path / "drift.csv")
     assert exc.value.field == "t"
+
+
+def test_a_python_log_of_lists_is_read_and_one_of_text_or_rows_is_refused() -> None:
+    # an EncoderLog holding Python lists raised AttributeError ('list' has no attribute 'size'), text TypeError, and
+    # identify(log, None) TypeError: lists are read as arrays; the rest is refused naming the column or the model
+    log = read_log(LOG)
+    listed = dataclasses.replace(log, t=log.t.tolist(), torque=log.torque.tolist(), theta1=log.theta1.tolist(),
+                                 theta2=log.theta2.tolist())
+    assert identify(listed, MODEL).backlash == identify(log, MODEL).backlash
+    with pytest.raises(InputError, match="column torque holds .* not numbers") as exc:
+        identify(dataclasses.replace(log, torque=np.array(["x"] * log.n)), MODEL)
+    assert exc.value.field == "torque"
+    with pytest.raises(InputError, match=r"column theta1 has shape \(\d+, 2\): expected a 1-D array") as exc:
+        identify(dataclasses.replace(log, theta1=np.column_stack([log.theta1, log.theta1])), MODEL)
+    assert exc.value.field == "theta1"
+    with pytest.raises(InputError, match="model = None is not a model") as exc:
+        identify(log, None)
+    assert exc.value.field == "model"
