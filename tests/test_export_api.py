@@ -376,3 +376,44 @@ def test_an_export_for_another_gear_ratio_is_refused(tmp_path: Path, capsys: pyt
     err = capsys.readouterr().err
     assert "exported for gear ratio 4" in err and "ratio is 5" in err, err
     assert main(["track", SERVO, "--exported", str(d), "--duration", "0.1"]) == 0
+
+
+@needs_make
+@pytest.mark.parametrize(("ctrl", "counter"), [("adaptive_inverse", "c.s.fresh"), ("mpc", "c.s.revisits[1]")])
+def test_a_sample_counter_does_not_overflow_at_rest(tmp_path: Path, ctrl: str, counter: str) -> None:
+    # at rest (constant readings, no reversal) the adaptive inverse's samples since its last measurement and the
+    # MPC's samples on the furthest point of a flank grow by one a sample: a C int overflowed after 2^31 samples
+    # (25 days at 1 kHz, seen with -fsanitize=undefined), undefined behaviour where Python's ints go on. The state
+    # is set 3 samples short of the largest int, as 2^31 samples at rest leave it; the step traps on an overflow
+    d, _ = _export(tmp_path, SERVO, ctrl, vectors=False)
+    src = tmp_path / "rest.c"
+    src.write_text(textwrap.dedent(f"""\
+        #include <limits.h>
+        #include <math.h>
+        #include <stdio.h>
+        #include "gearctl_ctrl.h"
+        int main(void) {{
+            static gearctl_ctrl_t c;
+            double y[2] = {{GEARCTL_RATIO * 1.6e-3, 1e-3}}, ref[3 * GEARCTL_PREVIEW] = {{0}}, u = 0.0;
+            for (int i = 0; i < GEARCTL_PREVIEW; i++) ref[3 * i] = 1e-3;
+            gearctl_ctrl_init(&c);
+            for (int k = 0; k < 400; k++) gearctl_ctrl_step(&c, y, ref, &u);
+            int grew = {counter};
+            {counter} = INT_MAX - 3;
+            for (int k = 0; k < 400; k++) gearctl_ctrl_step(&c, y, ref, &u);
+            printf("%d %d %.17g\\n", grew, {counter} == INT_MAX, u);
+            return 0;
+        }}
+        """))
+    exe = tmp_path / "rest"
+    sources = [str(p) for p in sorted(d.glob("gearctl_*.c"))]
+    proc = subprocess.run([CC, "-std=c99", "-O1", "-fsanitize=signed-integer-overflow",
+                           "-fsanitize-undefined-trap-on-error", f"-I{d}", str(src), *sources, "-lm", "-o", str(exe)],
+                          capture_output=True, text=True, timeout=600)
+    if proc.returncode != 0 and "sanitize" in proc.stderr:
+        pytest.skip(f"{CC} has no -fsanitize=signed-integer-overflow")
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, (run.returncode, run.stderr)  # a trap: SIGILL
+    grew, saturated, u = run.stdout.split()
+    assert int(grew) >= 300 and int(saturated) == 1 and math.isfinite(float(u))

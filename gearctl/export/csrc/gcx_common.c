@@ -26,6 +26,9 @@ GCX_FN int gcx_finite(double x) {
 }
 
 #define GCX_PI 3.141592653589793
+/* the largest int (without <limits.h>): a counter that is only compared with a bound stops there. Python's ints
+ * never overflow; a C int counting samples would after 2^31 of them (25 days at 1 kHz), undefined behaviour */
+#define GCX_INT_MAX ((int)(~0u >> 1))
 #define GCX_HALF_PI 1.5707963267948966        /* Python: 0.5 * math.pi */
 #define GCX_HALF_PI_SQ 4.934802200544679      /* Python: 0.5 * math.pi ** 2 */
 

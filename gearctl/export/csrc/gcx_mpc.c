@@ -153,7 +153,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         if (a_s > S->reach[k]) {
             S->reach[k] = a_s, S->revisits[k] = 0;
         } else if (a_s >= S->reach[k] - tol) {
-            S->revisits[k] += 1;
+            if (S->revisits[k] < GCX_INT_MAX) S->revisits[k] += 1; /* at rest on a flank: every sample */
         }
         if (S->reach[k] >= P->learn_below) { /* the gap reached the flank the estimate puts there */
             fl = S->flanks[k] = b;

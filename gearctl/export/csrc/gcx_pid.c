@@ -646,7 +646,7 @@ GCX_FN void gcx_ada_observe(const gcx_ada_p *P, gcx_ada_s *S, double t, double s
     S->head = S->head + 1 == n ? 0 : S->head + 1;
     if (S->len < n) S->len++;
     S->count++;
-    S->fresh++;
+    if (S->fresh < GCX_INT_MAX) S->fresh++; /* idle (no plateau measured) it grows every sample; compared with n */
     if (S->count < n / 2 || S->len < n || S->fresh < n) return;
     S->count = 0;
     if (S->since_change >= n) return; /* no flank change in the window: its extremes need not be the flanks */
