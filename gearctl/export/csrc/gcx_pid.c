@@ -639,7 +639,9 @@ GCX_FN void gcx_ada_update(const gcx_ada_p *P, gcx_ada_s *S, double t, double b_
     if (fabs(nw - held) > P->apply_threshold * held) gcx_inv_set_backlash(&P->inv, &S->inv, nw);
 }
 
-/* AdaptiveInverse._observe: the window is a ring buffer, sorted into sorted[] when examined */
+/* AdaptiveInverse._observe: the window is a ring buffer; when examined, its 3rd and 5th smallest and largest values
+ * are picked out of it (Python sorts the window; a full insertion sort here took O(n^2): 8 ms per examined step
+ * with a 10 s window at 1 kHz, 0.9 ms at 10 kHz with the catalog's 0.2 s) */
 GCX_FN void gcx_ada_observe(const gcx_ada_p *P, gcx_ada_s *S, double t, double s) {
     int n = P->window;
     S->recent[S->head] = s;
@@ -650,20 +652,25 @@ GCX_FN void gcx_ada_observe(const gcx_ada_p *P, gcx_ada_s *S, double t, double s
     if (S->count < n / 2 || S->len < n || S->fresh < n) return;
     S->count = 0;
     if (S->since_change >= n) return; /* no flank change in the window: its extremes need not be the flanks */
-    double *v = S->sorted;
-    for (int i = 0; i < n; i++) { /* insertion sort (stable, as Python's sorted) */
+    double lo5[5], hi5[5]; /* the 5 smallest, ascending, and the 5 largest, descending (n >= 10) */
+    for (int i = 0; i < 5; i++) lo5[i] = HUGE_VAL, hi5[i] = -HUGE_VAL;
+    for (int i = 0; i < n; i++) {
         double x = S->recent[i];
-        int j = i;
-        while (j > 0 && x < v[j - 1]) {
-            v[j] = v[j - 1];
-            j--;
+        if (x < lo5[4]) {
+            int j = 4;
+            for (; j > 0 && x < lo5[j - 1]; j--) lo5[j] = lo5[j - 1];
+            lo5[j] = x;
         }
-        v[j] = x;
+        if (x > hi5[4]) {
+            int j = 4;
+            for (; j > 0 && x > hi5[j - 1]; j--) hi5[j] = hi5[j - 1];
+            hi5[j] = x;
+        }
     }
-    double hi = v[n - 3], lo = v[2];
+    double hi = hi5[2], lo = lo5[2]; /* Python: v[-3], v[2] of the sorted window */
     double b = S->b;
     double near = gcx_max(P->plateau_tolerance, 0.02 * b);
-    if (hi - lo > 0.8 * b && hi - v[n - 5] <= near && v[4] - lo <= near) {
+    if (hi - lo > 0.8 * b && hi - hi5[4] <= near && lo5[4] - lo <= near) { /* v[-5], v[4] */
         S->fresh = 0;
         gcx_ada_update(P, S, t, 0.5 * (hi - lo));
     }

@@ -54,6 +54,6 @@ typedef struct {
     double flank;     /* the inverse's held flank at the last sample (0: centred, no decision yet) */
     int since_change; /* samples since the inverse changed flank, at most the window */
     int converged, agree; /* the estimate counts as converged; consecutive measurements that agree with it */
-    double recent[GCX_ADA_WINDOW], sorted[GCX_ADA_WINDOW];
+    double recent[GCX_ADA_WINDOW];
 } gcx_ada_s;
 #endif
