@@ -379,6 +379,23 @@ def test_an_export_for_another_gear_ratio_is_refused(tmp_path: Path, capsys: pyt
 
 
 @needs_make
+def test_an_export_run_on_another_model_or_backlash_says_what_it_keeps(tmp_path: Path,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    # an outside user's C harness: an export for another model of the same ratio, or `track --exported --backlash B`,
+    # ran without a word while every torque differed from plain `track` (the C keeps the numbers it was exported with)
+    from gearctl.cli import main
+
+    d, _ = _export(tmp_path, SERVO, "deadzone_inverse", vectors=False)
+    assert main(["track", SERVO, "--exported", str(d), "--duration", "0.1"]) == 0
+    assert "note" not in capsys.readouterr().err
+    assert main(["track", "shing1993_servo_friction", "--exported", str(d), "--duration", "0.1",
+                 "--backlash", "4e-5"]) == 0
+    err = capsys.readouterr().err
+    assert f"was exported for model '{SERVO}'" in err, err
+    assert "--backlash 4e-05 changes the plant only: the exported controller keeps its backlash estimate 5e-05" in err
+
+
+@needs_make
 @pytest.mark.parametrize(("ctrl", "counter"), [("adaptive_inverse", "c.s.fresh"), ("mpc", "c.s.revisits[1]")])
 def test_a_sample_counter_does_not_overflow_at_rest(tmp_path: Path, ctrl: str, counter: str) -> None:
     # at rest (constant readings, no reversal) the adaptive inverse's samples since its last measurement and the

@@ -50,9 +50,10 @@ def _cmd_track(args: argparse.Namespace) -> int:
         if args.exported is None:
             out, res = execute(run, keep=True)
         else:  # software in the loop: the folder's C in place of the Python controller, the same closed loop
-            from ..export.sil import execute_exported
+            from ..export.sil import execute_exported, exported_notes
 
             out, res = execute_exported(run, args.exported, keep=True)
+            warn("track", exported_notes(args.exported, run.tags["model"], args.backlash), kind="note")
     if res is None or out.metrics is None:
         raise InputError(out.message)
     m = out.metrics

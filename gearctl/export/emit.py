@@ -162,7 +162,8 @@ def header_text(spec: KindSpec) -> str:
  * GEARCTL_STEP_BAD_INPUT, writes u = 0 and leaves the state as it was (the sample counts
 {wild} *
  * The step is the Python controller's step at t = k * GEARCTL_TS, k the number of steps since init. No
- * dynamic memory, no I/O, no writable globals; only <math.h>, <string.h>, <stdint.h>. Compile as ISO C
+ * dynamic memory, no I/O, no writable globals; only <math.h>, <string.h>, <stdint.h>, <float.h> (a compile-time
+ * check of IEEE doubles). Compile as ISO C
  * (e.g. {CFLAGS}, without -ffast-math or -ffp-contract=fast) to get the Python controller's torques
  * bit for bit; `make check` replays the recorded vectors and says whether they are (a compiler that fuses
  * multiply-adds, e.g. -ffp-contract=fast -march=native, gives 1e-13 relative or so, which it accepts up to 1e-9).

@@ -187,6 +187,24 @@ def exported_name(folder: str | Path) -> str:
     return name if name in controller_names() else str(man.get("kind"))
 
 
+def exported_notes(folder: str | Path, model: str, backlash: float | None) -> list[str]:
+    """What an exported folder keeps that the command asks to change: its model (a folder exported for another model
+    of the same ratio runs, on that model's numbers) and its backlash estimate (``--backlash`` changes the plant;
+    the C keeps the estimate it was exported with, where plain ``track`` designs on the new value). One note each."""
+    man = _manifest(Path(folder))
+    notes = []
+    theirs = str(man.get("model") or "")
+    if theirs and theirs != model:
+        notes.append(f"{folder} was exported for model {theirs!r}: its controller keeps that model's numbers on "
+                     f"{model!r} (export it for {model!r} to compare with plain `track`)")
+    est = (man.get("describe") or {}).get("backlash_estimate")
+    if backlash is not None and est is not None and not math.isclose(float(est), backlash, rel_tol=1e-12):
+        notes.append(f"--backlash {backlash:g} changes the plant only: the exported controller keeps its backlash "
+                     f"estimate {float(est):g} m (plain `track --backlash` designs on the new value; export with "
+                     f"`--backlash` or `--estimate` to match)")
+    return notes
+
+
 def load_exported(folder: str | Path) -> ExportedController:
     """Compile an exported folder and return its C as a :class:`~gearctl.controller.Controller` (SIL).
 
