@@ -2,7 +2,8 @@
 
 A :class:`~gearctl.errors.GearctlError` becomes one line on stderr and exit code 2; argparse's own usage
 errors also exit with 2 (a bad option value in one line, like the others); a closed output pipe (``gearctl models
---json | head``) ends quietly. Anything else is a bug and surfaces as a traceback. Each module of this package
+--json | head``) ends quietly; an output that cannot be written (a full disk: ``gearctl info MODEL --json >
+/dev/full``) is one line and exit 2 too. Anything else is a bug and surfaces as a traceback. Each module of this package
 registers a group of commands.
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import os
 import re
 import sys
@@ -22,6 +24,9 @@ from . import common, export_cmds, identify_cmds, loop_cmds, model_cmds, sweep_c
 from .common import refuse_writing_over_inputs
 
 __all__ = ["main"]
+
+#: What a write to a full or failing output raises: one line on stderr, not a traceback.
+_OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO})
 
 #: The command groups, in the order ``gearctl --help`` lists them.
 GROUPS = (model_cmds, loop_cmds, sweep_cmds, identify_cmds, export_cmds)
@@ -99,15 +104,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"gearctl {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # the reader went away (`| head`): end quietly, as a Unix tool does
-        try:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())
-        except OSError:
-            pass
+        _stdout_to_devnull()
         return 0
+    except OSError as exc:  # a full disk or a failing device under the output (stdout: `> /dev/full`)
+        if exc.errno not in _OUTPUT_ERRNOS:
+            raise
+        print(f"gearctl {args.command}: error: cannot write {exc.filename or 'standard output'}: "
+              f"{exc.strerror or exc}", file=sys.stderr)
+        _stdout_to_devnull()  # what is still buffered would fail again at exit, as a traceback
+        return 2
     except KeyboardInterrupt:  # Ctrl-C: one line, the shell's code for SIGINT (128 + 2), no traceback
         print(f"gearctl {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _stdout_to_devnull() -> None:
+    """Point standard output at the null device, so that the interpreter's flush at exit cannot fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover
