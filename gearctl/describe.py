@@ -821,6 +821,11 @@ def run_limit_cycle(plant: Plant, controller: Controller, *, duration: float = 2
     if oversample is None:
         oversample = max(1, min(_collision_oversample(plant, controller.Ts), MAX_RECORDED_ROWS // samples))
     _check_oversample(oversample)
+    if samples > MAX_RECORDED_ROWS:  # the controller's samples alone: only a shorter run helps
+        raise InputError(f"duration = {duration:g} s at Ts = {controller.Ts:g} s would record {samples:,} controller "
+                         f"samples (about {samples * 3e-4:.0f} MB): expected at most {MAX_RECORDED_ROWS:,}, "
+                         f"{MAX_RECORDED_ROWS * controller.Ts:g} s at this sample time; lower the duration",
+                         field="duration")
     if samples * oversample > MAX_RECORDED_ROWS:
         raise InputError(f"oversample = {oversample} over {duration:g} s at Ts = {controller.Ts:g} s would record "
                          f"{samples * oversample:,} rows (about {samples * oversample * 3e-4:.0f} MB): expected at "

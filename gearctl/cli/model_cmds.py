@@ -459,7 +459,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                                         "with viscous friction only: Coulomb friction is refused by name)")
     p.add_argument("model", help="model (e.g. shing1993_servo)")
     p.add_argument("controller", help="a pid controller (e.g. pid_load: load-side feedback)")
-    p.add_argument("--duration", type=dur, default=2.0, help="simulated time [s] (default 2)")
+    p.add_argument("--duration", type=dur, default=2.0,
+                   help="simulated time [s] (default 2); 0 < value <= 100000 [s], at most 200 000 controller "
+                        "samples (200 s at 1 ms)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     return {"models": _cmd_models, "info": _cmd_info, "stiffness": _cmd_stiffness, "simulate": _cmd_simulate,
             "linearize": _cmd_linearize, "describe": _cmd_describe}
