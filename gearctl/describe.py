@@ -1076,7 +1076,18 @@ def _verdict(plant: Plant, ctrl: PID, pred: list[dict[str, Any]], sim: dict[str,
                 f"{stable['amplitude'] / b:.4f} b, but the simulation from a half-gap disturbance does not sustain "
                 f"one: a cycle that needs a hard excitation, or a false positive of the describing function"
                 + (f" ({reason})" if reason else "."))
+    lost = 2 * b / plant.rb2
+    if lost > 0 and sim["load_amplitude"] > UNSETTLED_LOST_MOTIONS * lost:  # no rattle: a loop that does not hold
+        return (f"Verdict: no backlash limit cycle, but the loop does not settle: the load swings "
+                f"{sim['load_amplitude']:.4g} rad ({sim['load_amplitude'] / lost:.3g}x the lost motion) in the "
+                f"window measured, so this PID does not hold this plant (gearctl track shows the run)"
+                + (f": {reason}" if reason else "."))
     return "Verdict: no limit cycle, predicted or simulated" + (f" ({reason})" if reason else ".")
+
+
+#: A simulated load amplitude beyond this many lost motions is no backlash rattle (the catalog's and reviewers' cycles
+#: stay below a quarter of one) but a loop that does not hold the plant: the verdict says so.
+UNSETTLED_LOST_MOTIONS = 3.0
 
 
 def _notes(plant: Plant, ctrl: PID, pred: list[dict[str, Any]], imp: list[dict[str, Any]],
