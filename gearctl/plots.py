@@ -30,10 +30,12 @@ _LABELS = {
 
 
 def save(fig: Figure, path: str | Path) -> Path:
-    """Write a figure to ``path`` (format from the suffix), creating the folder; return the path."""
+    """Write a figure to ``path`` (format from the suffix; PNG without one, under that very name: matplotlib
+    would append ``.png``, and ``--plot FILE`` said "wrote FILE" of a file it did not write), creating the folder;
+    return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
+    fig.savefig(path, dpi=120, bbox_inches="tight", format=None if path.suffix else "png")
     return path
 
 

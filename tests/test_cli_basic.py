@@ -130,6 +130,16 @@ def test_stiffness_writes_csv_and_plot(tmp_path: Path, capsys: pytest.CaptureFix
     assert png_path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_plot_without_suffix_is_written_under_its_name(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # matplotlib appends ".png" to a name without a suffix: `--plot k` wrote k.png and said "wrote k" (and
+    # `--plot /dev/full` wrote /dev/full.png, exit 0, instead of failing on the full device)
+    path = tmp_path / "k"
+    assert main(["stiffness", "shing1993", "--points", "11", "--plot", str(path)]) == 0
+    assert f"wrote {path} " in capsys.readouterr().out
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (tmp_path / "k.png").exists()
+
+
 @pytest.mark.parametrize(
     "argv",
     [
