@@ -56,3 +56,14 @@ def test_dev_full_from_the_shell() -> None:
                            timeout=120, check=False)
     assert p.returncode == 2
     assert p.stderr == b"gearctl info: error: cannot write standard output: No space left on device\n"
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (Linux)")
+def test_csv_to_a_full_stdout_names_standard_output() -> None:
+    # `--csv -` on a full disk said "cannot write -"
+    with open("/dev/full", "w") as full:
+        p = subprocess.run([*GEARCTL, "stiffness", "shing1993", "--points", "11", "--csv", "-"], stdout=full,
+                           stderr=subprocess.PIPE, timeout=120, check=False)
+    assert p.returncode == 2
+    assert p.stderr.decode().splitlines()[-1] == ("gearctl stiffness: error: cannot write standard output: "
+                                                  "No space left on device")

@@ -148,7 +148,7 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
     except OSError as exc:
         if exc.errno == errno.EPIPE:  # a closed pipe reported as a plain OSError: the same quiet end
             raise BrokenPipeError(exc.errno, exc.strerror) from None
-        raise InputError(f"cannot write {path}: {exc.strerror}") from None
+        raise InputError(f"cannot write {'standard output' if path == '-' else path}: {exc.strerror}") from None
 
 
 #: Arguments that name files a command reads, and those that name what it writes.
