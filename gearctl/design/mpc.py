@@ -331,6 +331,7 @@ from ..build import CompileError, c_compiler, compile_disabled, shared_library
 from ..controller import ReferenceLike
 from ..errors import InputError, SolverError
 from ..files import Layout, build_dataclass, spec_values
+from ..limits import MAX_OUTPUT_BYTES, available_memory
 from ..params import FrictionLaw, Sensors
 from ..plant import Plant, input_matrix, mode_matrices
 from ..units import BACKLASH, check_choice, quantity, validate_fields
@@ -1016,6 +1017,46 @@ _SMOOTHING_DEFAULT_SHARE = 0.25  # without a smoothing in the file: at most this
 _SMOOTHING_SHARE = 0.5  # smoothing may be at most this share of the mesh torque the torque limit gives the load
 
 
+def _pattern_count(n: int, n_cross: int, rigid: bool) -> int:
+    """How many condensed QPs :meth:`MPC._build_patterns` makes for horizon ``n`` (the same keys)."""
+    if rigid:
+        return 1
+    keys = {(n, n + 1)}
+    for a in range(n):
+        for e in range(a + 1, a + n_cross + 3):
+            keys.add((a, min(e, n + 1)))
+    keys.update((0, e) for e in range(1, n + 2))
+    return len(keys)
+
+
+def _pattern_bytes(n: int) -> int:
+    """Memory of one condensed QP with its solver data [bytes]: the Hessian and its factor (n x n each), the
+    parameter map K (n_p x n_p), per flank the rows A (twice: the pattern's and the solver's C-order copy) and the
+    gradient map M; n_p = 2 n + 8. (Measured on a 1:1 pair at horizon 100: 1.36 GB for 1.35 estimated.)"""
+    n_p = 2 * n + 8
+    return 8 * (2 * n * n + n_p * n_p + 4 * (n + 2) * n + 2 * (2 * n + 2) * n_p)
+
+
+def _check_pattern_memory(n: int, n_cross: int, rigid: bool, cross_steps: float) -> None:
+    """Refuse a design whose condensed QPs would not fit, before they are built: their number grows with the
+    horizon times the crossing's samples and each with the horizon squared (a 200-sample horizon at 0.1 ms took
+    24 GB and the kernel's out-of-memory kill; at 1 ms on a 1:1 pair, over 4 GB)."""
+    need = _pattern_count(n, n_cross, rigid) * _pattern_bytes(n)
+    avail = available_memory()
+    cap = MAX_OUTPUT_BYTES if avail is None else min(MAX_OUTPUT_BYTES, avail // 2)
+    if need <= cap:
+        return
+    fits = next((h for h in range(n - 1, 0, -1)
+                 if _pattern_count(h, 0 if rigid else max(2, _samples(cross_steps, h + 1)), rigid)
+                 * _pattern_bytes(h) <= cap), None)
+    why = "half the memory available" if cap < MAX_OUTPUT_BYTES else "the cap"
+    holds = fits is not None and cross_steps <= _CROSS_HORIZON_SHARE * fits
+    ask = f"a horizon of at most {fits} samples fits" if holds else "no horizon that holds a crossing fits"
+    raise InputError(f"horizon = {n} samples: the MPC's {_pattern_count(n, n_cross, rigid):,} condensed QPs would take "
+                     f"about {need / 1e9:.3g} GB, more than the {cap / 1e9:.3g} GB this run may use ({why}); {ask} "
+                     f"(or a longer sample_time, which shortens the crossing in samples)", field="horizon")
+
+
 def _samples(steps: float, cap: int) -> int:
     """``ceil(steps)``, at most ``cap`` (also for an infinite or overflowing count, e.g. a torque limit or a
     closing speed near zero)."""
@@ -1217,6 +1258,7 @@ class MPC(Controller):
         # parameter vector p = [z0 (4), tau, p_new, r_1..r_N, r'_N, uff_0..uff_{N-1}, u_prev]
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
         self.n_p = 8 + 2 * n
+        _check_pattern_memory(n, self.n_cross, self._rigid, t_cross / Ts)
         self._build_patterns()
         self._build_observer()
         self._qp = _make_qp(n, n + 2, st.solver, compiled)

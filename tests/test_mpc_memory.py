@@ -1,0 +1,43 @@
+"""An MPC design whose condensed QPs would not fit is refused before they are built (a horizon of 200 samples at
+0.1 ms, both within their ranges, took 24 GB and the kernel's out-of-memory kill on a 1:1 pair)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+import gearctl
+from gearctl.design.mpc import _pattern_bytes, _pattern_count
+
+
+def _mpc_file(tmp_path: Path, horizon: int, sample_time: float) -> Path:
+    path = tmp_path / f"mpc_h{horizon}.toml"
+    path.write_text(f'kind = "mpc"\nsample_time = {sample_time!r}\nhorizon = {horizon}\n[source]\nnotes = "test"\n')
+    return path
+
+
+def test_a_design_that_would_not_fit_is_refused_first(tmp_path: Path) -> None:
+    model = gearctl.load_model("shing1993_servo")
+    plant = gearctl.build_plant(model)
+    start = time.perf_counter()
+    with pytest.raises(gearctl.InputError) as exc:
+        gearctl.load_controller(_mpc_file(tmp_path, 200, 1e-4), plant, sensors=model.sensors)
+    assert time.perf_counter() - start < 30.0  # refused before the patterns are built (they took 17 min)
+    msg = str(exc.value)
+    assert exc.value.field == "horizon"
+    assert "mpc_h200.toml: horizon = 200 samples: the MPC's " in msg and "condensed QPs would take about " in msg
+    assert "a horizon of at most " in msg and "samples fits" in msg
+
+
+def test_the_estimate_counts_the_patterns_built(tmp_path: Path) -> None:
+    model = gearctl.load_model("shing1993_servo")
+    plant = gearctl.build_plant(model)
+    ctrl = gearctl.load_controller(_mpc_file(tmp_path, 20, 1e-3), plant, sensors=model.sensors)
+    assert len(ctrl._patterns) == _pattern_count(20, ctrl.n_cross, ctrl._rigid)
+    pat = next(iter(ctrl._patterns.values()))
+    arrays = pat.H.nbytes + pat.K.nbytes + sum(a.nbytes for a in pat.A.values()) + sum(
+        m.nbytes for m in pat.M.values())
+    # the pattern's own arrays, plus the solver's Hessian factor and C-order rows: n^2 + 2 (n + 2) n doubles
+    assert _pattern_bytes(20) == arrays + 8 * (20 * 20 + 2 * 22 * 20)
