@@ -28,31 +28,23 @@ sweep       ``gearctl.sweep.sweep`` (Monte Carlo and grids on Dask.distributed)
 export      :func:`export_controller` (C99), :func:`load_exported` (the C in the loop)
 errors      :class:`GearctlError`, :class:`InputError`, :class:`SimulationError`
 
-Modules that need python-control (which loads matplotlib) are imported on first use, so
-``import gearctl`` stays light.
+Every name above is imported on first use, so ``import gearctl`` stays light (the command line starts at once).
 """
 
-from .catalog import GearModel, load_model, model_names
 from .errors import GearctlError, InputError, SimulationError, SolverError
-from .geometry import GearPair, Geometry, pair_geometry
-from .params import ContactLaw, MeshDynamics, Sensors, Servo
-from .plant import Mode, Plant, PlantKind, build_plant
-from .stiffness import (
-    MeshStiffness,
-    ToothDeflections,
-    damping_coefficient,
-    equivalent_mass,
-    mesh_stiffness,
-    mesh_stiffness_at,
-    tooth_deflections,
-    yang_sun_damping_factor,
-    yang_sun_stiffness,
-)
-from .summary import model_summary
 
 __version__ = "0.1.0"
 
 _LAZY = {
+    "GearModel": "gearctl.catalog", "load_model": "gearctl.catalog", "model_names": "gearctl.catalog",
+    "GearPair": "gearctl.geometry", "Geometry": "gearctl.geometry", "pair_geometry": "gearctl.geometry",
+    "ContactLaw": "gearctl.params", "MeshDynamics": "gearctl.params", "Sensors": "gearctl.params",
+    "Servo": "gearctl.params",
+    "Mode": "gearctl.plant", "Plant": "gearctl.plant", "PlantKind": "gearctl.plant", "build_plant": "gearctl.plant",
+    **{name: "gearctl.stiffness" for name in ("MeshStiffness", "ToothDeflections", "damping_coefficient",
+                                              "equivalent_mass", "mesh_stiffness", "mesh_stiffness_at",
+                                              "tooth_deflections", "yang_sun_damping_factor", "yang_sun_stiffness")},
+    "model_summary": "gearctl.summary",
     "report_case": "gearctl.simulate",
     "linearize_modes": "gearctl.modes", "contact_mode_model": "gearctl.modes", "separation_model": "gearctl.modes",
     "rigid_model": "gearctl.modes", "loop_margins": "gearctl.modes",
@@ -73,15 +65,21 @@ _SUBMODULES = ("simulate", "identify", "sweep")
 
 
 def __getattr__(name: str) -> object:
-    """Import the heavier parts of the API on first use."""
-    if name in _SUBMODULES:
-        import importlib
+    """Import the API on first use (``import gearctl`` imports nothing but the errors, so that the command line
+    starts at once and a Ctrl-C while it starts is its own one line); ``gearctl.<submodule>`` imports it too."""
+    import importlib
 
+    if name in _SUBMODULES:
         return importlib.import_module(f"{__name__}.{name}")
     if name in _LAZY:
-        import importlib
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    if not name.startswith("_"):
+        import importlib.util
 
-        return getattr(importlib.import_module(_LAZY[name]), name)
+        if importlib.util.find_spec(f"{__name__}.{name}") is not None:
+            return importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module 'gearctl' has no attribute {name!r}")
 
 __all__ = [

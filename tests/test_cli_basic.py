@@ -185,3 +185,28 @@ def test_every_schema_option_states_its_range_in_the_help() -> None:
                 checked += 1
                 assert "<=" in action.help or ".." in action.help, (name, action.option_strings, action.help)
     assert checked >= 20
+
+
+def test_the_command_line_starts_without_importing_the_computation() -> None:
+    # the console script imports gearctl.cli before main() runs: it imported numpy, SciPy and every design module
+    # (0.3 s), and a Ctrl-C then was Python's traceback, exit -2. Now the package and the CLI import nothing heavy
+    import subprocess
+    import sys
+
+    code = ("import sys, gearctl, gearctl.cli\n"
+            "print(','.join(sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'scipy', 'control')\n"
+            "                     or m.startswith('gearctl.') and m not in ('gearctl.cli', 'gearctl.errors'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True).stdout
+    assert out.strip() == ""
+
+
+def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch: pytest.MonkeyPatch,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    import gearctl.cli
+
+    def interrupted() -> tuple:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(gearctl.cli, "groups", interrupted)
+    assert main(["info", "shing1993_servo"]) == 130
+    assert capsys.readouterr().err == "gearctl: interrupted\n"

@@ -16,20 +16,23 @@ import os
 import re
 import sys
 from collections.abc import Callable, Iterable, Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from .. import __version__
 from ..errors import GearctlError, InputError
-from . import common, export_cmds, identify_cmds, loop_cmds, model_cmds, sweep_cmds
-from .common import refuse_writing_over_inputs
 
 __all__ = ["main"]
 
 #: What a write to a full or failing output raises: one line on stderr, not a traceback.
 _OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO})
 
-#: The command groups, in the order ``gearctl --help`` lists them.
-GROUPS = (model_cmds, loop_cmds, sweep_cmds, identify_cmds, export_cmds)
+
+def groups() -> tuple[Any, ...]:
+    """The command groups, in the order ``gearctl --help`` lists them (imported when the command line runs, not
+    when this package is: see :func:`main`)."""
+    from . import export_cmds, identify_cmds, loop_cmds, model_cmds, sweep_cmds
+
+    return (model_cmds, loop_cmds, sweep_cmds, identify_cmds, export_cmds)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -58,7 +61,7 @@ def _parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Nam
     ap.add_argument("--version", action="version", version=f"gearctl {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
     commands: dict[str, Callable[[argparse.Namespace], int]] = {}
-    for group in GROUPS:
+    for group in groups():
         commands.update(group.register(sub))
     ap.set_defaults(_subparsers=sub.choices)
     _state_ranges(sub.choices.values())
@@ -79,7 +82,22 @@ def _state_ranges(parsers: Iterable[argparse.ArgumentParser]) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``gearctl`` command line; return the exit code (0 success, 2 bad input, 130 interrupted)."""
+    """Run the ``gearctl`` command line; return the exit code (0 success, 2 bad input, 130 interrupted).
+
+    The commands' modules (numpy, SciPy ...) are imported here, not with the package: a Ctrl-C while they load
+    (the first few tenths of a second) is one line and exit 130 too, not Python's traceback.
+    """
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print("gearctl: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    from . import common
+    from .common import refuse_writing_over_inputs
+
     parser, commands = _parser()
     try:
         args, extra = parser.parse_known_args(argv)
