@@ -472,6 +472,7 @@ def test_capped_runner_sees_a_hang_and_the_memory_cap(forked: bool, server, tmp_
     res = run([["info", "shing1993"], slow], tmp_path / "hang.jsonl", timeout=5.0)
     assert res.timed_out and res.hung == slow
     assert [r["argv"][0] for r in res.results] == ["info"] and res.results[0]["rc"] == 0
-    if not forked:  # 100 MB is too little even to import numpy
+    if not forked:  # 100 MB is too little even to import numpy: the runner dies, or the command (which imports it)
         res = run([["info", "shing1993"]], tmp_path / "mem.jsonl", timeout=60, memory=100 * 1024**2)
-        assert res.returncode != 0 and res.results == []
+        assert (res.returncode != 0 and res.results == []) or (
+            [r["rc"] for r in res.results] == [None] and "MemoryError" in res.results[0]["traceback"]), res

@@ -115,6 +115,8 @@ def serve() -> int:
     python-control and CasADi, which would otherwise dominate a fuzz run of a thousand models.
     """
     import gearctl.cli  # noqa: F401  (warm: every module a command imports lazily)
+    for group in gearctl.cli.groups():  # the commands' modules, which main imports when it runs
+        assert group.register
     import gearctl.closedloop  # noqa: F401
     import gearctl.design.registry  # noqa: F401
     import gearctl.modes  # noqa: F401
