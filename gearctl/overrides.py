@@ -1,13 +1,16 @@
 """A gear model with some of its values changed: ``gearctl track --set KEY=VALUE``, a sweep's runs.
 
 A value is either absolute (on a train, every stage's) or a :class:`Scale`, a factor of the nominal value (on a
-train, of each stage's own value: ``--set backlash=1.5x``). Below the runs and the sweeps, which both use it.
+train, of each stage's own value: ``--set backlash=1.5x``). A stage key prefixed ``stageN.`` changes stage N's
+alone (``--set stage2.backlash=3e-5``, ``--vary stage1.mesh_stiffness=0.8x:1.2x``; N from 1, the motor's stage).
+Below the runs and the sweeps, which both use it.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from collections.abc import Mapping
 from typing import Any
 
@@ -17,12 +20,31 @@ from .model import GearModel, check_model
 from .params import MeshDynamics, Sensors, Servo
 from .plant import build_plant
 
-__all__ = ["Scale", "perturb_model", "stage_values", "MODEL_CLASSES", "OWNER_FIELDS"]
+__all__ = ["Scale", "perturb_model", "stage_values", "split_stage_key", "MODEL_CLASSES", "OWNER_FIELDS"]
 
 #: The dataclasses whose fields a model key names, in the order an override looks for it.
 MODEL_CLASSES: tuple[type, ...] = (GearPair, MeshDynamics, Servo, Sensors)
 #: Each class's field names.
 OWNER_FIELDS = {cls: {f.name for f in dataclasses.fields(cls)} for cls in MODEL_CLASSES}
+
+
+#: A key of one stage: ``stage2.backlash``.
+STAGE_KEY = re.compile(r"^stage(\d+)\.(\w+)$")
+
+
+def split_stage_key(key: str) -> tuple[int | None, str]:
+    """``(stage index from 0, field)`` of a ``stageN.field`` key, ``(None, key)`` for any other; a ``stageN.`` prefix
+    on a field that is not a stage's (a gear pair's or its mesh dynamics') is refused naming the key."""
+    m = STAGE_KEY.match(key)
+    if m is None:
+        return None, key
+    n, field = int(m.group(1)), m.group(2)
+    if not (field in OWNER_FIELDS[GearPair] or field in OWNER_FIELDS[MeshDynamics]):
+        raise InputError(f"{key}: {field} is not a stage's key (a stageN. prefix takes a gear pair's or its mesh "
+                         f"dynamics' key: backlash, mesh_stiffness, damping_ratio, face_width, ...)", field=key)
+    if n < 1:
+        raise InputError(f"{key}: stages are numbered from 1 (the motor's)", field=key)
+    return n - 1, field
 
 
 class Scale(float):
@@ -48,7 +70,18 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
     """
     per: dict[type, dict[str, Any]] = {cls: {} for cls in MODEL_CLASSES}
     scaled: dict[str, float] = {}  # stage keys given as a factor of each stage's own value
+    one: dict[int, dict[str, Any]] = {}  # stageN.key: stage N's alone, after the every-stage ones
     for key, value in overrides.items():
+        i, field = split_stage_key(key)
+        if i is not None:
+            if i >= len(model.stages):
+                raise InputError(f"{key}: {model.name} has {len(model.stages)} stage"
+                                 f"{'s' if len(model.stages) > 1 else ''}: expected stage1 .. "
+                                 f"stage{len(model.stages)}", field=key)
+            if isinstance(value, Scale):
+                value = float(value) * stage_values(field, model)[i]
+            one.setdefault(i, {})[field] = value
+            continue
         owner = next((cls for cls in MODEL_CLASSES if key in OWNER_FIELDS[cls]), None)
         if owner is None:
             raise InputError(f"{key} is not a model key", field=key)
@@ -66,6 +99,7 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
     def stage_fields(cls: type, i: int) -> dict[str, Any]:
         out = dict(per[cls])
         out.update({k: f * values[k][i] for k, f in scaled.items() if k in OWNER_FIELDS[cls]})
+        out.update({k: v for k, v in one.get(i, {}).items() if k in OWNER_FIELDS[cls]})
         return out
 
     stages = []

@@ -25,7 +25,7 @@ from .design.registry import build_controller
 from .errors import GearctlError
 from .metrics import TrackingMetrics, tracking_metrics
 from .model import GearModel
-from .overrides import Scale, perturb_model
+from .overrides import Scale, perturb_model, split_stage_key
 from .params import Sensors
 from .plant import Plant, build_plant
 from .references import DEFAULT_DURATION, Reference, reference
@@ -168,9 +168,9 @@ def controller_spec(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
 def true_model(name: str | Path, model: GearModel, overrides: Mapping[str, Any]) -> GearModel:
     """The model ``name`` (already loaded as ``model``) with ``overrides`` (``--set``): read from the file again, or,
     where a value is a factor of the nominal one (:class:`~gearctl.overrides.Scale`, ``--set backlash=1.5x``), each
-    stage's own value scaled."""
-    if any(isinstance(v, Scale) for v in overrides.values()):
-        return perturb_model(model, overrides)
+    stage's own value scaled, and a key of one stage (``--set stage2.backlash=3e-5``) that stage's alone."""
+    if any(isinstance(v, Scale) or split_stage_key(k)[0] is not None for k, v in overrides.items()):
+        return perturb_model(model, overrides)  # a factor, or one stage's value: from the loaded model
     return load_model(name, **overrides)
 
 

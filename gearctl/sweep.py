@@ -68,7 +68,7 @@ from .catalog import load_model
 from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
 from .model import GearModel
-from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, stage_values
+from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, split_stage_key, stage_values
 from .overrides import perturb_model as _perturb
 from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, completed, default_workers, local_cluster
 from .plant import PlantKind, build_plant
@@ -124,7 +124,26 @@ def sweep_keys() -> dict[str, dict[str, Any]]:
     return out
 
 
-_KEYS = sweep_keys()
+class _Keys(dict):
+    """:func:`sweep_keys`, which also knows a key of one stage (``stage2.backlash``: its field's metadata, with
+    ``stage``, the index from 0)."""
+
+    def __missing__(self, key: str) -> dict[str, Any]:
+        i, field = split_stage_key(key)
+        if i is None or field not in self:
+            raise KeyError(key)
+        return {**self[field], "stage": i}
+
+    def __contains__(self, key: object) -> bool:
+        if dict.__contains__(self, key):
+            return True
+        if not isinstance(key, str):
+            return False
+        i, field = split_stage_key(key)
+        return i is not None and dict.__contains__(self, field)
+
+
+_KEYS = _Keys(sweep_keys())
 
 
 def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:
@@ -146,7 +165,8 @@ def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:
     hint = f"; did you mean {close[0]!r}?" if close else ""
     also = ", estimate or estimate_error" if sweep else ""
     raise InputError(f"unknown {what} {key!r}: expected a model key (backlash, mesh_stiffness, "
-                     f"coulomb_friction2, load_inertia, load_noise, ...){also}{hint}", field=key)
+                     f"coulomb_friction2, load_inertia, load_noise, ...; one stage's: stage2.backlash){also}{hint}",
+                     field=key)
 
 
 def parse_set(text: str) -> tuple[str, float | int]:
@@ -188,7 +208,8 @@ def parse_set(text: str) -> tuple[str, float | int]:
 def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel:
     """:func:`gearctl.overrides.perturb_model`, an unknown key named as the sweep's keys are (with a hint)."""
     for key in overrides:
-        if not any(key in OWNER_FIELDS[cls] for cls in MODEL_CLASSES):
+        field = split_stage_key(key)[1]
+        if not any(field in OWNER_FIELDS[cls] for cls in MODEL_CLASSES):
             _key_meta(key)  # raises the unknown-key message
     return _perturb(model, overrides)
 
@@ -204,6 +225,12 @@ def _nominal(key: str, model: GearModel, spec: Mapping[str, Any]) -> float | Non
     if meta["owner"] in ("Servo", "Sensors"):
         v = getattr(model.servo if meta["owner"] == "Servo" else model.sensors, key)
         return None if v is None or not math.isfinite(v) else float(v)
+    i, field = split_stage_key(key)
+    if i is not None:  # one stage's own value
+        if i >= model.n_stages:
+            raise InputError(f"{key}: {model.name} has {model.n_stages} stage{'s' if model.n_stages > 1 else ''}: "
+                             f"expected stage1 .. stage{model.n_stages}", field=key)
+        return stage_values(field, model)[i]
     vals = stage_values(key, model)
     if len(set(vals)) > 1:
         raise _DifferingStages(f"{key} differs between the stages of {model.name} "

@@ -1,0 +1,60 @@
+"""One stage's value on a train: ``--set stage2.backlash=3e-5``, ``--vary stage1.mesh_stiffness=0.8x:1.2x`` (an outside
+user could change a key on every stage only: ``stage2.backlash`` was refused as an unknown key)."""
+
+from __future__ import annotations
+
+import pytest
+
+from gearctl import InputError, build_plant, load_model
+from gearctl.cli import main
+from gearctl.overrides import Scale, perturb_model
+from gearctl.sweep import parse_set, sweep
+
+TWO = "servo_2stage_phm09"
+
+
+def test_a_stage_key_changes_that_stage_alone() -> None:
+    m = load_model(TWO)
+    b1, b2 = (s.pair.backlash for s in m.stages)
+    one = perturb_model(m, {"stage2.backlash": 1e-6})
+    assert [s.pair.backlash for s in one.stages] == [b1, 1e-6]
+    half = perturb_model(m, {"stage1.backlash": Scale(0.5)})
+    assert [s.pair.backlash for s in half.stages] == [0.5 * b1, b2]
+    # every stage's first, then the one stage's
+    both = perturb_model(m, {"stage2.backlash": 1e-6, "backlash": 3e-5})
+    assert [s.pair.backlash for s in both.stages] == [3e-5, 1e-6]
+    k = build_plant(m).stages[0].k
+    stiff = perturb_model(m, {"stage1.mesh_stiffness": Scale(2.0)})
+    assert build_plant(stiff).stages[0].k == pytest.approx(2.0 * k, rel=1e-12)
+    assert build_plant(stiff).stages[1].k == build_plant(m).stages[1].k
+
+
+@pytest.mark.parametrize(("text", "fragment"), [
+    ("stage0.backlash=1e-6", "stages are numbered from 1"),
+    ("stage1.load_inertia=1", "load_inertia is not a stage's key"),
+    ("stage2.backlash=-1", r"stage2.backlash = -1.0 is out of range"),
+])
+def test_a_bad_stage_key_is_named(text: str, fragment: str) -> None:
+    with pytest.raises(InputError, match=fragment):
+        parse_set(text)
+
+
+def test_a_stage_beyond_the_train_is_refused_with_the_count(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["track", TWO, "pid", "--duration", "0.1", "--set", "stage3.backlash=1e-6"]) == 2
+    assert "stage3.backlash: servo_2stage_phm09 has 2 stages: expected stage1 .. stage2" in capsys.readouterr().err
+    assert main(["track", "shing1993_servo", "pid", "--duration", "0.1", "--set", "stage2.backlash=1e-6"]) == 2
+    assert "has 1 stage: expected stage1 .. stage1" in capsys.readouterr().err
+
+
+def test_track_and_a_sweep_on_one_stage(capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    assert main(["track", TWO, "pid", "--duration", "0.2", "--set", "stage2.backlash=1e-6", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["backlash"] == [load_model(TWO).stages[0].pair.backlash, 1e-6]
+    sw = sweep(TWO, "pid", vary=["stage2.backlash=0.5x:2x"], runs=3, duration=0.2, engine="serial")
+    b2 = load_model(TWO).stages[1].pair.backlash
+    vals = [r["params"]["stage2.backlash"] for r in sw.runs]
+    assert all(0.5 * b2 <= v <= 2.0 * b2 for v in vals) and len(set(vals)) == 3
+    # each run's command rebuilds its plant
+    assert all(f"--set stage2.backlash={v!r}" in r["command"] for v, r in zip(vals, sw.runs, strict=True))
