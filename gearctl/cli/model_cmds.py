@@ -33,6 +33,11 @@ from .common import (
 __all__ = ["register"]
 
 
+
+def _duration_text(t: float) -> str:
+    """A duration as a person reads it: ms below a second (the free case's 20 ms), s above (not "1e+08 ms")."""
+    return f"{t * 1e3:.4g} ms" if t < 1.0 else f"{t:.6g} s"
+
 def _cmd_models(args: argparse.Namespace) -> int:
     rows, extra = [], []
     for name in model_names():
@@ -272,7 +277,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         print(dump_json(summary))
         return 0
     f = summary["final"]
-    print(f"{model.name} ({plant.kind.value} plant, {args.case} case, {summary['duration'] * 1e3:.4g} ms, "
+    print(f"{model.name} ({plant.kind.value} plant, {args.case} case, {_duration_text(summary['duration'])}, "
           f"{res.solver} solver, {summary['rows']} rows every {summary['output_interval']:.3g} s)")
     if plant.n_stages == 1:
         counts = summary["impacts"]
