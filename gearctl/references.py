@@ -184,4 +184,13 @@ def reference(kind: str, **kwargs: float | str) -> Reference:
     if kind not in defaults:
         raise InputError(f"reference = {kind!r} is not a reference: expected one of {', '.join(REFERENCES)}",
                          field="reference")
+    keys = [f.name for f in dataclasses.fields(Reference) if f.name != "kind"]
+    for key in kwargs:
+        if key not in keys:
+            import difflib
+
+            close = difflib.get_close_matches(key, keys, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise InputError(f"{key} is not a setting of a reference: expected one of {', '.join(keys)}{hint}",
+                             field=key)
     return Reference(kind=kind, **{**defaults[kind], **kwargs})  # type: ignore[arg-type]
