@@ -228,6 +228,15 @@ def simulate_closed_loop(
     SimulationError
         If the loop diverges or the plant state becomes NaN; ``error.result`` holds the run so far.
     """
+    if not all(hasattr(ref, a) for a in ("at", "load_disturbance")):
+        raise InputError(f"ref = {ref!r} is not a reference: expected a gearctl.reference(...) "
+                         "(sine, step, ramp or move)", field="ref")
+    if not all(hasattr(controller, a) for a in ("Ts", "reset", "step")):
+        raise InputError(f"controller = {controller!r} is not a controller: expected a "
+                         "gearctl.load_controller(...) or gearctl.load_exported(...)", field="controller")
+    if sensors is not None and not isinstance(sensors, Sensors):
+        raise InputError(f"sensors = {sensors!r} is not a Sensors: expected the model's (model.sensors) or None "
+                         "(ideal encoders)", field="sensors")
     Ts = controller.Ts
     n = loop_samples(plant, controller, duration, seed)
     sensors = sensors or Sensors()

@@ -21,3 +21,20 @@ def test_reference_unknown_setting_is_named() -> None:
         gearctl.reference("sine", amplitud=0.1)
     assert err.value.field == "amplitud"
     assert gearctl.reference("move", amplitude=0.3, profile="trapezoid").amplitude == 0.3
+
+
+@pytest.mark.parametrize("ref", ["sine", lambda t: 0.1, None])
+def test_closed_loop_refuses_a_non_reference(servo, ref) -> None:  # noqa: ANN001
+    _, plant, ctrl = servo
+    with pytest.raises(InputError, match=r"^ref = .* is not a reference") as err:
+        gearctl.simulate_closed_loop(plant, ctrl, ref, 0.05)
+    assert err.value.field == "ref"
+
+
+def test_closed_loop_refuses_a_non_controller_and_bad_sensors(servo) -> None:  # noqa: ANN001
+    _, plant, _ = servo
+    with pytest.raises(InputError, match=r"^controller = None is not a controller"):
+        gearctl.simulate_closed_loop(plant, None, gearctl.reference("sine"), 0.05)
+    _, plant, ctrl = servo
+    with pytest.raises(InputError, match=r"^sensors = 'ideal' is not a Sensors"):
+        gearctl.simulate_closed_loop(plant, ctrl, gearctl.reference("sine"), 0.05, sensors="ideal")
