@@ -80,6 +80,11 @@ def mode_model(plant: Plant, loaded: list[bool] | tuple[bool, ...], *, name: str
         (the ``+-k b`` offset of the contact law only shifts the operating point).
     """
     loaded = list(loaded)
+    if len(loaded) != plant.n_stages:
+        from .errors import InputError
+
+        raise InputError(f"loaded = {loaded!r} has {len(loaded)} entries: expected one per stage ({plant.n_stages})",
+                         field="loaded")
     states, inputs = signal_names(plant)
     C, D = _outputs(plant, loaded)
     return ct.ss(mode_matrices(plant, loaded), input_matrix(plant), C, D, states=states, inputs=inputs,
@@ -387,6 +392,14 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
     a many-state mode model (a train's eight) multiplies out into a badly conditioned transfer function whose
     low-frequency response is wrong (a lower gain margin of -64.7 dB for 22.3 on ``servo_3stage_quanser_srv02``).
     """
+    from .errors import InputError
+
+    if not isinstance(loop, ct.LTI):
+        raise InputError(f"loop = {loop!r} is not a python-control LTI system: expected the open loop, e.g. "
+                         "ct.ss(C) * G", field="loop")
+    if (loop.ninputs, loop.noutputs) != (1, 1):
+        raise InputError(f"loop has {loop.ninputs} inputs and {loop.noutputs} outputs: expected a SISO open loop "
+                         "(one input, one output), e.g. ct.ss(C) * G[0, 0]", field="loop")
     if omega is None:
         wmax = math.pi / loop.dt if loop.dt else 1e6
         omega = np.logspace(-2, np.log10(wmax * 0.999), 20000)

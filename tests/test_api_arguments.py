@@ -38,3 +38,22 @@ def test_closed_loop_refuses_a_non_controller_and_bad_sensors(servo) -> None:  #
     _, plant, ctrl = servo
     with pytest.raises(InputError, match=r"^sensors = 'ideal' is not a Sensors"):
         gearctl.simulate_closed_loop(plant, ctrl, gearctl.reference("sine"), 0.05, sensors="ideal")
+
+
+def test_loop_margins_refuses_a_mimo_model(servo) -> None:  # noqa: ANN001
+    _, plant, _ = servo
+    contact = gearctl.linearize_modes(plant).contact
+    with pytest.raises(InputError, match=r"loop has 2 inputs and 4 outputs: expected a SISO open loop") as err:
+        gearctl.loop_margins(contact)
+    assert err.value.field == "loop"
+    with pytest.raises(InputError, match=r"not a python-control LTI system"):
+        gearctl.loop_margins([1.0, 2.0])
+
+
+def test_mode_model_needs_one_entry_per_stage(servo) -> None:  # noqa: ANN001
+    from gearctl.modes import mode_model
+
+    _, plant, _ = servo
+    with pytest.raises(InputError, match=r"loaded = \[True, False\] has 2 entries: expected one per stage \(1\)"):
+        mode_model(plant, [True, False])
+    assert mode_model(plant, [False]).nstates == 4
