@@ -261,6 +261,14 @@ def simulate(
     dt = default_output_interval(duration) if dt is None else dt
     if not (dt > 0 and math.isfinite(dt)):
         raise InputError(f"dt = {dt!r} is out of range: expected a number > 0 [s]", field="dt")
+    if not callable(torque):
+        try:
+            pair = [float(v) for v in torque]  # type: ignore[union-attr]
+        except (TypeError, ValueError):
+            pair = []
+        if len(pair) != 2 or not all(math.isfinite(v) for v in pair):
+            raise InputError(f"torque = {torque!r} is not a torque: expected (xi_motor, xi_load), two finite "
+                             "numbers [N m], or a function f(t, x) -> (xi_motor, xi_load)", field="torque")
     n = int(math.ceil(duration / dt - 1e-9))
     nx, ns = plant.nx, plant.n_stages
     check_output_size(n + 1, 3 * nx + 3 * ns + 4, field="dt", fix="a larger output interval --dt")

@@ -57,3 +57,14 @@ def test_mode_model_needs_one_entry_per_stage(servo) -> None:  # noqa: ANN001
     with pytest.raises(InputError, match=r"loaded = \[True, False\] has 2 entries: expected one per stage \(1\)"):
         mode_model(plant, [True, False])
     assert mode_model(plant, [False]).nstates == 4
+
+
+@pytest.mark.parametrize("torque", [1.0, (1.0, 2.0, 3.0), ("a", 0.0), (float("nan"), 0.0)])
+def test_simulate_refuses_a_torque_that_is_no_pair(servo, torque) -> None:  # noqa: ANN001
+    from gearctl.simulate import simulate
+
+    _, plant, _ = servo
+    with pytest.raises(InputError, match=r"^torque = .* is not a torque: expected \(xi_motor, xi_load\)") as err:
+        simulate(plant, [0, 0, 0, 0], 0.01, torque=torque)
+    assert err.value.field == "torque"
+    assert simulate(plant, [0, 0, 0, 0], 0.01, torque=[0.1, 0]).success
