@@ -68,3 +68,13 @@ def test_simulate_refuses_a_torque_that_is_no_pair(servo, torque) -> None:  # no
         simulate(plant, [0, 0, 0, 0], 0.01, torque=torque)
     assert err.value.field == "torque"
     assert simulate(plant, [0, 0, 0, 0], 0.01, torque=[0.1, 0]).success
+
+
+@pytest.mark.parametrize("obj", [None, "pid", object()])
+def test_export_refuses_a_non_controller(obj, tmp_path) -> None:  # noqa: ANN001
+    from gearctl.export import export_controller
+
+    with pytest.raises(InputError, match=r"cannot be exported: expected one of gearctl's controller kinds") as err:
+        export_controller(obj, tmp_path / "out")
+    assert err.value.field == "controller"
+    assert not (tmp_path / "out").exists()

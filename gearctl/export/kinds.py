@@ -208,6 +208,8 @@ def kind_spec(controller: Controller) -> KindSpec:
         For a controller that is not one of gearctl's catalog kinds.
     """
     c = controller
+    if type(c) not in (PID, ReversalOffset, DeadzoneInverse, AdaptiveInverse, MPC):  # before reading its attributes
+        raise _not_exportable(c)
     common = {"Ts": float(c.Ts), "preview": int(c.preview), "uses_load_encoder": bool(c.uses_load_encoder),
               "describe": c.describe(), "name": str(c.name)}
     # exact types: a subclass may change what a method does, which the C would not know
@@ -245,8 +247,13 @@ def kind_spec(controller: Controller) -> KindSpec:
         vals, dims = mpc_values(c)
         return KindSpec(kind="mpc", prefix="mpc", values=vals, dims=dims, ratio=float(vals["ratio"]),
                         torque_limit=float(vals["umax"]), **common)
-    raise InputError(f"controller {getattr(c, 'name', c)!r} ({type(c).__name__}) cannot be exported: expected one of "
-                     f"gearctl's controller kinds ({', '.join(KINDS)})", field="controller")
+    raise _not_exportable(c)
+
+
+def _not_exportable(c: Any) -> InputError:
+    """The error for an object that is none of gearctl's exportable controller kinds."""
+    return InputError(f"controller {getattr(c, 'name', c)!r} ({type(c).__name__}) cannot be exported: expected one of "
+                      f"gearctl's controller kinds ({', '.join(KINDS)})", field="controller")
 
 
 def source_text(name: str) -> str:
