@@ -23,7 +23,7 @@ from .errors import InputError
 from .params import Sensors
 from .plant import Plant
 from .references import move_point, move_times
-from .units import DURATION
+from .units import DURATION, SEED
 
 __all__ = ["MotionProgram", "PrecisionResult", "iso230_statistics", "precision_test"]
 
@@ -225,10 +225,12 @@ def precision_test(
     230-2 asks (so periodic errors are not sampled in phase). The measurement is the true load angle at
     the end of each dwell.
     """
-    if not (2 <= targets <= 50):
-        raise InputError(f"targets = {targets!r} is out of range: expected a whole number in [2, 50]", field="targets")
-    if not (1 <= cycles <= 50):
-        raise InputError(f"cycles = {cycles!r} is out of range: expected a whole number in [1, 50]", field="cycles")
+    for name, v, low in (("targets", targets, 2), ("cycles", cycles, 1)):
+        is_int = isinstance(v, int | np.integer) and not isinstance(v, bool)
+        if not (is_int and low <= v <= 50):
+            rule = "is out of range" if is_int else "is not a whole number"
+            raise InputError(f"{name} = {v!r} {rule}: expected a whole number in [{low}, 50]", field=name)
+    SEED.check("seed", seed)
     for name, v in (("travel", travel), ("dwell", dwell), ("velocity", velocity), ("accel", accel),
                     ("overshoot", overshoot)):
         if not (v > 0 and math.isfinite(v)):

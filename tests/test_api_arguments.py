@@ -78,3 +78,16 @@ def test_export_refuses_a_non_controller(obj, tmp_path) -> None:  # noqa: ANN001
         export_controller(obj, tmp_path / "out")
     assert err.value.field == "controller"
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"cycles": 2.5}, r"^cycles = 2.5 is not a whole number: expected a whole number in \[1, 50\]"),
+    ({"targets": True}, r"^targets = True is not a whole number"),
+    ({"targets": 1}, r"^targets = 1 is out of range: expected a whole number in \[2, 50\]"),
+    ({"seed": -1}, r"^seed = -1 is out of range"),
+    ({"seed": 1.5}, r"^seed = 1.5 is not a whole number"),
+])
+def test_precision_test_checks_counts_and_seed(servo, kwargs, message) -> None:  # noqa: ANN001
+    _, plant, ctrl = servo
+    with pytest.raises(InputError, match=message):
+        gearctl.precision_test(plant, ctrl, **kwargs)
