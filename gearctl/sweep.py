@@ -604,7 +604,8 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     points = runs if runs is not None else (5 if grid else 100)
     (GRID_POINTS if grid else SWEEP_RUNS).check("runs", points)
     points = int(points)
-    texts = [f"{k}={v}" for k, v in vary.items()] if isinstance(vary, Mapping) else list(vary)
+    texts = ([f"{k}={v}" for k, v in vary.items()] if isinstance(vary, Mapping)
+             else [vary] if isinstance(vary, str) else list(vary))  # one "KEY=SPEC" string is one key
     nominal_model = load_model(model)
     spec, label = controller_spec(controller)
     varies = tuple(_parse_vary_on(t, nominal_model, spec) for t in texts)
@@ -1115,8 +1116,8 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
     ----------
     model, controller : str or Path
         Catalog names or TOML paths.
-    vary : sequence of str or mapping
-        ``"KEY=SPEC"`` strings or ``{key: spec}`` (module docstring). No key: every run is the nominal
+    vary : str, sequence of str or mapping
+        ``"KEY=SPEC"`` strings (one string: one key) or ``{key: spec}`` (module docstring). No key: every run is the nominal
         plant with its own sensor-noise seed.
     runs : int, optional
         Monte Carlo runs (default 100), or with ``grid`` the points per key (default 5).

@@ -91,3 +91,12 @@ def test_precision_test_checks_counts_and_seed(servo, kwargs, message) -> None: 
     _, plant, ctrl = servo
     with pytest.raises(InputError, match=message):
         gearctl.precision_test(plant, ctrl, **kwargs)
+
+
+def test_sweep_takes_one_vary_string_as_one_key() -> None:
+    from gearctl.sweep import sweep
+
+    one = sweep("shing1993_servo", "pid", vary="backlash=0.5x:2x", runs=2, engine="serial", duration=0.2)
+    listed = sweep("shing1993_servo", "pid", vary=["backlash=0.5x:2x"], runs=2, engine="serial", duration=0.2)
+    assert [r["params"] for r in one.runs] == [r["params"] for r in listed.runs]
+    assert [r["rms_error"] for r in one.runs] == [r["rms_error"] for r in listed.runs]
