@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -694,6 +695,9 @@ def build_plant(
             f"plant = {kind!r} is not a plant: expected one of {', '.join(p.value for p in PlantKind)}",
             field="plant",
         ) from None
+    if not (hasattr(model, "servo") and hasattr(model, "stages")):
+        hint = f": load it first, gearctl.load_model({str(model)!r})" if isinstance(model, str | os.PathLike) else ""
+        raise InputError(f"model = {model!r} is not a gear model{hint}", field="model")
     servo = model.servo
     n = len(model.stages)
     geos = [pair_geometry(sm.pair) for sm in model.stages]

@@ -100,3 +100,14 @@ def test_sweep_takes_one_vary_string_as_one_key() -> None:
     listed = sweep("shing1993_servo", "pid", vary=["backlash=0.5x:2x"], runs=2, engine="serial", duration=0.2)
     assert [r["params"] for r in one.runs] == [r["params"] for r in listed.runs]
     assert [r["rms_error"] for r in one.runs] == [r["rms_error"] for r in listed.runs]
+
+
+def test_build_plant_and_load_controller_name_what_they_need(servo) -> None:  # noqa: ANN001
+    with pytest.raises(InputError, match=r"model = 'shing1993_servo' is not a gear model: load it first, "
+                                         r"gearctl.load_model\('shing1993_servo'\)"):
+        gearctl.build_plant("shing1993_servo")
+    with pytest.raises(InputError, match=r"^plant = None is not a Plant"):
+        gearctl.load_controller("pid", None)
+    model, _, _ = servo
+    with pytest.raises(InputError, match=r"^plant = .* is not a Plant"):
+        gearctl.load_controller("pid", model)
