@@ -271,8 +271,8 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
     res : ClosedLoopResult
         The run.
     settle : float, optional
-        Time [s] excluded at the start from the RMS and max error (start-up transient); default the
-        reference's ``settle``; none where the run is shorter than 1.1 times it (:func:`scored_from`).
+        Time [s] excluded at the start from the RMS and max error (start-up transient), 0 up to the run's end;
+        default the reference's ``settle``; none where the run is shorter than 1.1 times it (:func:`scored_from`).
 
     Returns
     -------
@@ -285,6 +285,12 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         optimisation, ``torque_rms`` [N m], ``saturated_fraction`` (samples at the torque limit),
         ``duration`` [s], ``wall_time`` [s], ``health`` (:func:`loop_health`).
     """
+    end = float(res.t[-1]) if res.t.size else 0.0
+    if settle is not None and not (isinstance(settle, int | float | np.floating) and 0.0 <= settle <= end):
+        from .errors import InputError
+
+        raise InputError(f"settle = {settle!r} is out of range: expected 0 <= value <= {end:g} [s] (the run's end: "
+                         "past it nothing would be scored)", field="settle")
     e = res.error
     keep = res.t >= scored_from(res, settle)
     ek = e[keep] if np.any(keep) else e

@@ -111,3 +111,14 @@ def test_build_plant_and_load_controller_name_what_they_need(servo) -> None:  # 
     model, _, _ = servo
     with pytest.raises(InputError, match=r"^plant = .* is not a Plant"):
         gearctl.load_controller("pid", model)
+
+
+@pytest.mark.parametrize("settle", [-1.0, 5.0, float("nan"), "0.1"])
+def test_tracking_metrics_refuses_a_settle_time_outside_the_run(servo, settle) -> None:  # noqa: ANN001
+    _, plant, ctrl = servo
+    run = gearctl.simulate_closed_loop(plant, ctrl, gearctl.reference("sine"), 0.7)
+    with pytest.raises(InputError, match=r"^settle = .* is out of range: expected 0 <= value <= 0.7 \[s\]") as err:
+        gearctl.tracking_metrics(run, settle=settle)
+    assert err.value.field == "settle"
+    whole = gearctl.tracking_metrics(run, settle=0.0).rms_error
+    assert gearctl.tracking_metrics(run, settle=0.6).rms_error != whole
