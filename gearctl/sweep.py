@@ -1117,8 +1117,8 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
     model, controller : str or Path
         Catalog names or TOML paths.
     vary : str, sequence of str or mapping
-        ``"KEY=SPEC"`` strings (one string: one key) or ``{key: spec}`` (module docstring). No key: every run is the nominal
-        plant with its own sensor-noise seed.
+        ``"KEY=SPEC"`` strings (one string: one key) or ``{key: spec}`` (module docstring). No key: every run is
+        the nominal plant with its own sensor-noise seed.
     runs : int, optional
         Monte Carlo runs (default 100), or with ``grid`` the points per key (default 5).
     grid : bool
