@@ -298,8 +298,9 @@ class ContactModes:
     plant : Plant
         The plant they come from.
     resonances_hz : tuple of float
-        Undamped natural frequencies of every oscillatory mode with all stages in contact [Hz] (one per
-        stage: the train's resonances), lowest first.
+        Natural frequencies of every oscillatory mode with all stages in contact [Hz], ``|p| / 2 pi`` of each pole
+        pair of the damped model (as ``control.damp`` gives them; within a few 1e-6 of the undamped eigenfrequencies
+        at the catalog's mesh damping), one per stage: the train's resonances, lowest first.
     stage_separated : tuple of control.StateSpace or None
         For a train, the model with stage ``i`` separated and the others in contact (empty for a pair); None
         for a stage without backlash, which cannot separate.
