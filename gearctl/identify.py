@@ -1639,9 +1639,12 @@ def _check_log(lg: EncoderLog) -> None:
         raise InputError(f"{lg.name}: column t: its period {Ts:.6g} s differs from sample_time = "
                          f"{lg.sample_time:.6g} s by more than {PERIOD_TOLERANCE:.0%}: expected t [s] sampled at "
                          f"sample_time", field="t")
-    dev = _grid_deviation(t, lg.sample_time)
+    # the grid of the stamps' own period, as read_log takes it from a file: a sample_time within PERIOD_TOLERANCE of
+    # the stamps' period (a drive's nominal period, stamped by a clock some ppm off) is no grid error; on the grid of
+    # sample_time itself such a clock drifted a quarter period off within a few thousand samples and was refused
+    dev = _grid_deviation(t, Ts)
     k = int(np.argmax(np.abs(dev)))
-    if abs(dev[k]) > JITTER_TOLERANCE * lg.sample_time:
+    if abs(dev[k]) > JITTER_TOLERANCE * Ts:
         off = np.flatnonzero(np.abs(np.diff(t) - lg.sample_time) > JITTER_TOLERANCE * lg.sample_time)
         if off.size:  # a sample missing or doubled: named where it is, not where the grid ends up furthest
             k = int(off[0]) + 1
@@ -1650,7 +1653,8 @@ def _check_log(lg: EncoderLog) -> None:
                              f"{lg.sample_time:.6g} s: expected samples at a fixed period (each interval within "
                              f"{JITTER_TOLERANCE:.0%} of it)", field="t")
         raise InputError(f"{lg.name}: column t: sample {k} (t = {float(t[k]):.10g}) is {abs(dev[k]):.3g} s off the "
-                         f"grid of sample_time = {lg.sample_time:.6g} s: expected samples at a fixed period (time "
+                         f"grid of sample_time = {lg.sample_time:.6g} s (at the stamps' own period, {Ts:.9g} s): expected "
+                         f"samples at a fixed period (time "
                          f"stamps within {JITTER_TOLERANCE:.0%} of it)", field="t")
 
 
