@@ -1692,9 +1692,17 @@ def _check_readings(lg: EncoderLog) -> None:
                              f"or cut the log there",
                              field=col)
         # a single-turn encoder wrapping round: a step of whole revolutions that stays (named as a dead or swapped
-        # load encoder before, under theta2 also when theta1 wrapped)
+        # load encoder before, under theta2 also when theta1 wrapped). Its step is whole revolutions plus the sample's
+        # own motion: the steps' scale is taken with whole revolutions removed, since a turning motor's wraps, over 1 %
+        # of the samples, made the 99th percentile of the raw steps a revolution (and a wrap no larger than 20 x it),
+        # and a wrap is whole revolutions within the motion of a sample (0.2 rad at 100 rad/s and 500 Hz: 3 % of one)
         rev = np.abs(d) / (2.0 * math.pi)
-        wrap = np.flatnonzero((np.abs(d) > max(thr, math.pi)) & (np.abs(rev - np.round(rev)) < 0.02))
+        rest = np.abs(d - 2.0 * math.pi * np.round(d / (2.0 * math.pi)))
+        step = float(np.percentile(rest, 99.0))
+        near = max(0.02 * 2.0 * math.pi, min(2.0 * step, 0.25 * math.pi))
+        # (steps that are no angle's, e.g. a log in encoder counts, leave no whole revolutions to see: not a wrap)
+        wrap = np.flatnonzero((np.abs(d) > max(SPIKE_FACTOR * step, math.pi)) & (rest <= near)) \
+            if step <= 0.125 * math.pi else np.zeros(0, dtype=int)
         if wrap.size:
             k = int(wrap[0]) + 1
             raise InputError(f"{lg.name}: column {col}: sample {k} (t = {float(lg.t[k]):.6g} s) jumps "
