@@ -163,10 +163,15 @@ def _sigint_held() -> Iterator[Callable[[], bool]]:
       is up.
 
     Multiprocessing's resource tracker is launched first: launched by the IO loop, it unblocks SIGINT in that
-    thread. Only from the main thread (where Python handles signals) and where the platform has signal masks;
-    elsewhere a no-op.
+    thread. Only from the main thread (where Python handles signals), where the platform has signal masks and where
+    SIGINT is not ignored; elsewhere a no-op.
     """
     if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield lambda: False
+        return
+    if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, None):
+        # SIGINT ignored (a background job of a script, nohup-like launchers): a Ctrl-C must stay without effect, not
+        # end the command once the cluster is up; None, a handler set outside Python, could not be restored
         yield lambda: False
         return
     from multiprocessing import resource_tracker

@@ -714,6 +714,25 @@ def test_ctrl_c_while_the_local_cluster_starts_is_held_then_raised(tmp_path: Pat
     assert "Traceback" not in proc.stderr and "KeyboardInterrupt" not in proc.stderr, proc.stderr
 
 
+def test_an_ignored_sigint_stays_ignored_while_the_cluster_starts() -> None:
+    # a command whose SIGINT is ignored (a background job of a script: the shell sets SIG_IGN) must not be ended by a
+    # Ctrl-C sent to the group while its cluster starts: _sigint_held installed its own handler over SIG_IGN and the
+    # cluster then raised KeyboardInterrupt (exit 130)
+    import os
+    import signal
+
+    from gearctl.parallel import _sigint_held
+
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with _sigint_held() as interrupted:
+            os.kill(os.getpid(), signal.SIGINT)
+        assert not interrupted()
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def test_ctrl_c_is_one_line_and_the_sigint_code(monkeypatch: pytest.MonkeyPatch) -> None:
     import gearctl.sweep
 
