@@ -18,7 +18,20 @@ MAX_OUTPUT_BYTES = 4 * 1024**3
 
 
 def available_memory() -> int | None:
-    """Bytes of memory available to this process now (None where the platform does not say)."""
+    """Bytes of memory available to this process now (None where the platform does not say).
+
+    On Linux the kernel's estimate ``MemAvailable`` (free memory plus the page cache and reclaimable memory it can
+    give back): ``SC_AVPHYS_PAGES`` is the free memory alone, a few hundred MB on a machine that has read files for a
+    while with gigabytes reclaimable, and refused designs and outputs that fit (half of it is the MPC's cap).
+    """
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    value, unit = line.split()[1:3]
+                    return int(value) * (1024 if unit == "kB" else 1)
+    except (OSError, ValueError, IndexError):
+        pass
     try:
         return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
     except (AttributeError, ValueError, OSError):

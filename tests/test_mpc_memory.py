@@ -41,3 +41,23 @@ def test_the_estimate_counts_the_patterns_built(tmp_path: Path) -> None:
         m.nbytes for m in pat.M.values())
     # the pattern's own arrays, plus the solver's Hessian factor and C-order rows: n^2 + 2 (n + 2) n doubles
     assert _pattern_bytes(20) == arrays + 8 * (20 * 20 + 2 * 22 * 20)
+
+
+def test_available_memory_counts_what_the_kernel_can_reclaim() -> None:
+    # SC_AVPHYS_PAGES is the free memory alone (MemFree): with gigabytes in the page cache it was a few hundred MB, and
+    # the MPC's cap (half of it) refused designs that fit. On Linux the figure is the kernel's MemAvailable
+    import os
+
+    from gearctl.limits import available_memory
+
+    meminfo = Path("/proc/meminfo")
+    if not meminfo.exists():
+        pytest.skip("no /proc/meminfo")
+    fields = dict(line.split(":", 1) for line in meminfo.read_text().splitlines() if ":" in line)
+    if "MemAvailable" not in fields:
+        pytest.skip("no MemAvailable")
+    want = int(fields["MemAvailable"].split()[0]) * 1024
+    got = available_memory()
+    assert got is not None and abs(got - want) < 256 * 1024**2, (got, want)
+    free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    assert got >= free - 256 * 1024**2
