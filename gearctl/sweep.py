@@ -653,7 +653,8 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
                                   for k in model_keys)
                 raise InputError(f"run {i} ({shown}): {exc}", field=exc.field, rule=exc.rule) from None
         if "estimate_error" in params and b_nominal is not None:  # a pair: the estimate is known here
-            e = (1.0 + params["estimate_error"]) * float(params.get("backlash", b_nominal))
+            b_true = params.get("stage1.backlash", params.get("backlash", b_nominal))  # stage1's over every stage's
+            e = (1.0 + params["estimate_error"]) * float(b_true)
             _check_value("estimate", e, _KEYS["estimate"], f"--vary estimate_error={err_text}", run=i)
         jobs.append((i, params, noise_seed(seed, i)))
     head = ["gearctl", "track", str(model), str(controller), "--plant", plant, "--reference", reference_kind,

@@ -58,3 +58,13 @@ def test_track_and_a_sweep_on_one_stage(capsys: pytest.CaptureFixture[str]) -> N
     assert all(0.5 * b2 <= v <= 2.0 * b2 for v in vals) and len(set(vals)) == 3
     # each run's command rebuilds its plant
     assert all(f"--set stage2.backlash={v!r}" in r["command"] for v, r in zip(vals, sw.runs, strict=True))
+
+
+def test_an_estimate_error_on_a_pair_is_checked_against_its_stage_key() -> None:
+    # on a pair the estimate is checked before any run against the run's backlash: with stage1.backlash varied it took
+    # the model's backlash, so an estimate out of range was a failed run instead of the error before any run that
+    # --vary backlash gives
+    for key in ("backlash", "stage1.backlash"):
+        with pytest.raises(InputError, match="run 0 draws estimate = 0.011, which is out of range"):
+            sweep("shing1993_servo", "deadzone_inverse", vary=[f"{key}=1e-3", "estimate_error=10"], runs=1, grid=True,
+                  duration=0.1, engine="serial")
