@@ -32,3 +32,28 @@ def test_two_files_are_written(tmp_path: Path) -> None:
     assert main(["excite", "shing1993_servo", "--duration", "1", "--reference-only", str(tmp_path / "r.csv"),
                  "--out", str(tmp_path / "l.csv")]) == 0
     assert (tmp_path / "r.csv").read_text() != (tmp_path / "l.csv").read_text()
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs", "2", "--duration", "0.05"],
+    ["bench", "shing1993_servo", "--no-precision"],
+])
+@pytest.mark.parametrize("name", ["runs.csv", "summary.md", "report.md", "histogram.png", "."])
+def test_a_json_file_among_the_out_folders_files_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                            argv: list[str], name: str) -> None:
+    # sweep --json D/runs.csv --out D wrote the JSON, then runs.csv over it (exit 0); --json D --out D likewise
+    writes = {"sweep": ("runs.csv", "summary.md", "histogram.png", "."), "bench": ("report.md", "histogram.png", ".")}
+    if name not in writes[argv[0]]:
+        pytest.skip(f"{argv[0]} writes no {name}")
+    d = tmp_path / "d"
+    assert main([*argv, "--json", str(d / name), "--out", str(d)]) == 2
+    err = capsys.readouterr().err
+    assert "--json" in err and len(err.strip().splitlines()) == 1, err
+    assert not d.exists()
+
+
+def test_a_json_file_of_its_own_name_in_the_out_folder_is_written(tmp_path: Path) -> None:
+    d = tmp_path / "d"
+    assert main(["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs", "2", "--duration", "0.05",
+                 "--workers", "1", "--quiet", "--json", str(d / "sweep.json"), "--out", str(d)]) == 0
+    assert (d / "sweep.json").read_text().lstrip().startswith("{") and (d / "runs.csv").exists()

@@ -153,12 +153,15 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
 
 #: Arguments that name files a command reads, and those that name what it writes.
 INPUT_ARGS = ("model", "controller", "log")
-OUTPUT_ARGS = ("csv", "plot", "out", "write_model", "reference_only")
+OUTPUT_ARGS = ("csv", "plot", "out", "write_model", "reference_only", "json")
+#: The files a command writes into its ``--out DIR`` (another output named like one of them there is overwritten).
+OUT_DIR_FILES = {"sweep": ("runs.csv", "summary.md", "*.png"), "bench": ("report.md", "*.png")}
 
 
 def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
     """Refuse an output path that is one of the command's input files (``--write-model LOG``): it would be lost;
-    and two outputs naming one file (``--reference-only F --out F``): the second would overwrite the first.
+    and two outputs naming one file (``--reference-only F --out F``, ``sweep --json D/runs.csv --out D``): the
+    second would overwrite the first.
 
     The same file under another name (a link, ``./``) counts (:func:`os.path.samefile`).
     """
@@ -184,6 +187,18 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
             if os.path.realpath(o1) == os.path.realpath(o2):
                 raise InputError(f"--{k1.replace('_', '-')} {o1} and --{k2.replace('_', '-')} {o2} name the same "
                                  f"file: one would overwrite the other; write to two files", field=k2)
+    # a file output inside the --out folder under a name the command writes there (sweep --json D/runs.csv --out D)
+    folder = getattr(args, "out", None)
+    if isinstance(folder, str) and getattr(args, "command", None) in OUT_DIR_FILES:
+        import fnmatch
+
+        for k, o in outs:
+            if k == "out" or os.path.realpath(os.path.dirname(os.path.abspath(o))) != os.path.realpath(folder):
+                continue
+            if any(fnmatch.fnmatch(os.path.basename(o), pat) for pat in OUT_DIR_FILES[args.command]):
+                raise InputError(f"--{k.replace('_', '-')} {o} is a file --out {folder} writes "
+                                 f"({', '.join(OUT_DIR_FILES[args.command])}): one would overwrite the other; write "
+                                 f"to another name", field=k)
 
 
 def check_writable(path: str, *, directory: bool = False, key: str = "out") -> None:
