@@ -82,6 +82,11 @@ def __getattr__(name: str) -> object:
             return importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module 'gearctl' has no attribute {name!r}")
 
+
+def __dir__() -> list[str]:
+    """The API's names, imported or not yet (tab completion and ``help(gearctl)`` list them, as before)."""
+    return sorted({*globals(), *_LAZY, *_SUBMODULES})
+
 __all__ = [
     *_LAZY,
     *_SUBMODULES,

@@ -1653,9 +1653,9 @@ def _check_log(lg: EncoderLog) -> None:
                              f"{lg.sample_time:.6g} s: expected samples at a fixed period (each interval within "
                              f"{JITTER_TOLERANCE:.0%} of it)", field="t")
         raise InputError(f"{lg.name}: column t: sample {k} (t = {float(t[k]):.10g}) is {abs(dev[k]):.3g} s off the "
-                         f"grid of sample_time = {lg.sample_time:.6g} s (at the stamps' own period, {Ts:.9g} s): expected "
-                         f"samples at a fixed period (time "
-                         f"stamps within {JITTER_TOLERANCE:.0%} of it)", field="t")
+                         f"grid of sample_time = {lg.sample_time:.6g} s (at the stamps' own period, {Ts:.9g} s): "
+                         f"expected samples at a fixed period (time stamps within {JITTER_TOLERANCE:.0%} of it)",
+                         field="t")
 
 
 #: Largest angle a reading may hold [rad] (160 000 revolutions): beyond it a value is no encoder angle

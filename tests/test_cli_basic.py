@@ -200,6 +200,17 @@ def test_the_command_line_starts_without_importing_the_computation() -> None:
     assert out.strip() == ""
 
 
+def test_dir_of_the_package_lists_its_lazy_names() -> None:
+    # the names imported on first use were missing from dir(gearctl) (tab completion, help()) until used
+    import subprocess
+    import sys
+
+    code = ("import sys, gearctl; d = dir(gearctl)\n"
+            "print(all(n in d for n in gearctl.__all__), 'numpy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True).stdout
+    assert out.split() == ["True", "False"]
+
+
 def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch: pytest.MonkeyPatch,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     import gearctl.cli
