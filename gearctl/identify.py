@@ -2257,7 +2257,9 @@ def write_identified_model(path: str | Path, result: Identification, model: Any)
     """Write :func:`identified_model` as a model file and check that it loads.
 
     The document is checked before anything is written (loaded from a temporary file next to ``path``, then
-    renamed into place), so a refused model leaves no file; the folder must exist (it is not created).
+    renamed into place), so a refused model leaves no file; the folder must exist (it is not created). A link is
+    written through; a device or a FIFO (``/dev/null``) is written into, never replaced (as root the rename replaced
+    ``/dev/full`` itself with a regular file).
 
     Raises
     ------
@@ -2309,7 +2311,12 @@ def write_identified_model(path: str | Path, result: Identification, model: Any)
         raise InputError(f"{result.log}: the identified model is not valid, not writing {path}: {rule}",
                          field=exc.field) from None
     try:
-        os.replace(tmp, path)
+        if path.exists() and not path.is_file():  # a device or a FIFO (/dev/null): written into, never replaced
+            Path(tmp).unlink(missing_ok=True)
+            with open(path, "w") as fh:
+                fh.write(text)
+        else:
+            os.replace(tmp, path)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
         raise InputError(f"cannot write {path}: {exc.strerror}") from None

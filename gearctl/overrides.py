@@ -39,6 +39,8 @@ def split_stage_key(key: str) -> tuple[int | None, str]:
     if m is None:
         return None, key
     n, field = int(m.group(1)), m.group(2)
+    if m.group(1) != str(n):
+        raise InputError(f"{key}: write the stage number without leading zeros (stage{n}.{field})", field=key)
     if not (field in OWNER_FIELDS[GearPair] or field in OWNER_FIELDS[MeshDynamics]):
         raise InputError(f"{key}: {field} is not a stage's key (a stageN. prefix takes a gear pair's or its mesh "
                          f"dynamics' key: backlash, mesh_stiffness, damping_ratio, face_width, ...)", field=key)

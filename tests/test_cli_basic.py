@@ -221,3 +221,16 @@ def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch: pytest.MonkeyPa
     monkeypatch.setattr(gearctl.cli, "groups", interrupted)
     assert main(["info", "shing1993_servo"]) == 130
     assert capsys.readouterr().err == "gearctl: interrupted\n"
+
+
+def test_a_plot_suffix_that_is_no_format_is_refused_before_the_run(tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    # `--plot out.v2` failed with one line only after the simulation it plots
+    import time
+
+    t0 = time.perf_counter()
+    assert main(["track", "shing1993_servo", "pid", "--duration", "30", "--plot", str(tmp_path / "k.v2")]) == 2
+    assert time.perf_counter() - t0 < 5.0  # 30 s of a 1 kHz loop is not run
+    err = capsys.readouterr().err
+    assert ".v2 is not a figure format" in err and "or no suffix (PNG)" in err
+    assert not any(tmp_path.iterdir())

@@ -57,3 +57,23 @@ def test_a_json_file_of_its_own_name_in_the_out_folder_is_written(tmp_path: Path
     assert main(["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs", "2", "--duration", "0.05",
                  "--workers", "1", "--quiet", "--json", str(d / "sweep.json"), "--out", str(d)]) == 0
     assert (d / "sweep.json").read_text().lstrip().startswith("{") and (d / "runs.csv").exists()
+
+
+def test_write_model_into_a_fifo_writes_through_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # --write-model renamed its checked temporary file over the path: as root, `--write-model /dev/full` replaced the
+    # device node with a regular file. A device or a FIFO is written into, never replaced (a FIFO here: no root)
+    import os
+    import stat
+    import threading
+
+    log = Path(__file__).resolve().parent / "data" / "logs" / "other_sim_chirp_5khz.csv"
+    fifo = tmp_path / "model.fifo"
+    os.mkfifo(fifo)
+    got: list[str] = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_text()), daemon=True)
+    reader.start()
+    assert main(["identify", str(log), "--model", "shing1993_servo", "--write-model", str(fifo)]) == 0, \
+        capsys.readouterr().err
+    reader.join(timeout=30)
+    assert stat.S_ISFIFO(fifo.stat().st_mode)
+    assert got and "backlash" in got[0] and "written by gearctl identify" in got[0]

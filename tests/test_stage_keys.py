@@ -68,3 +68,9 @@ def test_an_estimate_error_on_a_pair_is_checked_against_its_stage_key() -> None:
         with pytest.raises(InputError, match="run 0 draws estimate = 0.011, which is out of range"):
             sweep("shing1993_servo", "deadzone_inverse", vary=[f"{key}=1e-3", "estimate_error=10"], runs=1, grid=True,
                   duration=0.1, engine="serial")
+
+
+def test_a_stage_number_with_leading_zeros_is_refused() -> None:
+    # stage02.backlash was read as stage2's: a reproducer command should name one spelling
+    with pytest.raises(InputError, match=r"without leading zeros \(stage2.backlash\)"):
+        parse_set("stage02.backlash=1e-6")

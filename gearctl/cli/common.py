@@ -158,6 +158,20 @@ OUTPUT_ARGS = ("csv", "plot", "out", "write_model", "reference_only", "json")
 OUT_DIR_FILES = {"sweep": ("runs.csv", "summary.md", "*.png"), "bench": ("report.md", "*.png")}
 
 
+def check_plot_format(path: str | None) -> None:
+    """Refuse a ``--plot FILE`` whose suffix is no format matplotlib writes, before the run (it failed after it);
+    no suffix is PNG under that very name (:func:`gearctl.plots.save`)."""
+    if not isinstance(path, str) or not Path(path).suffix:
+        return
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = Path(path).suffix[1:].lower()
+    if suffix not in formats:
+        raise InputError(f"--plot {path}: .{suffix} is not a figure format: expected one of "
+                         f"{', '.join(sorted(formats))}, or no suffix (PNG)", field="plot")
+
+
 def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
     """Refuse an output path that is one of the command's input files (``--write-model LOG``): it would be lost;
     and two outputs naming one file (``--reference-only F --out F``, ``sweep --json D/runs.csv --out D``): the
@@ -167,6 +181,7 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
     """
     import os
 
+    check_plot_format(getattr(args, "plot", None))
     inputs = [v for k in INPUT_ARGS if isinstance(v := getattr(args, k, None), str) and Path(v).is_file()]
     for key in OUTPUT_ARGS:
         out = getattr(args, key, None)

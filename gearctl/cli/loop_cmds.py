@@ -385,7 +385,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                                                 "a train, the equivalent half-gap on the last stage's line of action)")
     p.add_argument("--set", action="append", type=_set_arg, default=[], metavar="KEY=VALUE",
                    help="change a model key on the true plant only (repeatable; the controller is designed on the "
-                        "unchanged model): what a sweep's per-run command uses")
+                        "unchanged model): what a sweep's per-run command uses. On a train a stage key sets every "
+                        "stage, stageN.KEY (e.g. stage2.backlash=3e-5) stage N's alone")
     p.add_argument("--seed", type=seed, default=0, help="sensor-noise seed (default 0)")
     p.add_argument("--realtime", action="store_true",
                    help="an optimisation that overruns its time budget falls back, as on the target "
@@ -411,7 +412,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--backlash", type=bl, help="override the model's backlash [m]")
     p.add_argument("--estimate", type=bl, help="the controller's backlash estimate [m] (default: the model's)")
     p.add_argument("--set", action="append", type=_set_arg, default=[], metavar="KEY=VALUE",
-                   help="change a model key on the true plant only (repeatable)")
+                   help="change a model key on the true plant only (repeatable; stageN.KEY: stage N's alone)")
     p.add_argument("--seed", type=seed, default=0, help="seed of sensor noise and target offsets")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE", help="write the deviations per target and direction")

@@ -249,7 +249,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
     p.add_argument("controller", nargs="?", default="deadzone_inverse",
                    help="controller: catalog name or TOML path (default deadzone_inverse)")
-    p.add_argument("--vary", action="append", metavar="KEY=SPEC", help="a key and its tolerance (repeat for more)")
+    p.add_argument("--vary", action="append", metavar="KEY=SPEC",
+                   help="a key and its tolerance (repeat for more); on a train a stage key sets every stage, "
+                        "stageN.KEY (e.g. stage2.backlash=0.5x:2x) stage N's alone")
     p.add_argument("--runs", type=spec_arg(_COUNT), help="Monte Carlo runs (default 100); with --grid, points per "
                                                          "range (default 5; 1: its midpoint)")
     p.add_argument("--grid", action="store_true", help="a full grid over the keys instead of Monte Carlo draws")
