@@ -34,6 +34,14 @@ __all__ = ["register"]
 
 
 
+
+def _poles(sys_: Any) -> list[complex]:
+    """The model's poles, those within the eigenvalue solver's rounding of zero (1e-10 of the largest: the free
+    rotation's, which came out as 2e-8 on one machine and 7e-9 on another) printed as the 0 they are."""
+    poles = [complex(p) for p in sys_.poles()]
+    tiny = 1e-10 * max((abs(p) for p in poles), default=0.0)
+    return [0j if abs(p) <= tiny else p for p in poles]
+
 def _duration_text(t: float) -> str:
     """A duration as a person reads it: ms below a second (the free case's 20 ms), s above (not "1e+08 ms")."""
     return f"{t * 1e3:.4g} ms" if t < 1.0 else f"{t:.6g} s"
@@ -330,7 +338,7 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
         "inputs": list(sys_.input_labels),
         "outputs": list(sys_.output_labels),
         "A": sys_.A.tolist(), "B": sys_.B.tolist(), "C": sys_.C.tolist(), "D": sys_.D.tolist(),
-        "poles": [[float(p.real), float(p.imag)] for p in sys_.poles()],
+        "poles": [[float(p.real), float(p.imag)] for p in _poles(sys_)],
         "natural_frequency_hz": mesh.natural_frequency_hz if contact else None,
         "damping_ratio": mesh.damping_ratio if contact else None,
         "overdamped": mesh.overdamped if contact else None,
@@ -361,7 +369,7 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
         return 0
     print(f"{model.name}: {args.mode} model, states {', '.join(out['states'])}; inputs {', '.join(out['inputs'])}; "
           f"outputs {', '.join(out['outputs'])}")
-    print("  poles                  " + ", ".join(f"{p.real:.5g}{p.imag:+.5g}j" for p in sys_.poles()))
+    print("  poles                  " + ", ".join(f"{p.real:.5g}{p.imag:+.5g}j" for p in _poles(sys_)))
     if contact:
         over = " (overdamped: real poles, no ringing)" if mesh.overdamped else ""
         print(f"  mesh mode              {mesh.natural_frequency_hz:.5g} Hz, damping ratio "
