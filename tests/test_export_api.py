@@ -356,14 +356,19 @@ def test_a_nan_input_is_screened_without_a_floating_point_trap(tmp_path: Path, c
             return 0;
         }
         """))
-    exe = tmp_path / "trap"
-    proc = subprocess.run([CC, "-std=c99", "-O2", f"-I{d}", str(src), str(d / "libgearctl_ctrl.a"), "-lm", "-o",
-                           str(exe)], capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
-    assert run.returncode == 0, (run.returncode, run.stderr)  # -8: SIGFPE
-    a, b, e, u = run.stdout.split()
+    a, b, e, u = _build_and_run(src, tmp_path / "trap", d, [str(d / "libgearctl_ctrl.a")])
     assert (int(a), int(b), int(e), float(u)) == (2, missing_load, 2, 0.0)
+
+
+def _build_and_run(src: Path, exe: Path, include: Path, objects: list[str], *, flags: tuple[str, ...] = ("-O2",),
+                   timeout: float = 300.0) -> list[str]:
+    """Compile a harness against an export's folder, run it, and return its printed words (both must succeed)."""
+    proc = subprocess.run([CC, "-std=c99", *flags, f"-I{include}", str(src), *objects, "-lm", "-o", str(exe)],
+                          capture_output=True, text=True, timeout=timeout)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=timeout)
+    assert run.returncode == 0, (run.returncode, run.stderr)  # -8: SIGFPE; a trap: SIGILL
+    return run.stdout.split()
 
 
 @needs_make
@@ -483,12 +488,6 @@ def test_the_adaptive_inverse_examines_a_long_window_in_linear_time(tmp_path: Pa
             return 0;
         }
         """))
-    exe = tmp_path / "long"
-    proc = subprocess.run([CC, "-std=c99", "-O2", f"-I{d}", str(src), str(d / "gearctl_ctrl.c"), "-lm", "-o",
-                           str(exe)], capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stderr
-    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0, run.stderr
-    examined, cpu, u = run.stdout.split()
+    examined, cpu, u = _build_and_run(src, tmp_path / "long", d, [str(d / "gearctl_ctrl.c")], timeout=600.0)
     assert int(examined) >= 2 and math.isfinite(float(u))
     assert float(cpu) < 0.5, f"{cpu} s of CPU for 300000 steps with {examined} examined windows"
