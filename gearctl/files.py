@@ -202,8 +202,10 @@ def build_dataclass(path: Path, cls: type, values: Mapping[str, tuple[Binding, A
         b = values.get(exc.field or "", (None, None))[0]
         if b is not None and exc.rule:
             rule = exc.rule
-            if b.key.endswith("_deg"):
-                meta = _field_meta(cls, exc.field)
+            meta = _field_meta(cls, exc.field)
+            if b.key.endswith("_deg") and meta.get("unit") == "rad":
+                # a field kept in radians (the caller converted the degrees): say its range in the degrees typed;
+                # a field kept in degrees (a controller's phase_margin_deg) already says it so
                 rule = (f"is out of range: expected a number with {math.degrees(meta['low']):g} <= value <= "
                         f"{math.degrees(meta['high']):g} [deg]")
             raise InputError(f"{path}: {b.label()} = {b.raw!r} {rule}", field=b.key, rule=rule) from None

@@ -1,0 +1,27 @@
+"""A controller file's bad value is one line naming the file, the key as typed and the allowed range in the file's
+units (a machine builder's own files, derived from the catalog's)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from gearctl.cli import main
+
+DATA = Path(__file__).resolve().parent / "data" / "controller_files"
+MODEL = str(DATA / "rack_axis_20x200.toml")
+
+
+def _refusal(capsys, ctrl: str) -> str:  # noqa: ANN001
+    assert main(["track", MODEL, str(DATA / ctrl), "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return [ln for ln in err.splitlines() if "error:" in ln][0]
+
+
+def test_phase_margin_range_is_said_in_degrees(capsys) -> None:  # noqa: ANN001
+    # the PID keeps phase_margin_deg in degrees: its range read 57.2958 <= value <= 4526.37 [deg] (1..79 taken
+    # for radians)
+    err = _refusal(capsys, "pid_phase_margin_85.toml")
+    assert "pid_phase_margin_85.toml: [design] phase_margin_deg = 85.0 is out of range" in err
+    assert "1 <= value <= 79 [deg]" in err and "57.2958" not in err
+
