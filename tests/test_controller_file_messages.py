@@ -25,3 +25,10 @@ def test_phase_margin_range_is_said_in_degrees(capsys) -> None:  # noqa: ANN001
     assert "pid_phase_margin_85.toml: [design] phase_margin_deg = 85.0 is out of range" in err
     assert "1 <= value <= 79 [deg]" in err and "57.2958" not in err
 
+
+def test_observer_bandwidth_names_the_key_once_with_unit_and_nyquist(capsys) -> None:  # noqa: ANN001
+    # was "observer_hz: observer_hz = 600.0 is out of range: expected 0 <= value <= 500"
+    err = _refusal(capsys, "deadzone_observer_600hz.toml")
+    assert "deadzone_observer_600hz.toml: observer_hz = 600.0 is out of range" in err
+    assert "observer_hz: observer_hz" not in err
+    assert "0 <= value <= 500 [Hz]" in err and "Nyquist" in err

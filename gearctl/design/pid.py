@@ -538,7 +538,10 @@ def restate(path: Path, exc: InputError, values: dict[type, Values]) -> InputErr
     for vals in values.values():
         if exc.field in vals:
             b = vals[exc.field][0]
-            return InputError(f"{path}: {b.label()}: {exc}", field=exc.field, rule=exc.rule)
+            msg = str(exc)
+            if msg.startswith(f"{exc.field} = "):  # the message names the key already: name it as the file does
+                return InputError(f"{path}: {b.label()}{msg[len(exc.field):]}", field=exc.field, rule=exc.rule)
+            return InputError(f"{path}: {b.label()}: {msg}", field=exc.field, rule=exc.rule)
     return InputError(f"{path}: {exc}", field=exc.field, rule=exc.rule)
 
 
