@@ -172,6 +172,12 @@ def unreached_targets(res: PrecisionResult, lost_motion: float, travel: float) -
         out.append(f"constant offset: the load misses the targets by {offset:.3g} rad on average, more than the "
                    f"accuracy A = {A:.3g} rad (ISO 230-2's A, B and R leave a constant offset out; a load torque "
                    f"holding the load on one flank leaves one)")
+    if res.deviations_up.shape[1] < 2:
+        # one approach per target and direction: the standard's s_i (n - 1 estimator) is not defined, and the zeros
+        # taken for it print as R+ 0, R- 0, a repeatability nobody measured
+        out.append("one cycle: a single approach per target and direction gives no spread, so s_i is taken as 0: "
+                   "R+ = R- = 0 and R, A hold only the reversal and the means, no repeatability (ISO 230-2 runs 5 "
+                   "cycles): use --cycles 2 or more")
     return out
 
 

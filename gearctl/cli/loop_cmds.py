@@ -164,7 +164,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
         print(dump_json(out))
         return 0
     print(f"{model.name}: {ctrl.name} on the {args.plant} plant, ISO 230-2 linear cycle, {args.targets} targets "
-          f"over {args.travel:g} rad, {args.cycles} cycles")
+          f"over {args.travel:g} rad, {args.cycles} cycle{'' if args.cycles == 1 else 's'}")
     print(f"  reversal value B       {st['reversal_value'] * 1e6:.4g} urad (lost motion = "
           f"{out['lost_motion'] * 1e6:.4g} urad)")
     print(f"  repeatability R        {st['repeatability'] * 1e6:.4g} urad (R+ {st['repeatability_up'] * 1e6:.3g}, "
