@@ -171,6 +171,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
           f"R- {st['repeatability_down'] * 1e6:.3g})")
     print(f"  accuracy A             {st['accuracy'] * 1e6:.4g} urad")
     print(f"  mean bidirectional M   {st['mean_bidirectional_deviation'] * 1e6:.4g} urad")
+    print(f"  systematic E           {st['systematic_deviation'] * 1e6:.4g} urad (range of the one-way means)")
     print(f"  mean deviation         {st['mean_deviation'] * 1e6:.4g} urad (a constant offset, outside A, B, R; "
           f"largest |deviation| {st['largest_deviation'] * 1e6:.4g} urad)")
     print("  target [rad]   mean+ [urad]  mean- [urad]  B_i [urad]")
