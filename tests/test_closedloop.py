@@ -530,7 +530,9 @@ def test_pid_design_keeps_the_motor_alone_stable_in_the_gap(tmp_path: Path) -> N
         assert all(n.startswith("coulomb_friction2:") for n in own) and len(own) == (kind == "reversal_offset")
         assert ctrl.describe()["design_notes"] == list(ctrl.design_notes)
     mpc = load_controller("mpc", light)
-    assert mpc.design_notes == () and mpc.describe()["design_notes"] == []
+    # no PID bandwidth note (its plan is rigid here, 1.8 samples to cross: that one note, test_mpc_rigid_note.py)
+    assert [n for n in mpc.design_notes if not n.startswith("gap model off:")] == []
+    assert mpc.describe()["design_notes"] == list(mpc.design_notes)
     # the benchmark servo (motor shaft 0.26 of the train) keeps its design to the last bit, and says nothing
     bench = load_controller("pid", build_plant(load_model("shing1993_servo")))
     info_b = loop_info(build_plant(load_model("shing1993_servo")))

@@ -584,6 +584,13 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
                   load_std=load_std, scaled_smoothing=scaled_smoothing)
     except InputError as exc:
         raise InputError(f"{path}: {exc}", field=exc.field) from None
+    if mpc.rigid_reason and settings.backlash > 0.0:
+        # the file asked for a backlash-aware plan and gets the rigid train's: say so where the notes go (track,
+        # precision, bench print them), not only in describe()'s rigid_reason
+        mpc.design_notes = (*mpc.design_notes, (
+            f"gap model off: {mpc.rigid_reason}, so the MPC plans on the rigid train, as with backlash = 0 "
+            f"(gap_model = 'rigid'): it does not plan the gap crossings; compare it with the deadzone_inverse "
+            f"(gearctl bench MODEL)"))
     share = intermediate_share(info.nominal)
     if share > INTERMEDIATE_SHARE and not mpc.rigid_reason:
         mpc.design_notes = (*mpc.design_notes, (
