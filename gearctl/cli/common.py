@@ -310,6 +310,14 @@ def warn(command: str, warnings: Iterable[str], *, kind: str = "warning") -> Non
         print(f"gearctl {command}: {kind}: {w}", file=sys.stderr)
 
 
+def unused_estimate(kind: str | None, estimate: float | None) -> list[str]:
+    """A note for ``--estimate`` given to a plain PID, which has no backlash estimate to take it (it ran silently)."""
+    if estimate is None or kind != "pid":
+        return []
+    return [f"--estimate {estimate:g}: a pid has no backlash estimate, so the value changes nothing (it is for "
+            f"reversal_offset, deadzone_inverse, adaptive_inverse and mpc)"]
+
+
 def separated_past_flank(plant: Any, s: Any, mode: Any) -> float:
     """The largest ``(|s| - b) / b`` of a stage labelled separated at an output time (0 if none): a contact the
     kernel missed, the teeth passing through each other (``simulate`` and ``track --json``, the fuzzer's oracle;

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..units import BACKLASH, SEED
-from .common import dump_json, spec_arg, warn
+from .common import dump_json, spec_arg, unused_estimate, warn
 
 __all__ = ["register"]
 
@@ -28,6 +28,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
                "prefix": info.prefix, "warnings": list(info.warnings),
                "design_notes": list(ctrl.describe().get("design_notes", ()))}
     warn("export", [f"{ctrl.name}: {n}" for n in summary["design_notes"]], kind="note")
+    warn("export", unused_estimate(info.kind, args.estimate), kind="note")
     warn("export", info.warnings)
     if args.json:
         print(dump_json(summary))

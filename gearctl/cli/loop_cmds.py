@@ -24,6 +24,7 @@ from .common import (
     say_written,
     separated_past_flank,
     spec_arg,
+    unused_estimate,
     warn,
     write_csv_stream,
 )
@@ -69,6 +70,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         summary["impacts_per_stage"] = [int(c["impacts_front"][i] + c["impacts_back"][i] + c["plastic_front"][i]
                                             + c["plastic_back"][i]) for i in range(n)]
     warn("track", [f"{ctrl['name']}: {n}" for n in ctrl.get("design_notes", ())], kind="note")
+    warn("track", unused_estimate(ctrl.get("kind"), args.estimate), kind="note")
     warn("track", m.health.warnings)
     too_large = unholdable_load_step(plant, run.reference)
     if too_large:
@@ -155,6 +157,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
         "health": health.as_dict(),
     }
     warn("precision", [f"{ctrl.name}: {n}" for n in out["controller"].get("design_notes", ())], kind="note")
+    warn("precision", unused_estimate(out["controller"].get("kind"), args.estimate), kind="note")
     warn("precision", health.warnings)
     if args.plot:
         from ..plots import plot_precision
