@@ -950,6 +950,10 @@ def simulate_limit_cycle(plant: Plant, controller: Controller, *, duration: floa
         "load_amplitude": float((th2.max() - th2.min()) / 2), "impacts_per_second": float(n_imp / span),
         "torque_amplitude": float((u.max() - u.min()) / 2), "saturated_fraction": sat,
         "limit_cycle": bool(n_imp > 0 and amp > plant.backlash and freq is not None),
+        # the flanks are still hit but the window holds under three periods: no frequency, so no verdict either way
+        # (a load swinging off by lost motions is no rattle: the verdict says the loop does not settle)
+        "too_short": bool(n_imp > 0 and amp > plant.backlash and freq is None
+                          and (th2.max() - th2.min()) / 2 <= UNSETTLED_LOST_MOTIONS * 2 * plant.backlash / plant.rb2),
         "window": [float(t[0]), float(t[-1])],
     }
 
@@ -1071,6 +1075,14 @@ def _verdict(plant: Plant, ctrl: PID, pred: list[dict[str, Any]], sim: dict[str,
                 f"{sim['amplitude'] / b:.4f} b, {sim['impacts_per_second']:.4g} impacts/s) that the describing "
                 f"function does not predict ({what}), so there is nothing to compare" +
                 (f": {reason}" if reason else "."))
+    if sim.get("too_short"):
+        w0, w1 = sim["window"]
+        pre = (f"a stable cycle is predicted at {stable['frequency_hz']:.4g} Hz, A = {stable['amplitude'] / b:.4f} b; "
+               if stable is not None else "")
+        return (f"Verdict: {pre}the simulation still hits the flanks at the end ({sim['impacts_per_second']:.4g} "
+                f"impacts/s, A = {sim['amplitude'] / b:.4f} b), but its window ({w0:.4g} to {w1:.4g} s) holds fewer "
+                f"than three periods, too short to measure a cycle: run a longer duration (--duration; the cycle is measured "
+                f"over the second half)" + (f" ({reason})" if reason else "."))
     if stable is not None:
         return (f"Verdict: a stable cycle is predicted at {stable['frequency_hz']:.4g} Hz, A = "
                 f"{stable['amplitude'] / b:.4f} b, but the simulation from a half-gap disturbance does not sustain "

@@ -415,7 +415,8 @@ def _cmd_describe(args: argparse.Namespace) -> int:
     a = sim.get("amplitude")
     print(f"  {'simulation':28s} {fmt(sim.get('frequency_hz')):>9s} {fmt(a / b if a and b else None):>8s} "
           f"{fmt(sim.get('load_amplitude'), 1e6):>12s} {fmt(sim.get('torque_amplitude')):>13s}  "
-          f"{'limit cycle' if sim.get('limit_cycle') else 'none'} ({fmt(sim.get('impacts_per_second'))} impacts/s)")
+          f"{'limit cycle' if sim.get('limit_cycle') else 'too short' if sim.get('too_short') else 'none'} "
+          f"({fmt(sim.get('impacts_per_second'))} impacts/s)")
     ratios = ", ".join(f"{k.replace('_ratio', '')} {v:.3g}" for k, v in d["agreement"].items() if v is not None)
     if ratios:
         print("  prediction / simulation    " + ratios)
