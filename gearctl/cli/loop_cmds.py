@@ -232,6 +232,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                                           f"on {result['jobs']} process(es)"), file=tables)
     warn("bench", dict.fromkeys(f"{r['model']}, {r['controller']}: {n}" for r in result["runs"]
                                 for n in r.get("design_notes", ())), kind="note")
+    if spec.controllers and "pid" not in spec.controllers:  # the baseline every comparison is made against
+        warn("bench", ["--controllers without pid: no PID baseline, so no ratios over the PID, no backlash-free ISO "
+                       "row and no 'worse than the pid' warnings; add pid to --controllers to compare with it"],
+             kind="note")
     warn("bench", _grouped_warnings(result["runs"]))
     warn("bench", _grouped_warnings(result.get("precision") or [], iso=True))
     if to_stdout:
