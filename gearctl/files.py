@@ -209,7 +209,10 @@ def build_dataclass(path: Path, cls: type, values: Mapping[str, tuple[Binding, A
                 rule = (f"is out of range: expected a number with {math.degrees(meta['low']):g} <= value <= "
                         f"{math.degrees(meta['high']):g} [deg]")
             raise InputError(f"{path}: {b.label()} = {b.raw!r} {rule}", field=b.key, rule=rule) from None
-        raise InputError(f"{path}: {exc}", field=exc.field, rule=exc.rule) from None
+        msg = str(exc)
+        if b is not None and exc.field and msg.startswith(f"{exc.field} = "):  # a check across keys: name the table
+            msg = b.label() + msg[len(exc.field):]
+        raise InputError(f"{path}: {msg}", field=exc.field, rule=exc.rule) from None
     except TypeError as exc:  # a value of a type the dataclass cannot take at all
         raise InputError(f"{path}: {exc}") from None
 

@@ -32,3 +32,16 @@ def test_observer_bandwidth_names_the_key_once_with_unit_and_nyquist(capsys) -> 
     assert "deadzone_observer_600hz.toml: observer_hz = 600.0 is out of range" in err
     assert "observer_hz: observer_hz" not in err
     assert "0 <= value <= 500 [Hz]" in err and "Nyquist" in err
+
+
+def test_a_check_across_keys_names_the_table(capsys) -> None:  # noqa: ANN001
+    # was "min_backlash = 0.0001 is out of range: ..." without the [adaptation] the key sits in
+    err = _refusal(capsys, "adaptive_min_above_max.toml")
+    assert "adaptive_min_above_max.toml: [adaptation] min_backlash = 0.0001 is out of range" in err
+    assert "at most max_backlash = 1e-05 [m]" in err
+
+
+def test_a_missing_kind_is_a_missing_key(capsys) -> None:  # noqa: ANN001
+    # was "kind = None is not a controller kind"
+    err = _refusal(capsys, "no_kind.toml")
+    assert "no_kind.toml: missing key kind: expected one of pid," in err and "None" not in err

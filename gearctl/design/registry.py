@@ -67,6 +67,9 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
     """
     path = Path(path)
     kind = spec.get("kind")
+    if kind is None:
+        raise InputError(f"{path}: missing key kind: expected one of {', '.join(MODULES)} (kind = \"pid\", ...)",
+                         field="kind")
     if kind not in MODULES:
         close = difflib.get_close_matches(str(kind), list(MODULES), n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
