@@ -24,7 +24,7 @@ from typing import Any
 from .errors import InputError
 
 __all__ = ["Engine", "map_tasks", "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
-           "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
+           "checked", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
 
 #: Seconds to reach a scheduler, and for its first worker to join.
 CONNECT_TIMEOUT, WORKER_TIMEOUT = 10.0, 60.0
@@ -57,6 +57,26 @@ def code_id() -> str:
 
 
 _CODE_ID: str | None = None
+
+
+def checked(expected: str, fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)`` on a worker that runs the gearctl ``expected`` (the client's :func:`code_id`), else an
+    :class:`~gearctl.InputError` naming the worker and both. :class:`Engine` checks the workers there when it opens,
+    but a worker that joined later (started from another checkout mid-sweep) ran the tasks it was given on its own
+    code, its figures mixed with the others' without a word (a review: 1260 of 3000 runs); every task goes through
+    here."""
+    mine = code_id()
+    if mine != expected:
+        try:
+            from distributed import get_worker
+
+            who = f"the worker {get_worker().address}"
+        except (ImportError, ValueError):
+            who = "a worker"
+        raise InputError(f"{who}, which joined the cluster after its workers were checked, runs gearctl {mine}, this "
+                         f"is {expected} (version+code hash): install the same gearctl on every worker, and restart "
+                         f"workers started before an edit", field="scheduler")
+    return fn(*args)
 
 
 #: Dask's address schemes a scheduler may be given with.
@@ -392,7 +412,9 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     results: list[Any] = [None] * n
     with Engine(workers=min(workers or default_workers(), n), scheduler=scheduler) as eng:
         tag = uuid.uuid4().hex[:12]
-        futures = {eng.client.submit(fn, x, key=f"{name}-{tag}-{k}", pure=False): k for k, x in enumerate(items)}
+        mine = code_id()
+        futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False): k
+                   for k, x in enumerate(items)}
         try:
             for done, (fut, got, exc) in enumerate(completed(eng.client, list(futures), where=eng.where), start=1):
                 if exc is not None:

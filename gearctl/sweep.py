@@ -70,7 +70,16 @@ from .export.batch import BATCH_KINDS, run_compiled
 from .model import GearModel
 from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, split_stage_key, stage_values
 from .overrides import perturb_model as _perturb
-from .parallel import CONNECT_TIMEOUT, WORKER_TIMEOUT, Engine, completed, default_workers, local_cluster
+from .parallel import (
+    CONNECT_TIMEOUT,
+    WORKER_TIMEOUT,
+    Engine,
+    checked,
+    code_id,
+    completed,
+    default_workers,
+    local_cluster,
+)
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
 from .runs import Design, Run, RunResult, controller_spec, design_controller
@@ -874,9 +883,11 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         info.update(workers=w, where=eng.where, batch=size)
         tag = uuid.uuid4().hex[:12]
         futures = {}
+        mine = code_id()  # each task checks it on its worker: one may join mid-sweep (parallel.checked)
         for b, i0 in enumerate(range(0, n, size)):
             part = jobs[i0:i0 + size]
-            fut = eng.client.submit(sweep_task, plan.context, part, key=f"gearctl-sweep-{tag}-{b}", pure=False)
+            fut = eng.client.submit(checked, mine, sweep_task, plan.context, part, key=f"gearctl-sweep-{tag}-{b}",
+                                    pure=False)
             futures[fut] = part
         try:
             for fut, got, exc in completed(eng.client, list(futures), where=eng.where):

@@ -1,0 +1,72 @@
+"""Every Dask task checks that its worker runs the client's gearctl (gearctl.parallel.checked).
+
+The Engine checks the workers there when it opens; a worker started from another checkout that joined mid-sweep
+ran the tasks it was given on its own code, its figures mixed with the others' without a word (a review: 1260 of
+3000 runs came from it).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import gearctl
+from gearctl import InputError
+from gearctl.parallel import checked, code_id
+from gearctl.sweep import sweep
+
+
+def _double(x: int) -> int:
+    return 2 * x
+
+
+def test_checked_runs_the_task_on_the_same_code() -> None:
+    assert checked(code_id(), _double, 21) == 42
+
+
+def test_checked_refuses_other_code() -> None:
+    with pytest.raises(InputError, match=r"a worker, which joined .* runs gearctl \S+\+[0-9a-f]{12}, this is "
+                                         r"0\.1\.0\+000000000000 \(version\+code hash\)"):
+        checked("0.1.0+000000000000", _double, 21)
+
+
+def test_a_worker_that_joins_mid_sweep_with_other_code_is_refused(tmp_path: Path) -> None:
+    from distributed import Client, LocalCluster
+
+    alt = tmp_path / "alt"
+    shutil.copytree(Path(gearctl.__file__).parent, alt / "gearctl", ignore=shutil.ignore_patterns("__pycache__"))
+    with (alt / "gearctl" / "sweep.py").open("a") as f:
+        f.write("# an edit\n")
+    env = {**os.environ, "PYTHONPATH": str(alt)}
+    procs: list[subprocess.Popen] = []
+    with (LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
+                       silence_logs=logging.ERROR) as cluster,
+          Client(cluster, set_as_default=False) as client):
+        first = list(client.scheduler_info()["workers"])
+
+        def progress(done: int, total: int) -> None:  # noqa: ARG001
+            if done == 1:  # the first worker leaves, another checkout's joins: the rest goes to the newcomer
+                client.retire_workers(workers=first)
+                procs.append(subprocess.Popen([sys.executable, "-m", "dask", "worker", cluster.scheduler_address,
+                                               "--nthreads", "1", "--no-nanny", "--no-dashboard",
+                                               "--host", "127.0.0.1", "--local-directory", str(tmp_path / "w")],
+                                              env=env, cwd=tmp_path, stdout=subprocess.DEVNULL,
+                                              stderr=subprocess.DEVNULL, start_new_session=True))
+
+        try:
+            with pytest.raises(InputError, match=r"the worker tcp://\S+, which joined the cluster after its workers "
+                                                 r"were checked, runs gearctl \S+, this is " + code_id().replace(
+                                                     "+", r"\+")):
+                sweep("shing1993_servo", "pid", vary=["backlash=0.5x:2x"], runs=200, duration=0.3, client=client,
+                      batch=1, progress=progress)
+        finally:
+            for p in procs:
+                p.kill()
+                p.wait(timeout=30)
+    assert procs, "the sweep ended before the second worker was started"
