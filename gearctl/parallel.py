@@ -269,6 +269,21 @@ class Engine:
             self.client = distributed.Client(self.cluster, set_as_default=False)
             self.where = f"local cluster ({n} process{'es' if n > 1 else ''})"
         if self.cluster is None:
+            # the scheduler unpickles the tasks (Dask's graph, gearctl's functions by name): one that could not import
+            # gearctl, or whose gearctl lacked a function, ended the sweep in Dask's traceback and exit 1 after the
+            # workers had passed their check
+            try:
+                theirs = self.client.run_on_scheduler(code_id)
+            except Exception as exc:
+                self.close()
+                raise InputError(f"the scheduler at {self.where} cannot run gearctl ({type(exc).__name__}: "
+                                 f"{' '.join(str(exc).split())[:200]}): install this gearctl where the scheduler runs "
+                                 f"too", field="scheduler") from None
+            if theirs != code_id():
+                self.close()
+                raise InputError(f"the scheduler at {self.where} runs gearctl {theirs}, this is {code_id()} "
+                                 f"(version+code hash): Dask's scheduler reads the tasks, install the same gearctl "
+                                 f"where it runs (and restart one started before an edit)", field="scheduler")
             try:  # each worker's answer, or its exception: the refusal names the workers at fault
                 ids = self.client.run(code_id, on_error="return")
             except Exception as exc:  # the cluster itself, not a worker: say it in one line

@@ -7,11 +7,15 @@ ran the tasks it was given on its own code, its figures mixed with the others' w
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import logging
 import os
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -70,3 +74,49 @@ def test_a_worker_that_joins_mid_sweep_with_other_code_is_refused(tmp_path: Path
                 p.kill()
                 p.wait(timeout=30)
     assert procs, "the sweep ended before the second worker was started"
+
+
+def _scheduler(tmp_path: Path, env: dict[str, str]) -> tuple[subprocess.Popen, str]:
+    sched_file = tmp_path / "scheduler.json"
+    proc = subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+                             "--no-dashboard", "--scheduler-file", str(sched_file)], env=env, cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and proc.poll() is None:
+        if sched_file.exists():
+            try:
+                return proc, json.loads(sched_file.read_text())["address"]
+            except json.JSONDecodeError:
+                pass
+        time.sleep(0.1)
+    proc.kill()
+    raise RuntimeError("the dask scheduler did not start")
+
+
+def test_a_scheduler_that_cannot_import_gearctl_is_one_line(tmp_path: Path) -> None:
+    # Dask's scheduler unpickles the tasks: one without gearctl ended a sweep in Dask's traceback ("Error during
+    # deserialization of the task graph"), exit 1, after the workers had passed their check
+    from gearctl.cli import main
+
+    bare = tmp_path / "bare" / "gearctl"
+    bare.mkdir(parents=True)
+    (bare / "__init__.py").write_text('raise ImportError("no gearctl here")\n')
+    sched, address = _scheduler(tmp_path, {**os.environ, "PYTHONPATH": str(bare.parent)})
+    worker = subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1", "--no-nanny",
+                               "--no-dashboard", "--host", "127.0.0.1", "--local-directory", str(tmp_path / "w")],
+                              cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)
+    try:
+        with pytest.raises(InputError, match=rf"the scheduler at {address} cannot run gearctl \(ImportError: no "
+                                             r"gearctl here\): install this gearctl where the scheduler runs too"):
+            sweep("shing1993_servo", "pid", runs=2, duration=0.3, scheduler=address)
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            rc = main(["sweep", "shing1993_servo", "pid", "--runs", "2", "--duration", "0.3", "--scheduler", address,
+                       "--quiet", "--json", str(tmp_path / "s.json")])
+        assert rc == 2 and err.getvalue().count("\n") == 1 and "cannot run gearctl" in err.getvalue()
+        assert not (tmp_path / "s.json").exists()
+    finally:
+        for p in (worker, sched):
+            p.kill()
+            p.wait(timeout=30)
