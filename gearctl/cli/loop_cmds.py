@@ -27,6 +27,7 @@ from .common import (
     unused_estimate,
     warn,
     write_csv_stream,
+    write_whole,
 )
 
 __all__ = ["register"]
@@ -243,7 +244,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     elif args.json:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.json).write_text(dump_json(result))
+            write_whole(args.json, dump_json(result))
         except OSError as exc:
             raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
         print(f"wrote {args.json}")

@@ -12,7 +12,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..units import DURATION, SEED, Spec
-from .common import check_writable, dump_json, save_figure, spec_arg, warn
+from .common import check_writable, dump_json, save_figure, spec_arg, warn, write_whole
 
 __all__ = ["register"]
 
@@ -125,11 +125,13 @@ def _write_csv(result: Any, path: Path) -> None:
             return ""
         return repr(v) if isinstance(v, float) else v  # repr: the exact double, read back bit for bit
 
-    with open(path, "w", newline="") as fh:
+    def write(fh: Any) -> None:
         w = csv.writer(fh, lineterminator="\n")  # Unix lines: `cut` and `awk` see no \r
         w.writerow(head)
         for r in rows:
             w.writerow([cell(v) for v in r])
+
+    write_whole(path, write)
 
 
 def _write_out(result: Any, out: Path) -> None:
@@ -152,7 +154,7 @@ def _write_out(result: Any, out: Path) -> None:
             save_figure(plot_sweep_map(result), str(out / "map.png"))
             plots.append(("map.png", f"RMS error over {result.keys[0]} and {result.keys[1]}"))
     try:
-        (out / "summary.md").write_text(_markdown(result, plots))
+        write_whole(out / "summary.md", _markdown(result, plots))
     except OSError as exc:
         raise InputError(f"cannot write {out / 'summary.md'}: {exc.strerror}") from None
 
@@ -220,7 +222,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     elif args.json:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.json).write_text(dump_json(result.as_dict()))
+            write_whole(args.json, dump_json(result.as_dict()))
         except OSError as exc:
             raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
     if args.out:
