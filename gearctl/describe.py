@@ -1081,8 +1081,8 @@ def _verdict(plant: Plant, ctrl: PID, pred: list[dict[str, Any]], sim: dict[str,
                if stable is not None else "")
         return (f"Verdict: {pre}the simulation still hits the flanks at the end ({sim['impacts_per_second']:.4g} "
                 f"impacts/s, A = {sim['amplitude'] / b:.4f} b), but its window ({w0:.4g} to {w1:.4g} s) holds fewer "
-                f"than three periods, too short to measure a cycle: run a longer duration (--duration; the cycle is measured "
-                f"over the second half)" + (f" ({reason})" if reason else "."))
+                f"than three periods, too short to measure a cycle: run a longer duration (--duration; the cycle is "
+                f"measured over the second half)" + (f" ({reason})" if reason else "."))
     if stable is not None:
         return (f"Verdict: a stable cycle is predicted at {stable['frequency_hz']:.4g} Hz, A = "
                 f"{stable['amplitude'] / b:.4f} b, but the simulation from a half-gap disturbance does not sustain "

@@ -562,7 +562,8 @@ class DeadzoneInverse(Controller):
             raise InputError(f"width = {self.width!r} is out of range: expected a number > 0", field="width")
         for key, v, hi, unit in (("crossing_time", crossing_time, 1.0, " [s]"),
                                  ("observer_hz", observer_hz, 0.5 / pid.Ts,
-                                  f" [Hz] (at most the Nyquist frequency 0.5 / sample_time, sample_time = {pid.Ts:g} s)"),
+                                  f" [Hz] (at most the Nyquist frequency 0.5 / sample_time, sample_time = "
+                                  f"{pid.Ts:g} s)"),
                                  ("disturbance_threshold", disturbance_threshold, 1e3, " [N m]")):
             if not (0.0 <= v <= hi):
                 raise InputError(f"{key} = {v!r} is out of range: expected 0 <= value <= {hi:g}{unit}", field=key)
