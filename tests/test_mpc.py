@@ -378,7 +378,7 @@ def test_unknown_key_and_design_table(servo, mpc_spec) -> None:
 def test_torque_weights_cannot_both_be_zero(servo, mpc_spec) -> None:
     _, plant = servo
     spec = {**mpc_spec, "weights": {**mpc_spec["weights"], "torque": 0.0, "torque_rate": 0.0}}
-    with pytest.raises(InputError, match=r"mpc.toml: torque = 0 and torque_rate = 0"):
+    with pytest.raises(InputError, match=r"mpc.toml: \[weights\] torque = 0 and torque_rate = 0"):
         build_controller(spec, plant, path="mpc.toml")
 
 
