@@ -12,10 +12,12 @@ import dataclasses
 import difflib
 import json
 import math
+import os
+import shutil
 import tomllib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from .errors import InputError
 from .units import describe_range
@@ -298,3 +300,44 @@ def spec_values(path: Path, spec: Mapping[str, Any], layout: Layout, *, kind: st
         cls, fname = top[key]
         out.setdefault(cls, {})[fname] = (Binding("", key, value), value)
     return out
+
+
+def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,
+                check: Callable[[Path], Any] | None = None) -> Path:
+    """Write a file whole or not at all; return the path written.
+
+    ``write`` (the text, or a function given the open file, opened with ``newline=""``) goes to a temporary file beside
+    ``path`` (same suffix), ``check`` (if given) is called on it, and it then replaces ``path``, keeping an existing
+    file's mode. A full disk, a Ctrl-C or a ``check`` that raises removes the temporary file and leaves ``path`` as it
+    was (a review: 1 MB of a sweep's JSON, not valid JSON, after "cannot write ...: No space left on device"). A link
+    is written through, onto its target; a device or a FIFO (``/dev/stdout``, ``/dev/null``) is written into, never
+    replaced (as root, renaming over ``/dev/full`` replaced the device node). ``OSError`` propagates, for the caller
+    to word.
+    """
+    path = Path(path)
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))
+
+    def fill(fh: TextIO) -> None:
+        if isinstance(write, str):
+            fh.write(write)
+        else:
+            write(fh)
+
+    special = path.exists() and not path.is_file()
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    try:
+        with open(tmp, "w", newline="") as fh:
+            fill(fh)
+        if check is not None:
+            check(tmp)
+        if special:
+            with open(path, "w", newline="") as fh:
+                fill(fh)
+        else:
+            if path.exists():
+                shutil.copymode(path, tmp)
+            os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path

@@ -2269,10 +2269,9 @@ def write_identified_model(path: str | Path, result: Identification, model: Any)
         allows (the message names the log the value came from and the key).
     """
     import os
-    import stat
-    import tempfile
 
     from .catalog import load_model
+    from .files import write_whole
 
     path = Path(path)
     if path.is_symlink():  # written through the link, as a shell's redirection does
@@ -2289,35 +2288,15 @@ def write_identified_model(path: str | Path, result: Identification, model: Any)
     text = toml_dumps(doc, header=(f"{path.stem}: written by gearctl identify from {result.log}.",
                                     "SI units, radians inside; degrees only in keys ending _deg.",
                                     *_unidentified(result)))
+    def loads(tmp: Path) -> None:  # the identified model must be one gearctl reads (range errors name the key)
+        try:
+            load_model(tmp)
+        except InputError as exc:
+            rule = str(exc).split(": ", 1)[-1]
+            raise InputError(f"{result.log}: the identified model is not valid, not writing {path}: {rule}",
+                             field=exc.field) from None
+
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".toml", dir=path.parent)
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        # mkstemp's file is private (0600): the model gets the mode of the file it replaces, or the umask's
-        if path.exists():
-            mode = stat.S_IMODE(path.stat().st_mode)
-        else:
-            mask = os.umask(0)
-            os.umask(mask)
-            mode = 0o666 & ~mask
-        os.chmod(tmp, mode)
+        return write_whole(path, text, check=loads)
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror}") from None
-    try:
-        load_model(tmp)  # the identified model must be one gearctl reads (range errors name the key)
-    except InputError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        rule = str(exc).split(": ", 1)[-1]
-        raise InputError(f"{result.log}: the identified model is not valid, not writing {path}: {rule}",
-                         field=exc.field) from None
-    try:
-        if path.exists() and not path.is_file():  # a device or a FIFO (/dev/null): written into, never replaced
-            Path(tmp).unlink(missing_ok=True)
-            with open(path, "w") as fh:
-                fh.write(text)
-        else:
-            os.replace(tmp, path)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise InputError(f"cannot write {path}: {exc.strerror}") from None
-    return path

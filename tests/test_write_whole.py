@@ -1,4 +1,4 @@
-"""The command line's files are written whole or not at all (gearctl.cli.common.write_whole).
+"""The command line's files are written whole or not at all (gearctl.files.write_whole).
 
 A full disk under `gearctl sweep --json FILE` left 1 MB of JSON, not valid JSON, after "cannot write FILE: No
 space left on device" (a review), and so did runs.csv under --out; a Ctrl-C while writing could too.

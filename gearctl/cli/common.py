@@ -7,16 +7,15 @@ import csv
 import errno
 import json
 import math
-import os
-import shutil
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import numpy as np
 
 from ..errors import InputError
+from ..files import write_whole
 from ..units import POINTS, Spec
 
 __all__ = ["spec_arg", "positive_float", "finite_float", "nonnegative_float", "dump_json", "write_csv_stream",
@@ -104,36 +103,6 @@ def _clean(o: Any) -> Any:
 def dump_json(obj: Any) -> str:
     """``obj`` as indented JSON (numpy values, dataclasses with ``as_dict``, inf/nan as null)."""
     return json.dumps(_clean(json.loads(json.dumps(obj, default=_json_default))), indent=2)
-
-
-def write_whole(path: str | Path, write: str | Callable[[TextIO], Any]) -> None:
-    """Write a file whole or not at all: ``write`` (the text, or a function given the open file, which it opens with
-    ``newline=""``) goes to a temporary file beside ``path``, which then replaces it (keeping an existing file's
-    mode). A full disk or a Ctrl-C left a truncated file before (a review: 1 MB of a sweep's JSON, not valid JSON,
-    after "cannot write ...: No space left on device"); the temporary file is removed then. A device or a FIFO
-    (``/dev/stdout``) is written into directly. ``OSError`` propagates, for the caller to word."""
-    path = Path(path)
-
-    def fill(fh: TextIO) -> None:
-        if isinstance(write, str):
-            fh.write(write)
-        else:
-            write(fh)
-
-    if path.exists() and not path.is_file():
-        with open(path, "w", newline="") as fh:
-            fill(fh)
-        return
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "w", newline="") as fh:
-            fill(fh)
-        if path.exists():
-            shutil.copymode(path, tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 #: The standard output a ``--csv -`` writes to, set by :func:`gearctl.cli.main` (which sends the rest to stderr).
