@@ -1024,16 +1024,23 @@ _SMOOTHING_DEFAULT_SHARE = 0.25  # without a smoothing in the file: at most this
 _SMOOTHING_SHARE = 0.5  # smoothing may be at most this share of the mesh torque the torque limit gives the load
 
 
+def _pattern_keys(n: int, n_cross: int, rigid: bool) -> list[tuple[int, int]]:
+    """The ``(start of the gap, landing)`` of every condensed QP an MPC of horizon ``n`` builds, in the order it builds
+    them (:meth:`MPC._build_patterns`): all in contact first; then every separation ``a`` with a landing up to
+    ``n_cross + 2`` samples on; then the landings from a floating start, any countdown. Backlash-free: the first."""
+    keys = {(n, n + 1): None}
+    if not rigid:
+        for a in range(n):
+            for e in range(a + 1, a + n_cross + 3):
+                keys.setdefault((a, min(e, n + 1)))
+        for e in range(1, n + 2):
+            keys.setdefault((0, e))
+    return list(keys)
+
+
 def _pattern_count(n: int, n_cross: int, rigid: bool) -> int:
-    """How many condensed QPs :meth:`MPC._build_patterns` makes for horizon ``n`` (the same keys)."""
-    if rigid:
-        return 1
-    keys = {(n, n + 1)}
-    for a in range(n):
-        for e in range(a + 1, a + n_cross + 3):
-            keys.add((a, min(e, n + 1)))
-    keys.update((0, e) for e in range(1, n + 2))
-    return len(keys)
+    """How many condensed QPs an MPC of horizon ``n`` builds (:func:`_pattern_keys`)."""
+    return len(_pattern_keys(n, n_cross, rigid))
 
 
 def _pattern_bytes(n: int) -> int:
@@ -1396,17 +1403,9 @@ class MPC(Controller):
         self._cost_scale = 1.0
         H0 = self._condense(n, n + 1).H
         self._cost_scale = 1.0 / float(np.mean(np.diag(H0)))  # Hessian diagonal ~ 1 for the solver
-        self._patterns: dict[tuple[int, int], _Pattern] = {self._all_contact: self._condense(n, n + 1)}
-        if self._rigid:  # backlash-free: the train is always in contact, no separation or landing patterns
-            return
-        for a in range(n):
-            for e in range(a + 1, a + nc + 3):
-                key = (a, min(e, n + 1))
-                if key not in self._patterns:
-                    self._patterns[key] = self._condense(*key)
-        for e in range(1, n + 2):  # landings from a floating start, any countdown
-            if (0, e) not in self._patterns:
-                self._patterns[(0, e)] = self._condense(0, e)
+        # backlash-free: the train is always in contact, no separation or landing patterns
+        self._patterns: dict[tuple[int, int], _Pattern] = {
+            key: self._condense(*key) for key in _pattern_keys(n, nc, self._rigid)}
 
     # -- offline: observer --------------------------------------------------------------------------------
     def _build_observer(self) -> None:
