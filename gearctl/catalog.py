@@ -289,9 +289,8 @@ def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | N
     InputError
         Unknown name, bad key or value.
     """
-    from .plant import Plant
+    from .plant import check_plant
 
-    if not isinstance(plant, Plant):
-        raise InputError(f"plant = {plant!r} is not a Plant: design on gearctl.build_plant(model)", field="plant")
+    plant = check_plant(plant)
     path = resolve(name_or_path, "controllers")
     return build_controller(read_toml(path), plant, path=path, backlash=backlash, sensors=sensors)

@@ -21,7 +21,7 @@ from .errors import InputError, SimulationError
 from .kernel import Kernel
 from .limits import check_output_size
 from .params import Sensors
-from .plant import Plant
+from .plant import Plant, check_plant
 from .simulate import DIVERGENCE_LIMIT, Event, located_events
 from .units import DURATION, SEED
 
@@ -224,10 +224,12 @@ def simulate_closed_loop(
     Raises
     ------
     InputError
-        If the controller reads the load encoder and ``sensors`` say the servo has none.
+        If ``plant`` is not a Plant, ``ref`` not a reference, ``controller`` not a controller, or the
+        controller reads the load encoder and ``sensors`` say the servo has none.
     SimulationError
         If the loop diverges or the plant state becomes NaN; ``error.result`` holds the run so far.
     """
+    plant = check_plant(plant)
     if not all(hasattr(ref, a) for a in ("at", "load_disturbance")):
         raise InputError(f"ref = {ref!r} is not a reference: expected a gearctl.reference(...) "
                          "(sine, step, ramp or move)", field="ref")

@@ -22,7 +22,7 @@ from typing import Any
 import control as ct
 import numpy as np
 
-from .plant import Plant, input_matrix, mode_matrices, signal_names
+from .plant import Plant, check_plant, input_matrix, mode_matrices, signal_names
 
 __all__ = [
     "ContactModes",
@@ -79,6 +79,7 @@ def mode_model(plant: Plant, loaded: list[bool] | tuple[bool, ...], *, name: str
         Named states, inputs and outputs (see the module docstring); deviations about the operating point
         (the ``+-k b`` offset of the contact law only shifts the operating point).
     """
+    plant = check_plant(plant)
     loaded = list(loaded)
     if len(loaded) != plant.n_stages:
         from .errors import InputError
@@ -96,6 +97,7 @@ def contact_mode_model(plant: Plant, *, name: str = "contact") -> ct.StateSpace:
 
     See :func:`mode_model`.
     """
+    plant = check_plant(plant)
     return mode_model(plant, [True] * plant.n_stages, name=name)
 
 
@@ -106,6 +108,7 @@ def separation_model(plant: Plant, *, name: str = "separation") -> ct.StateSpace
     zero. A stage without backlash (``b = 0``) cannot separate: its contact law is one spring through ``s = 0``,
     so it stays in contact here (a backlash-free pair's separation model is its contact model).
     """
+    plant = check_plant(plant)
     return mode_model(plant, [b == 0.0 for b in plant.backlashes], name=name)
 
 
@@ -117,7 +120,7 @@ def rigid_model(plant: Plant, *, name: str = "rigid") -> ct.StateSpace:
     ``s = 0``. States ``theta1, omega1`` (``theta0, omega0`` for a train); the force outputs are the forces the
     stiff meshes transmit.
     """
-    p = plant
+    p = check_plant(plant)
     n, w = p.n_stages, len(p.shafts)
     ratio_to = [math.prod(s.ratio for s in p.stages[:j]) for j in range(w)]
     N = ratio_to[-1]
@@ -271,6 +274,7 @@ def mesh_mode(plant: Plant) -> MeshMode:
     reports ``sqrt(k / m_eq)`` and a damping ratio above 1 (``MeshMode.overdamped``), not the frequency of
     one of its real poles. The zero pair follows the same rule (no rigid-body zeros: the motor is held).
     """
+    plant = check_plant(plant)
     sys = contact_mode_model(plant)
     target = plant.natural_frequency**2
     rigid = tuple(complex(r) for r in rigid_model(plant).poles())
@@ -338,6 +342,21 @@ class ContactModes:
 def linearize_modes(plant: Plant) -> ContactModes:
     """All linear models of a plant: contact, separation, rigid, the two transfer functions, the mesh mode.
 
+    Parameters
+    ----------
+    plant : Plant
+        From :func:`~gearctl.plant.build_plant` (a pair or a train).
+
+    Returns
+    -------
+    ContactModes
+        The models, named as in the module docstring (a train's also per stage separated).
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a :class:`~gearctl.plant.Plant` (a gear model: build it first).
+
     Examples
     --------
     >>> from gearctl import load_model, build_plant
@@ -345,6 +364,7 @@ def linearize_modes(plant: Plant) -> ContactModes:
     >>> round(m.mesh.natural_frequency_hz)
     8196
     """
+    plant = check_plant(plant)
     contact = contact_mode_model(plant)
     scale = plant.natural_frequency
     tf_motor = _siso_tf(contact, 0, 0, scale)

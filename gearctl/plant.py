@@ -63,7 +63,7 @@ if TYPE_CHECKING:
 __all__ = [
     "Mode", "PlantKind", "Shaft", "Stage", "Plant", "build_plant", "plant_nlsys", "STATES", "INPUTS",
     "MAX_STAGES", "mode_matrices", "input_matrix", "force_coefficients", "affine_terms", "event_table",
-    "mesh_force", "signal_names",
+    "mesh_force", "signal_names", "check_plant",
 ]
 
 #: State and input names of a pair (report eqs 1-12); a train's are ``theta0..thetan``, ``omega0..omegan``.
@@ -471,6 +471,37 @@ class Plant:
                      load_torque=self.load_torque)
 
 
+def check_plant(plant: Any, *, field: str = "plant") -> Plant:
+    """``plant`` itself if it is a :class:`Plant`; else an :class:`~gearctl.errors.InputError` naming ``field``.
+
+    A gear model (from :func:`~gearctl.catalog.load_model`) or its name is the usual slip: the message says to
+    build the plant first.
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a :class:`Plant`.
+    """
+    if isinstance(plant, Plant):
+        return plant
+    if hasattr(plant, "servo") and hasattr(plant, "stages"):
+        hint = ": build it first, gearctl.build_plant(model)"
+    elif isinstance(plant, str | os.PathLike):
+        hint = f": build it first, gearctl.build_plant(gearctl.load_model({str(plant)!r}))"
+    else:
+        hint = ": expected a gearctl.build_plant(model)"
+    raise InputError(f"{field} = {_short_repr(plant)} is not a Plant{hint}", field=field)
+
+
+def _short_repr(value: Any) -> str:
+    """``repr`` of a value cut to one readable line (a gear model's repr runs to a page)."""
+    name = getattr(value, "name", None)
+    if hasattr(value, "servo") and isinstance(name, str):
+        return f"<{type(value).__name__} {name!r}>"
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
 def _per_stage(value: float | Sequence[float], n: int) -> tuple[float, ...]:
     """One value for every stage, or one per stage; each checked against :data:`BACKLASH`."""
     vals = tuple(value) if isinstance(value, Sequence) else (value,) * n
@@ -773,6 +804,11 @@ def plant_nlsys(plant: Plant, *, name: str | None = None) -> Any:
         python-control's ``(t, x, u, params)`` signature; ``params`` may override ``backlash``, ``k`` and
         ``c`` of a pair. The servo's ``load_torque`` is added to the load torque input.
 
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a :class:`Plant` (a gear model: build it first with :func:`build_plant`).
+
     Notes
     -----
     This is for interconnection with the user's own blocks; it has no event location, so
@@ -786,7 +822,7 @@ def plant_nlsys(plant: Plant, *, name: str | None = None) -> Any:
     """
     import control as ct
 
-    p = plant
+    p = check_plant(plant)
     n, w = p.n_stages, len(p.shafts)
     ys = p.kind is PlantKind.YANG_SUN
     states, inputs = signal_names(p)

@@ -21,7 +21,7 @@ from .closedloop import ClosedLoopResult, check_loop_memory, simulate_closed_loo
 from .design.base import Controller
 from .errors import InputError
 from .params import Sensors
-from .plant import Plant
+from .plant import Plant, check_plant
 from .references import move_point, move_times
 from .units import DURATION, SEED
 
@@ -230,7 +230,13 @@ def precision_test(
     Targets are spread over the travel with seeded offsets of up to a tenth of their spacing, as ISO
     230-2 asks (so periodic errors are not sampled in phase). The measurement is the true load angle at
     the end of each dwell.
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a Plant, or a count, the seed or a length of the test is out of range.
     """
+    plant = check_plant(plant)
     for name, v, low in (("targets", targets, 2), ("cycles", cycles, 1)):
         is_int = isinstance(v, int | np.integer) and not isinstance(v, bool)
         if not (is_int and low <= v <= 50):

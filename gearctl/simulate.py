@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from .errors import InputError, SimulationError
 from .kernel import EVENT_DTYPE, EventKind, Kernel
 from .limits import check_output_size
-from .plant import Mode, Plant, mesh_force, signal_names
+from .plant import Mode, Plant, check_plant, mesh_force, signal_names
 from .units import DURATION
 
 __all__ = ["Event", "SimulationResult", "simulate", "report_case", "contact_force", "CASES", "DIVERGENCE_LIMIT",
@@ -257,6 +257,7 @@ def simulate(
         If the state becomes NaN or diverges, or events cascade without end; ``error.result`` holds
         the trajectory up to the failure.
     """
+    plant = check_plant(plant)
     DURATION.check("duration", duration)
     dt = default_output_interval(duration) if dt is None else dt
     if not (dt > 0 and math.isfinite(dt)):
@@ -356,6 +357,7 @@ def report_case(
     (``xi2`` counter-clockwise positive, gear 2 turning counter-clockwise when gear 1 turns clockwise) a
     load that resists the motion is ``xi2 = -1 N m``; ``+1 N m`` would drive gear 2 forward too.
     """
+    plant = check_plant(plant)
     if case not in CASES:
         raise InputError(f"case = {case!r} is not a case: expected one of {', '.join(CASES)}", field="case")
     c = dict(CASES[case])

@@ -122,3 +122,32 @@ def test_tracking_metrics_refuses_a_settle_time_outside_the_run(servo, settle) -
     assert err.value.field == "settle"
     whole = gearctl.tracking_metrics(run, settle=0.0).rms_error
     assert gearctl.tracking_metrics(run, settle=0.6).rms_error != whole
+
+
+def _plant_takers() -> list:  # noqa: ANN202 - (label, call taking the plant) of every documented plant-taking function
+    from gearctl.modes import mesh_mode, mode_model
+    from gearctl.simulate import report_case, simulate
+
+    return [
+        ("linearize_modes", gearctl.linearize_modes), ("contact_mode_model", gearctl.contact_mode_model),
+        ("separation_model", gearctl.separation_model), ("rigid_model", gearctl.rigid_model),
+        ("mode_model", lambda p: mode_model(p, [True])), ("mesh_mode", mesh_mode),
+        ("plant_nlsys", gearctl.plant_nlsys), ("simulate", lambda p: simulate(p, [0.0] * 4, 0.01)),
+        ("report_case", lambda p: report_case(p, "free", 0.01)),
+        ("simulate_closed_loop", lambda p: gearctl.simulate_closed_loop(p, None, None, 0.05)),
+        ("precision_test", lambda p: gearctl.precision_test(p, None)),
+    ]
+
+
+@pytest.mark.parametrize("label, call", _plant_takers(), ids=[label for label, _ in _plant_takers()])
+def test_plant_functions_refuse_a_gear_model_by_name(servo, label, call) -> None:  # noqa: ANN001
+    model, plant, _ = servo
+    with pytest.raises(InputError, match=r"^plant = <GearModel 'shing1993_servo'> is not a Plant: build it first, "
+                                         r"gearctl.build_plant\(model\)$") as err:
+        call(model)
+    assert err.value.field == "plant"
+    with pytest.raises(InputError, match=r"^plant = 'shing1993_servo' is not a Plant: build it first, "
+                                         r"gearctl.build_plant\(gearctl.load_model\('shing1993_servo'\)\)$"):
+        call("shing1993_servo")
+    with pytest.raises(InputError, match=r"^plant = None is not a Plant"):
+        call(None)
