@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import control as ct
 import numpy as np
 
-from .plant import Plant, check_plant, input_matrix, mode_matrices, signal_names
+from .plant import Mode, Plant, check_plant, input_matrix, mode_matrices, signal_names
 
 __all__ = [
     "ContactModes",
@@ -61,15 +62,16 @@ def _outputs(plant: Plant, loaded: list[bool]) -> tuple[np.ndarray, np.ndarray]:
     return C, np.zeros((2 + 2 * n, 2))
 
 
-def mode_model(plant: Plant, loaded: list[bool] | tuple[bool, ...], *, name: str = "mode") -> ct.StateSpace:
+def mode_model(plant: Plant, loaded: Sequence[bool | Mode], *, name: str = "mode") -> ct.StateSpace:
     """Linear model with the stages ``loaded`` in contact (front or back alike) and the others separated.
 
     Parameters
     ----------
     plant : Plant
         The (improved) plant; motor/load inertias and viscous friction of a ``[servo]`` are included.
-    loaded : sequence of bool
-        Per stage, whether it is in contact.
+    loaded : sequence of bool or Mode
+        Per stage, whether it is in contact: ``True`` (or ``Mode.FRONT``, ``Mode.BACK``) or separated:
+        ``False`` (or ``Mode.SEPARATION``); the integers -1, 0, 1 read as those modes.
     name : str
         System name.
 
@@ -78,14 +80,32 @@ def mode_model(plant: Plant, loaded: list[bool] | tuple[bool, ...], *, name: str
     control.StateSpace
         Named states, inputs and outputs (see the module docstring); deviations about the operating point
         (the ``+-k b`` offset of the contact law only shifts the operating point).
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a Plant, or ``loaded`` has not one entry per stage, each a bool or a mode.
     """
+    from .errors import InputError
+
     plant = check_plant(plant)
+    if isinstance(loaded, str | bytes) or not isinstance(loaded, Iterable):
+        raise InputError(f"loaded = {loaded!r} is not a sequence: expected one bool or Mode per stage "
+                         f"({plant.n_stages}), e.g. [True] * {plant.n_stages}", field="loaded")
     loaded = list(loaded)
     if len(loaded) != plant.n_stages:
-        from .errors import InputError
-
         raise InputError(f"loaded = {loaded!r} has {len(loaded)} entries: expected one per stage ({plant.n_stages})",
                          field="loaded")
+    flags = []
+    for i, v in enumerate(loaded):
+        if isinstance(v, bool | np.bool_):
+            flags.append(bool(v))
+        elif isinstance(v, int | np.integer) and int(v) in (-1, 0, 1):
+            flags.append(Mode(int(v)) is not Mode.SEPARATION)
+        else:
+            raise InputError(f"loaded[{i}] = {v!r} is not a contact mode: expected True (in contact), False "
+                             "(separated) or a gearctl.Mode (FRONT, SEPARATION, BACK)", field="loaded")
+    loaded = flags
     states, inputs = signal_names(plant)
     C, D = _outputs(plant, loaded)
     return ct.ss(mode_matrices(plant, loaded), input_matrix(plant), C, D, states=states, inputs=inputs,

@@ -151,3 +151,30 @@ def test_plant_functions_refuse_a_gear_model_by_name(servo, label, call) -> None
         call("shing1993_servo")
     with pytest.raises(InputError, match=r"^plant = None is not a Plant"):
         call(None)
+
+
+@pytest.mark.parametrize("loaded", [["separation"], ["front"], [None], [0.5], [2], "contact", True])
+def test_mode_model_refuses_what_is_no_contact_mode(servo, loaded) -> None:  # noqa: ANN001
+    from gearctl.modes import mode_model
+
+    _, plant, _ = servo
+    with pytest.raises(InputError, match=r"^loaded(\[0\])? = .* is not a (contact mode|sequence)") as err:
+        mode_model(plant, loaded)
+    assert err.value.field == "loaded"
+
+
+def test_mode_model_reads_modes_as_contact_or_separation() -> None:
+    import numpy as np
+
+    from gearctl.modes import mode_model
+
+    train = gearctl.build_plant(gearctl.load_model("servo_3stage_quanser_srv02"))
+    sep = gearctl.Mode.SEPARATION
+    for modes, flags in (([gearctl.Mode.FRONT, sep, gearctl.Mode.BACK], [True, False, True]),
+                         (np.array([0, -1, 0]), [False, True, False]), (np.array([True, False, False]), None)):
+        flags = flags if flags is not None else [bool(v) for v in modes]
+        np.testing.assert_array_equal(mode_model(train, modes).A, mode_model(train, flags).A)
+    # the separated stage's force is zero, a loaded one's is not
+    sys = mode_model(train, [gearctl.Mode.FRONT, sep, gearctl.Mode.BACK])
+    force = [sys.C[sys.output_labels.index(f"force{i}")] for i in (1, 2, 3)]
+    assert np.any(force[0]) and not np.any(force[1]) and np.any(force[2])
