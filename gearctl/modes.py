@@ -84,7 +84,8 @@ def mode_model(plant: Plant, loaded: Sequence[bool | Mode], *, name: str = "mode
     Raises
     ------
     InputError
-        If ``plant`` is not a Plant, or ``loaded`` has not one entry per stage, each a bool or a mode.
+        If ``plant`` is not a Plant, or ``loaded`` has not one entry per stage, each a bool or a mode, or it
+        separates a stage without backlash.
     """
     from .errors import InputError
 
@@ -105,6 +106,12 @@ def mode_model(plant: Plant, loaded: Sequence[bool | Mode], *, name: str = "mode
         else:
             raise InputError(f"loaded[{i}] = {v!r} is not a contact mode: expected True (in contact), False "
                              "(separated) or a gearctl.Mode (FRONT, SEPARATION, BACK)", field="loaded")
+    for i, (flag, b) in enumerate(zip(flags, plant.backlashes, strict=True)):
+        if not flag and b == 0.0:
+            where = f"stage {i + 1}" if plant.n_stages > 1 else "the pair"
+            raise InputError(f"loaded[{i}] = {loaded[i]!r}: {where} has no backlash (backlash = 0), so it cannot "
+                             "separate (its contact law is one spring through s = 0): expected it in contact",
+                             field="loaded")
     loaded = flags
     states, inputs = signal_names(plant)
     C, D = _outputs(plant, loaded)

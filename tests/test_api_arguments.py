@@ -178,3 +178,22 @@ def test_mode_model_reads_modes_as_contact_or_separation() -> None:
     sys = mode_model(train, [gearctl.Mode.FRONT, sep, gearctl.Mode.BACK])
     force = [sys.C[sys.output_labels.index(f"force{i}")] for i in (1, 2, 3)]
     assert np.any(force[0]) and not np.any(force[1]) and np.any(force[2])
+
+
+def test_mode_model_refuses_to_separate_a_stage_without_backlash() -> None:
+    import numpy as np
+
+    from gearctl.modes import mode_model
+
+    model = gearctl.load_model("servo_2stage_phm09")
+    train = gearctl.build_plant(model, backlash=[0.0, model.stages[1].pair.backlash])
+    with pytest.raises(InputError, match=r"^loaded\[0\] = False: stage 1 has no backlash .* cannot separate") as err:
+        mode_model(train, [False, True])
+    assert err.value.field == "loaded"
+    # stage 2 has a gap: separating it alone is the linearize_modes model
+    np.testing.assert_array_equal(mode_model(train, [True, False]).A,
+                                  gearctl.linearize_modes(train).stage_separated[1].A)
+    pair = gearctl.build_plant(gearctl.load_model("shing1993_servo"), backlash=0.0)
+    with pytest.raises(InputError, match=r"the pair has no backlash"):
+        mode_model(pair, [gearctl.Mode.SEPARATION])
+    assert gearctl.separation_model(pair).nstates == 4
