@@ -12,6 +12,9 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from .errors import InputError
 from .geometry import GearPair, Geometry, pair_geometry
@@ -109,14 +112,35 @@ class GearModel:
 
     def with_backlash(self, backlash: float | Sequence[float]) -> GearModel:
         """Copy with another backlash [m]: one value for every stage or one per stage (0: backlash-free)."""
-        n = len(self.stages)
-        vals = tuple(backlash) if isinstance(backlash, Sequence) else (backlash,) * n
-        if len(vals) != n:
-            raise InputError(f"backlash = {list(vals)!r} has {len(vals)} values: expected 1 or {n} (one per stage)",
-                             field="backlash")
-        stages = tuple(dataclasses.replace(s, pair=dataclasses.replace(s.pair, backlash=BACKLASH.check("backlash", b)))
+        vals = per_stage_backlash(backlash, len(self.stages))
+        stages = tuple(dataclasses.replace(s, pair=dataclasses.replace(s.pair, backlash=b))
                        for s, b in zip(self.stages, vals, strict=True))
         return dataclasses.replace(self, stages=stages)
+
+
+def per_stage_backlash(value: Any, n: int) -> tuple[float, ...]:
+    """One backlash [m] for every stage, or one per stage (a sequence or a 1-D array), each checked.
+
+    Raises
+    ------
+    InputError
+        Naming ``backlash``: a count other than 1 or ``n``, or a value out of :data:`~gearctl.units.BACKLASH`.
+    """
+    try:
+        ndim = 0 if isinstance(value, str | bytes) else np.ndim(value)
+    except ValueError:  # a ragged nesting
+        ndim = -1
+    if ndim == 0:
+        vals = (value,) * n
+    elif ndim == 1 and isinstance(value, Sequence | np.ndarray):
+        vals = tuple(value)
+    else:
+        raise InputError(f"backlash = {value!r} is not a backlash: expected one number, or a list or 1-D array "
+                         f"of one per stage ({n}) [m]", field="backlash")
+    if len(vals) != n:
+        raise InputError(f"backlash = {list(vals)!r} has {len(vals)} values: expected 1 or one per stage ({n})",
+                         field="backlash")
+    return tuple(BACKLASH.check("backlash", v.item() if isinstance(v, np.generic | np.ndarray) else v) for v in vals)
 
 
 def _label(multi: bool, i: int, key: str) -> str:

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from .errors import InputError
 from .geometry import pair_geometry
-from .model import MAX_BACKLASH_PER_MODULE
+from .model import MAX_BACKLASH_PER_MODULE, per_stage_backlash
 from .params import ContactLaw, FrictionLaw
 from .stiffness import (
     damping_coefficient,
@@ -43,7 +43,6 @@ from .stiffness import (
     yang_sun_stiffness,
 )
 from .units import (
-    BACKLASH,
     BASE_RADIUS,
     COULOMB_FRICTION,
     COULOMB_VELOCITY,
@@ -360,7 +359,7 @@ class Plant:
 
     def with_backlash(self, backlash: float | Sequence[float]) -> Plant:
         """Copy with another backlash [m]: one value for every stage, or one per stage."""
-        bs = _per_stage(backlash, self.n_stages)
+        bs = per_stage_backlash(backlash, self.n_stages)
         return dataclasses.replace(self, stages=tuple(dataclasses.replace(s, backlash=b)
                                                       for s, b in zip(self.stages, bs, strict=True)))
 
@@ -500,15 +499,6 @@ def _short_repr(value: Any) -> str:
         return f"<{type(value).__name__} {name!r}>"
     text = repr(value)
     return text if len(text) <= 80 else text[:77] + "..."
-
-
-def _per_stage(value: float | Sequence[float], n: int) -> tuple[float, ...]:
-    """One value for every stage, or one per stage; each checked against :data:`BACKLASH`."""
-    vals = tuple(value) if isinstance(value, Sequence) else (value,) * n
-    if len(vals) != n:
-        raise InputError(f"backlash = {list(vals)!r} has {len(vals)} values: expected 1 or one per stage ({n})",
-                         field="backlash")
-    return tuple(BACKLASH.check("backlash", v) for v in vals)
 
 
 def signal_names(plant: Plant) -> tuple[list[str], list[str]]:
@@ -741,7 +731,7 @@ def build_plant(
     tc = [servo.coulomb_friction1, *(servo.intermediate_coulomb_friction or (0.0,) * (n - 1)),
           servo.coulomb_friction2]
     if backlash is not None:
-        bs = _per_stage(backlash, n)
+        bs = per_stage_backlash(backlash, n)
         for i, (b, sm) in enumerate(zip(bs, model.stages, strict=True)):  # the file's bound on a stage's backlash
             top = MAX_BACKLASH_PER_MODULE * sm.pair.module
             if b > top:

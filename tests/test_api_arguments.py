@@ -197,3 +197,26 @@ def test_mode_model_refuses_to_separate_a_stage_without_backlash() -> None:
     with pytest.raises(InputError, match=r"the pair has no backlash"):
         mode_model(pair, [gearctl.Mode.SEPARATION])
     assert gearctl.separation_model(pair).nstates == 4
+
+
+def test_per_stage_backlash_takes_a_numpy_array_and_refuses_other_shapes() -> None:
+    import numpy as np
+
+    model = gearctl.load_model("servo_3stage_quanser_srv02")
+    b = np.array([1e-5, 2e-5, 3e-5])
+    plant = gearctl.build_plant(model, backlash=b)
+    assert plant.backlashes == (1e-5, 2e-5, 3e-5)
+    assert plant.with_backlash(2 * b).backlashes == (2e-5, 4e-5, 6e-5)
+    assert model.with_backlash(b).stages[2].pair.backlash == 3e-5
+    assert gearctl.build_plant(model, backlash=np.float64(1e-5)).backlashes == (1e-5,) * 3
+    assert gearctl.build_plant(model, backlash=np.array(1e-5)).backlashes == (1e-5,) * 3
+    with pytest.raises(InputError, match=r"has 2 values: expected 1 or one per stage \(3\)"):
+        plant.with_backlash(b[:2])
+    with pytest.raises(InputError, match=r"is not a backlash: expected one number, or a list or 1-D array"):
+        gearctl.build_plant(model, backlash=np.ones((3, 1)) * 1e-5)
+    with pytest.raises(InputError, match=r"is not a backlash"):
+        gearctl.build_plant(model, backlash=[[1e-5], [1e-5, 2e-5], 1e-5])
+    with pytest.raises(InputError, match=r"^backlash = '5e-5' is not a number \(a string"):
+        model.with_backlash("5e-5")
+    with pytest.raises(InputError, match=r"^backlash = -1.0 is out of range"):
+        plant.with_backlash(np.array([1e-5, -1.0, 1e-5]))
