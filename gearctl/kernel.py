@@ -50,6 +50,7 @@ import ctypes
 import dataclasses
 import functools
 import math
+import numbers
 from pathlib import Path
 from typing import Any
 
@@ -454,11 +455,15 @@ class Kernel:
         p = self.plant
         n, w = p.n_stages, len(p.shafts)
         nx = 2 * w
-        x0 = np.asarray(self.x0, dtype=float)
-        if x0.shape != (nx,) or not np.all(np.isfinite(x0)):
-            raise InputError(f"x0 = {x0.tolist()!r} is not an initial state: expected {nx} finite numbers "
+        try:
+            x0 = np.asarray(self.x0, dtype=float)
+        except (TypeError, ValueError):
+            x0 = None
+        if x0 is None or x0.shape != (nx,) or not np.all(np.isfinite(x0)):
+            shown = self.x0 if x0 is None else x0.tolist()
+            raise InputError(f"x0 = {shown!r} is not an initial state: expected {nx} finite numbers "
                              f"[rad x {w}, rad/s x {w}]", field="x0")
-        if not (self.dt > 0 and math.isfinite(self.dt)):
+        if not (isinstance(self.dt, numbers.Real) and self.dt > 0 and math.isfinite(self.dt)):
             raise InputError(f"dt = {self.dt!r} is out of range: expected a number > 0 [s]", field="dt")
         self.exact = p.is_piecewise_linear
         lib = _load() if self.compiled in (None, True) else None

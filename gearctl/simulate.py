@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -209,6 +210,18 @@ def contact_force(plant: Plant, x: NDArray[np.float64], mode: NDArray[np.int_],
     return mesh_force(plant, x, mode, d_ys)
 
 
+def _torque_pair(value: Any, t: float) -> tuple[float, float]:
+    """The torque function's value as two finite floats, or an :class:`InputError` naming ``torque``."""
+    try:
+        pair = [float(v) for v in value]
+    except (TypeError, ValueError):
+        pair = []
+    if len(pair) != 2 or not all(math.isfinite(v) for v in pair):
+        raise InputError(f"torque(t, x) = {value!r} at t = {t:.6g} s is not a torque: expected (xi_motor, xi_load), "
+                         "two finite numbers [N m]", field="torque")
+    return pair[0], pair[1]
+
+
 def simulate(
     plant: Plant,
     x0: Sequence[float],
@@ -251,8 +264,8 @@ def simulate(
     Raises
     ------
     InputError
-        For a non-positive duration or output interval, an output too large to hold, or a bad initial
-        state.
+        For a non-positive duration or output interval, an output too large to hold, a bad initial
+        state, or a torque (or a value of the torque function) that is not two finite numbers.
     SimulationError
         If the state becomes NaN or diverges, or events cascade without end; ``error.result`` holds
         the trajectory up to the failure.
@@ -260,7 +273,7 @@ def simulate(
     plant = check_plant(plant)
     DURATION.check("duration", duration)
     dt = default_output_interval(duration) if dt is None else dt
-    if not (dt > 0 and math.isfinite(dt)):
+    if not (isinstance(dt, numbers.Real) and dt > 0 and math.isfinite(dt)):
         raise InputError(f"dt = {dt!r} is out of range: expected a number > 0 [s]", field="dt")
     if not callable(torque):
         try:
@@ -273,7 +286,7 @@ def simulate(
     n = int(math.ceil(duration / dt - 1e-9))
     nx, ns = plant.nx, plant.n_stages
     check_output_size(n + 1, 3 * nx + 3 * ns + 4, field="dt", fix="a larger output interval --dt")
-    kn = Kernel(plant, np.asarray(x0, dtype=float), dt=min(dt, duration), rtol=rtol, compiled=compiled)
+    kn = Kernel(plant, x0, dt=min(dt, duration), rtol=rtol, compiled=compiled)
     t = np.empty(n + 1)
     x = np.empty((nx, n + 1))
     u = np.empty((2, n + 1))
@@ -297,7 +310,7 @@ def simulate(
     tick = max(1, n // 100)
     for i in range(n):
         if not fixed:
-            u1, u2 = (float(v) for v in torque(t[i], x[:, i]))  # type: ignore[operator]
+            u1, u2 = _torque_pair(torque(t[i], x[:, i]), t[i])  # type: ignore[operator]
         u[:, i] = (u1, u2)
         step = dt if i < n - 1 else duration - dt * (n - 1)
         status = kn.advance(u1, u2 + lt, step)

@@ -220,3 +220,29 @@ def test_per_stage_backlash_takes_a_numpy_array_and_refuses_other_shapes() -> No
         model.with_backlash("5e-5")
     with pytest.raises(InputError, match=r"^backlash = -1.0 is out of range"):
         plant.with_backlash(np.array([1e-5, -1.0, 1e-5]))
+
+
+@pytest.mark.parametrize("value", [(1.0, 2.0, 3.0), 0.1, (float("nan"), 0.0), None])
+def test_simulate_refuses_a_torque_function_value_that_is_no_pair(servo, value) -> None:  # noqa: ANN001
+    import numpy as np
+
+    from gearctl.simulate import simulate
+
+    _, plant, _ = servo
+    with pytest.raises(InputError, match=r"^torque\(t, x\) = .* at t = 0.002 s is not a torque") as err:
+        simulate(plant, [0, 0, 0, 0], 0.01, dt=1e-3, torque=lambda t, x: value if t > 1.5e-3 else (0.1, 0.0))
+    assert err.value.field == "torque"
+    run = simulate(plant, [0, 0, 0, 0], 0.01, dt=1e-3, torque=lambda t, x: np.array([0.1, 0.0]))
+    assert run.success and run.x[2, -1] > 0
+
+
+@pytest.mark.parametrize("kwargs, field", [({"x0": "zero"}, "x0"), ({"x0": ["a", 0, 0, 0]}, "x0"),
+                                           ({"x0": [[0, 0], [0, 0]]}, "x0"), ({"dt": "1e-3"}, "dt")])
+def test_simulate_names_an_initial_state_or_interval_that_is_no_number(servo, kwargs, field) -> None:  # noqa: ANN001
+    from gearctl.simulate import simulate
+
+    _, plant, _ = servo
+    args = {"x0": [0.0] * 4, **kwargs}
+    with pytest.raises(InputError, match=rf"^{field} = .* (is not an initial state|is out of range)") as err:
+        simulate(plant, args.pop("x0"), 0.01, **args)
+    assert err.value.field == field
