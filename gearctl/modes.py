@@ -432,6 +432,11 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
         below -180 deg at low frequency), by how much the gain may *drop* before the low-frequency
         crossover turns unstable (``inf`` if none).
 
+    Raises
+    ------
+    InputError
+        If ``loop`` is not a SISO python-control system, or ``omega`` not increasing positive frequencies.
+
     Notes
     -----
     python-control's ``stability_margins`` reports one crossing among several: on these conditionally stable
@@ -451,6 +456,16 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
     if omega is None:
         wmax = math.pi / loop.dt if loop.dt else 1e6
         omega = np.logspace(-2, np.log10(wmax * 0.999), 20000)
+    else:
+        try:
+            w = np.asarray(omega, dtype=float)
+        except (TypeError, ValueError):
+            w = np.empty(0)
+        if not (w.ndim == 1 and w.size >= 2 and np.all(np.isfinite(w)) and w[0] > 0 and np.all(np.diff(w) > 0)):
+            shown = repr(omega) if len(repr(omega)) <= 80 else repr(omega)[:77] + "..."
+            raise InputError(f"omega = {shown} is not a frequency grid: expected a 1-D array of at least 2 "
+                             "increasing frequencies > 0 [rad/s], e.g. np.logspace(-1, 4, 5000)", field="omega")
+        omega = w
     resp = ct.frequency_response(loop, omega)
     mag = np.squeeze(resp.magnitude)
     ph = np.degrees(np.unwrap(np.squeeze(resp.phase)))

@@ -246,3 +246,20 @@ def test_simulate_names_an_initial_state_or_interval_that_is_no_number(servo, kw
     with pytest.raises(InputError, match=rf"^{field} = .* (is not an initial state|is out of range)") as err:
         simulate(plant, args.pop("x0"), 0.01, **args)
     assert err.value.field == field
+
+
+@pytest.mark.parametrize("omega", [-1.0, [10.0], [[1.0, 2.0], [3.0, 4.0]], [0.0, 1.0, 2.0], [3.0, 2.0, 1.0],
+                                   [1.0, float("nan")], "1,2,3"])
+def test_loop_margins_refuses_what_is_no_frequency_grid(omega) -> None:  # noqa: ANN001
+    import control as ct
+    import numpy as np
+
+    loop = ct.tf([4.0], [1.0, 2.0, 1.0, 0.0])
+    with pytest.raises(InputError, match=r"^omega = .* is not a frequency grid") as err:
+        gearctl.loop_margins(loop, omega=omega)
+    assert err.value.field == "omega"
+    # a grid given as a list reads as the default grid does (K/(s (s+1)^2): crossover where 4 = w (1 + w^2))
+    got = gearctl.loop_margins(loop, omega=list(np.logspace(-2, 2, 20000)))
+    wc = np.roots([1.0, 0.0, 1.0, -4.0])
+    wc = float(wc[np.abs(wc.imag) < 1e-12].real[0])
+    np.testing.assert_allclose(got["gain_crossover_hz"], wc / (2 * np.pi), rtol=1e-3)
