@@ -23,6 +23,7 @@ __all__ = [
     "GearPair",
     "Geometry",
     "pair_geometry",
+    "check_pair",
     "involute",
     "inverse_involute",
     "operating_pressure_angle",
@@ -475,6 +476,25 @@ def _beam_heights(ra: float, rb: float, rd: float) -> tuple[float, float]:
     return ra - rd, rb - rd  # eqs 22-23
 
 
+def check_pair(pair: Any, *, field: str = "pair") -> GearPair:
+    """``pair`` itself if it is a :class:`GearPair`; else an :class:`~gearctl.errors.InputError` naming ``field``.
+
+    A gear model (from :func:`~gearctl.catalog.load_model`) is the usual slip: the message points to its
+    ``model.pair``, or for a train to ``model.stages[i].pair``.
+    """
+    if isinstance(pair, GearPair):
+        return pair
+    stages = getattr(pair, "stages", None)
+    if stages is not None and hasattr(pair, "servo"):
+        name = getattr(pair, "name", "?")
+        hint = (f": a train of {len(stages)} stages, pass one stage's gear pair, model.stages[i].pair"
+                if len(stages) > 1 else ": pass its gear pair, model.pair")
+        raise InputError(f"{field} = <{type(pair).__name__} {name!r}> is not a GearPair{hint}", field=field)
+    shown = repr(pair) if len(repr(pair)) <= 80 else repr(pair)[:77] + "..."
+    raise InputError(f"{field} = {shown} is not a GearPair: expected a gear model's pair, "
+                     "gearctl.load_model(name).pair", field=field)
+
+
 def pair_geometry(pair: GearPair) -> Geometry:
     """Compute the involute geometry of a gear pair.
 
@@ -540,6 +560,7 @@ def pair_geometry(pair: GearPair) -> Geometry:
     Shing, Tsai & Krishnaprasad, TR 93-28, section 3.1, eqs 19, 22–28 and Figure 4.
     ISO 21771:2007, Gears — Cylindrical involute gears and gear pairs — Concepts and geometry.
     """
+    check_pair(pair)
     phi, f = pair.pressure_angle, pair.face_width
     g = _raw_geometry(pair)
     gears = (g["g1"], g["g2"])

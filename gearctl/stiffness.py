@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .geometry import GearPair, Geometry, involute, pair_geometry
+from .geometry import GearPair, Geometry, check_pair, involute, pair_geometry
 from .units import POINTS, Spec
 
 __all__ = [
@@ -291,7 +291,8 @@ def mesh_stiffness(pair: GearPair, *, points: int = 1001, harmonics: int = 4, or
     Raises
     ------
     InputError
-        If ``points``, ``harmonics`` or ``order`` is not a whole number in its range (checked before any work).
+        If ``pair`` is not a GearPair, or ``points``, ``harmonics`` or ``order`` is not a whole number in its
+        range (checked before any work).
 
     Notes
     -----
@@ -336,6 +337,7 @@ def mesh_stiffness(pair: GearPair, *, points: int = 1001, harmonics: int = 4, or
     ----------
     TR 93-28, eqs 13–35, Figures 8–11, Table 1. ISO 21771:2007 (profile shift, operating pressure angle).
     """
+    check_pair(pair)
     points = int(POINTS.check("points", points))
     harmonics = int(HARMONICS.check("harmonics", harmonics))
     order = int(QUADRATURE_ORDER.check("order", order))

@@ -263,3 +263,17 @@ def test_loop_margins_refuses_what_is_no_frequency_grid(omega) -> None:  # noqa:
     wc = np.roots([1.0, 0.0, 1.0, -4.0])
     wc = float(wc[np.abs(wc.imag) < 1e-12].real[0])
     np.testing.assert_allclose(got["gain_crossover_hz"], wc / (2 * np.pi), rtol=1e-3)
+
+
+def test_mesh_stiffness_and_geometry_name_a_model_given_for_its_pair() -> None:
+    pair_model = gearctl.load_model("shing1993")
+    train_model = gearctl.load_model("servo_2stage_phm09")
+    with pytest.raises(InputError, match=r"^pair = <GearModel 'shing1993'> is not a GearPair: pass its gear pair, "
+                                         r"model.pair$") as err:
+        gearctl.mesh_stiffness(pair_model)
+    assert err.value.field == "pair"
+    with pytest.raises(InputError, match=r"a train of 2 stages, pass one stage's gear pair, model.stages\[i\].pair"):
+        gearctl.pair_geometry(train_model)
+    with pytest.raises(InputError, match=r"^pair = 'shing1993' is not a GearPair"):
+        gearctl.mesh_stiffness("shing1993")
+    assert gearctl.mesh_stiffness(train_model.stages[1].pair).mean > 0
