@@ -462,7 +462,8 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
         except (TypeError, ValueError):
             w = np.empty(0)
         if not (w.ndim == 1 and w.size >= 2 and np.all(np.isfinite(w)) and w[0] > 0 and np.all(np.diff(w) > 0)):
-            shown = repr(omega) if len(repr(omega)) <= 80 else repr(omega)[:77] + "..."
+            shown = " ".join(repr(omega).split())  # an array's repr on one line
+            shown = shown if len(shown) <= 80 else shown[:77] + "..."
             raise InputError(f"omega = {shown} is not a frequency grid: expected a 1-D array of at least 2 "
                              "increasing frequencies > 0 [rad/s], e.g. np.logspace(-1, 4, 5000)", field="omega")
         omega = w
