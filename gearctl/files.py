@@ -54,6 +54,9 @@ def resolve(name_or_path: str | Path, kind: str) -> Path:
     InputError
         If it is neither an existing file nor a catalog name; the message lists close names.
     """
+    if not isinstance(name_or_path, str | Path):
+        raise InputError(f"{kind[:-1]} = {name_or_path!r} ({type(name_or_path).__name__}): expected a catalog "
+                         "name or a path to a .toml file (str or pathlib.Path)", field=kind[:-1])
     p = Path(name_or_path)
     # a bare name that is a folder here (``gearctl export ... --out pid``) still names the catalog entry
     bare_dir = p.suffix == "" and len(p.parts) == 1 and p.is_dir()

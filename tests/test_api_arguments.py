@@ -278,3 +278,23 @@ def test_mesh_stiffness_and_geometry_name_a_model_given_for_its_pair() -> None:
     with pytest.raises(InputError, match=r"^pair = 'shing1993' is not a GearPair"):
         gearctl.mesh_stiffness("shing1993")
     assert gearctl.mesh_stiffness(train_model.stages[1].pair).mean > 0
+
+
+@pytest.mark.parametrize("field", ["model", "controller"])
+def test_a_name_that_is_no_string_is_named(servo, field) -> None:  # noqa: ANN001
+    # load_model(123) ended in pathlib's "expected str, bytes or os.PathLike object, not int"
+    _, plant, _ = servo
+    load = gearctl.load_model if field == "model" else (lambda name: gearctl.load_controller(name, plant))
+    with pytest.raises(InputError, match=rf"^{field} = 123 \(int\): expected a catalog name or a path") as err:
+        load(123)
+    assert err.value.field == field
+
+
+def test_tracking_metrics_refuses_what_is_no_run(servo) -> None:  # noqa: ANN001
+    # tracking_metrics(None) ended in "'NoneType' object has no attribute 't'"
+    _, plant, ctrl = servo
+    with pytest.raises(InputError, match=r"^res = NoneType: expected the ClosedLoopResult") as err:
+        gearctl.tracking_metrics(None)
+    assert err.value.field == "res"
+    run = gearctl.simulate_closed_loop(plant, ctrl, gearctl.reference("sine"), 0.05)
+    assert gearctl.tracking_metrics(run).duration == pytest.approx(0.05, abs=1e-3)
