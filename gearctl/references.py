@@ -174,6 +174,31 @@ def reference(kind: str, **kwargs: float | str) -> Reference:
     statistics from 0.6 s: the hold and the disturbance rejection, not the step itself).
     ``ramp``: 0.2 rad at 0.5 rad/s from 0.1 s. ``move``: a
     0.2 rad point-to-point move, S-curve, 1 rad/s, 10 rad/s^2, from 0.1 s.
+
+    Parameters
+    ----------
+    kind : str
+        ``sine``, ``step``, ``ramp`` or ``move``.
+    **kwargs
+        Settings replacing the kind's defaults: any field of :class:`Reference` (``amplitude``, ``frequency``,
+        ``start``, ``rate``, ``accel``, ``profile``, ``disturbance_time``, ``disturbance``, ``settle``), in SI
+        units, validated against the ranges the fields state.
+
+    Returns
+    -------
+    Reference
+        ``at(t)`` gives the load angle, speed and acceleration ``(r, r', r'')``; ``load_disturbance(t)`` the
+        load torque [N m].
+
+    Raises
+    ------
+    InputError
+        An unknown kind or setting (the message names the close ones), a value out of its range.
+
+    Examples
+    --------
+    >>> reference("sine", amplitude=0.2).at(0.25)[0]
+    0.2
     """
     defaults: dict[str, dict[str, float | str]] = {
         "sine": {"amplitude": 0.1, "frequency": 1.0, "settle": 0.5},

@@ -217,8 +217,8 @@ def ramp_shape(shape: str, x: float) -> tuple[float, float, float]:
 
     Examples
     --------
-    >>> ramp_shape("sin2", 0.5)[0], ramp_shape("linear", 0.25), ramp_shape("step", 0.1)
-    (0.5000000000000001, (0.25, 1.0, 0.0), (1.0, 0.0, 0.0))
+    >>> round(ramp_shape("sin2", 0.5)[0], 12), ramp_shape("linear", 0.25), ramp_shape("step", 0.1)
+    (0.5, (0.25, 1.0, 0.0), (1.0, 0.0, 0.0))
     """
     if x >= 1.0:
         return 1.0, 0.0, 0.0
