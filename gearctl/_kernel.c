@@ -152,9 +152,11 @@ static void affine(const gc_params *p, const gc_state *st, double u1, double u2,
         }
 }
 
-static double table_k(const gc_params *p, long i, double theta) {
+/* K of stage i at pinion angle theta on flank sigma: the back flank (sigma < 0) is the front's mirror image,
+ * its mesh cycle runs backward (Plant.stiffness_at) */
+static double table_k(const gc_params *p, long i, double theta, double sigma) {
     long off = p->table_off[i], n = p->table_off[i + 1] - off;
-    double pos = fmod(theta + p->mesh_phase[i], p->mesh_period[i]);
+    double pos = fmod(p->mesh_phase[i] + (sigma < 0.0 ? -theta : theta), p->mesh_period[i]);
     if (pos < 0.0) pos += p->mesh_period[i];
     pos = pos / p->mesh_period[i] * (double)n;
     long j = (long)floor(pos);
@@ -177,7 +179,7 @@ static double force(const gc_params *p, const double *org, long i, int mode, dou
         F = (d_ys * ddelta + p->k[i]) * delta; /* Yang-Sun: F = (d x' + k) x */
     } else {
         /* the stiffness follows the absolute angle: the call's origin added back (gc_step) */
-        double kk = p->kind == 2 ? table_k(p, i, org ? x[i] + org[i] : x[i]) : p->k[i];
+        double kk = p->kind == 2 ? table_k(p, i, org ? x[i] + org[i] : x[i], sigma) : p->k[i];
         F = kk * delta + p->c[i] * ddelta;
     }
     if (p->law == 1 && F < 0.0) F = 0.0;

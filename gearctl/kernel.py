@@ -1185,7 +1185,7 @@ class _Mirror:
             F = (d_ys * ddelta + self.k[i]) * delta
         else:
             # the stiffness follows the absolute angle: the call's origin added back
-            kk = float(p.stiffness_at(x[i] + self.org[i], i)) if p.kind is PlantKind.TVMS else self.k[i]
+            kk = float(p.stiffness_at(x[i] + self.org[i], i, sigma)) if p.kind is PlantKind.TVMS else self.k[i]
             F = kk * delta + self.c[i] * ddelta
         if self.law == 1 and F < 0.0:
             F = 0.0

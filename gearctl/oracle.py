@@ -43,7 +43,7 @@ def _rhs_factory(p: Plant) -> Callable[..., Callable[[float, NDArray[np.float64]
                 if p.kind is PlantKind.YANG_SUN:
                     Fn = (d_ys[i] * ddelta + st.k) * delta
                 else:
-                    Fn = float(p.stiffness_at(theta[i], i)) * delta + st.c * ddelta
+                    Fn = float(p.stiffness_at(theta[i], i, side)) * delta + st.c * ddelta
                 if p.contact_law.value == "no_pull":
                     Fn = max(Fn, 0.0)
                 F = side * Fn

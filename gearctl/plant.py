@@ -131,8 +131,12 @@ class Stage:
     mesh_period : float
         Rotation of the pinion over one mesh cycle, ``2 pi / N1`` [rad].
     mesh_phase : float
-        Mesh-cycle angle at zero pinion angle [rad]: the neutral position puts the contact at the pitch
-        point P, so ``mesh_phase = (AP - AC) / r_b1``.
+        Mesh-cycle angle (from C) of the front flank's contact at zero pinion angle [rad]. Zero is the
+        report's neutral position (section 2: a pinion tooth centred on the line of centres): its front
+        flank then meets the line of action ``t_b1 / 2 + r_b1 alpha_w`` from A (a quarter base pitch past
+        P without shift), so ``mesh_phase = (t_b1 / 2 + r_b1 alpha_w - AC) / r_b1``. The back flank is
+        the mirror image: its cycle angle is ``mesh_phase - theta`` where the front's is
+        ``mesh_phase + theta`` (:meth:`Plant.stiffness_at`).
     kv_table : ndarray or None
         For ``tvms``: ``K`` sampled uniformly over one mesh cycle [N/m] (periodic, linear interpolation).
     """
@@ -363,13 +367,18 @@ class Plant:
         return dataclasses.replace(self, stages=tuple(dataclasses.replace(s, backlash=b)
                                                       for s, b in zip(self.stages, bs, strict=True)))
 
-    def stiffness_at(self, theta: Any, stage: int = 0) -> Any:
-        """Mesh stiffness of ``stage`` at pinion angle ``theta`` [N/m]: ``k`` except for ``tvms``."""
+    def stiffness_at(self, theta: Any, stage: int = 0, flank: Any = 1) -> Any:
+        """Mesh stiffness of ``stage`` at pinion angle ``theta`` [N/m]: ``k`` except for ``tvms``.
+
+        ``flank`` is the contact's side (1 front, -1 back; array-like with ``theta``). Symmetric teeth make the back
+        flank the mirror image of the front: it sees at ``theta`` what the front sees at ``-theta``.
+        """
         s = self.stages[stage]
         if s.kv_table is None:
             return s.k + 0.0 * np.asarray(theta)
         n = s.kv_table.size
-        pos = np.mod(np.asarray(theta, dtype=float) + s.mesh_phase, s.mesh_period) / s.mesh_period * n
+        side = np.where(np.asarray(flank) < 0, -1.0, 1.0)
+        pos = np.mod(s.mesh_phase + side * np.asarray(theta, dtype=float), s.mesh_period) / s.mesh_period * n
         i = np.floor(pos).astype(int) % n
         frac = pos - np.floor(pos)
         return s.kv_table[i] * (1 - frac) + s.kv_table[(i + 1) % n] * frac
@@ -411,7 +420,7 @@ class Plant:
         for i, st in enumerate(self.stages):
             s = st.rb1 * x[i] - st.rb2 * x[i + 1]
             pen = np.maximum(np.abs(s) - st.backlash, 0.0)
-            E = E + 0.5 * self.stiffness_at(x[i], i) * pen * pen
+            E = E + 0.5 * self.stiffness_at(x[i], i, np.sign(s)) * pen * pen
         return E
 
     def stiffness_work(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -428,7 +437,7 @@ class Plant:
                 continue
             s = st.rb1 * x[i] - st.rb2 * x[i + 1]
             pen2 = np.maximum(np.abs(s) - st.backlash, 0.0) ** 2
-            K = self.stiffness_at(x[i], i)
+            K = self.stiffness_at(x[i], i, np.sign(s))
             W[1:] += np.cumsum(0.25 * (pen2[1:] + pen2[:-1]) * np.diff(K))
         return W
 
@@ -661,7 +670,7 @@ def mesh_force(plant: Plant, x: NDArray[np.float64], modes: NDArray[np.int_],
         if plant.kind is PlantKind.YANG_SUN:
             F = (d_ys[i] * ddelta + st.k) * delta
         else:
-            F = plant.stiffness_at(x[i], i) * delta + st.c * ddelta
+            F = plant.stiffness_at(x[i], i, sigma) * delta + st.c * ddelta
         if plant.contact_law is ContactLaw.NO_PULL:
             F = np.maximum(F, 0.0)
         out[i] = np.where(sigma != 0, sigma * F, 0.0)
@@ -761,8 +770,10 @@ def build_plant(
             Kth = mesh_stiffness_at(pair, th, geo)
             mean = ms.mean if ms is not None else mesh_stiffness(pair).mean
             kv = Kth * (k / mean)
+        # the neutral position's front contact, from A: half the base thickness plus r_b1 alpha_w (Stage.mesh_phase)
+        neutral = geo.tooth_thickness_base[0] / 2 + rb1 * geo.operating_pressure_angle
         stages.append(Stage(rb1=rb1, rb2=rb2, backlash=float(bs[i]), k=k, c=c, mesh_period=geo.mesh_period_angle,
-                            mesh_phase=(geo.AP - geo.AC) / rb1, kv_table=kv))
+                            mesh_phase=math.fmod((neutral - geo.AC) / rb1, geo.mesh_period_angle), kv_table=kv))
     return Plant(
         kind=kind,
         shafts=tuple(Shaft(J=J[j], d=d[j], tc=tc[j]) for j in range(n + 1)),
