@@ -685,7 +685,7 @@ def build_plant(
     kind: PlantKind | str = PlantKind.IMPROVED,
     *,
     backlash: float | Sequence[float] | None = None,
-    table_points: int = 512,
+    table_points: int = 4096,
 ) -> Plant:
     """Build the plant of a gear model (a pair or a train).
 
@@ -698,7 +698,10 @@ def build_plant(
     backlash : float or sequence of float, optional
         Replaces the model's backlash [m]: one value for every stage or one per stage (0: backlash-free).
     table_points : int
-        Samples of ``K`` over one mesh cycle for ``tvms``.
+        Samples of ``K`` over one mesh cycle for ``tvms``, read by linear interpolation: each jump of ``K``
+        (a tooth pair entering or leaving) is smeared over one sample. With 512 a contact of the report's load
+        case ended 5 % off in speed (one impact more in 20 ms); from 1024 the run agrees with an exact-``K``
+        integration within 2e-6 b (4096 by default: no slower).
 
     Returns
     -------
