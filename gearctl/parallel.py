@@ -17,6 +17,7 @@ import signal
 import threading
 import time
 import uuid
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -156,7 +157,11 @@ def local_cluster(workers: int) -> Any:
     import dask
     import distributed
 
-    with _sigint_held() as interrupted, dask.config.set({"distributed.worker.profile.enabled": False}):
+    with _sigint_held() as interrupted, dask.config.set({"distributed.worker.profile.enabled": False}), \
+            warnings.catch_warnings():
+        # Dask warns when its scratch folder takes over a second to create: a loaded machine, not a fault (a line of
+        # noise for the user, an error under pytest's warnings-as-errors)
+        warnings.filterwarnings("ignore", message="Creating scratch directories is taking a surprisingly long time")
         cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                            dashboard_address=None, silence_logs=logging.CRITICAL,
                                            scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
