@@ -143,9 +143,9 @@ def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
         One line naming the file and the line or column: unreadable, binary or non-UTF-8, larger than
         :data:`MAX_LOG_BYTES` or :data:`MAX_LOG_SAMPLES`, no header, a missing or repeated column, a row
         with the wrong number of fields, a value that is not a finite number, time that does not increase,
-        a missing or doubled sample (an interval off the period by more than :data:`JITTER_TOLERANCE`), time
-        stamps that stray from a fixed period's grid by more than that, fewer than :data:`MIN_LOG_SAMPLES`
-        samples.
+        time stamps that stray from a fixed period's grid by more than :data:`JITTER_TOLERANCE` of the period
+        (named at a missing or doubled sample, an interval off the period by more than twice that, where there
+        is one), fewer than :data:`MIN_LOG_SAMPLES` samples.
     """
     path = Path(path)
     try:
@@ -275,19 +275,23 @@ def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
         SAMPLE_TIME.check("sample period", Ts)
     except InputError as exc:
         raise _fail(path, "column t", f"sample period {Ts:g} s {exc.rule}", "t") from None
-    off = np.flatnonzero(np.abs(dt - Ts) > JITTER_TOLERANCE * Ts)
-    if off.size:  # a sample missing or doubled: no grid to read the log on
-        j = int(off[0])
-        raise _fail(path, f"line {line_of[j + 1]}", f"t = {float(t[j + 1]):.10g} is {dt[j]:.6g} s after the "
-                    f"previous sample; the log's period is {Ts:.6g} s: expected samples at a fixed period (each "
-                    f"interval within {JITTER_TOLERANCE:.0%} of it); resample the log or cut it at the gap", "t")
+    step = Ts
     Ts = sample_period(t)
     jitter = (0.0, 0.0)
     # stamps off the fixed grid: checked whatever the intervals (a clock whose rate changes by 0.5 % keeps every
-    # interval within PERIOD_TOLERANCE and was accepted 10 periods off the grid)
+    # interval within PERIOD_TOLERANCE and was accepted 10 periods off the grid). The grid is the rule: stamps each
+    # within JITTER_TOLERANCE of it make intervals up to twice that off the period (such a log was refused on an
+    # interval 40 % long, though its stamps were all within 20 % of the grid and the docs read it)
     dev = _grid_deviation(t, Ts)
     j = int(np.argmax(np.abs(dev)))
     if abs(dev[j]) > JITTER_TOLERANCE * Ts:
+        off = _missing_sample(dt, step)
+        if off is not None:  # a sample missing or doubled: named where it is, not where the grid ends up furthest
+            raise _fail(path, f"line {line_of[off + 1]}", f"t = {float(t[off + 1]):.10g} is {dt[off]:.6g} s after "
+                        f"the previous sample; the log's period is {step:.6g} s: expected samples at a fixed period "
+                        f"(a sample missing or doubled: each interval within {2 * JITTER_TOLERANCE:.0%} of it, the "
+                        f"stamps within {JITTER_TOLERANCE:.0%} of a fixed grid); resample the log or cut it at the "
+                        f"gap", "t")
         raise _fail(path, f"line {line_of[j]}", f"t = {float(t[j]):.10g} is {abs(dev[j]):.3g} s off the grid of "
                     f"the log's period {Ts:.6g} s: expected samples at a fixed period (time stamps within "
                     f"{JITTER_TOLERANCE:.0%} of it); resample the log", "t")
@@ -299,6 +303,16 @@ def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
     extra = {c: v for c, v in col.items() if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS}
     return EncoderLog(t=t, torque=col["torque"], theta1=col["theta1"], theta2=col.get("theta2"), extra=extra,
                       sample_time=Ts, comments=tuple(comments), path=path, jitter=jitter)
+
+
+def _missing_sample(dt: NDArray[np.float64], Ts: float) -> int | None:
+    """The first interval of ``dt`` that no jitter within :data:`JITTER_TOLERANCE` explains (a sample missing or
+    doubled), or None.
+
+    Two stamps each within ``JITTER_TOLERANCE * Ts`` of their grid points lie up to twice that apart from ``Ts``.
+    """
+    off = np.flatnonzero(np.abs(np.asarray(dt) - Ts) > 2.0 * JITTER_TOLERANCE * Ts)
+    return int(off[0]) if off.size else None
 
 
 def _grid_deviation(t: NDArray[np.float64], Ts: float) -> NDArray[np.float64]:
@@ -1645,13 +1659,14 @@ def _check_log(lg: EncoderLog) -> None:
     dev = _grid_deviation(t, Ts)
     k = int(np.argmax(np.abs(dev)))
     if abs(dev[k]) > JITTER_TOLERANCE * Ts:
-        off = np.flatnonzero(np.abs(np.diff(t) - lg.sample_time) > JITTER_TOLERANCE * lg.sample_time)
-        if off.size:  # a sample missing or doubled: named where it is, not where the grid ends up furthest
-            k = int(off[0]) + 1
+        off = _missing_sample(np.diff(t), lg.sample_time)
+        if off is not None:  # a sample missing or doubled: named where it is, not where the grid ends up furthest
+            k = off + 1
             raise InputError(f"{lg.name}: column t: sample {k} (t = {float(t[k]):.10g}) is "
                              f"{float(t[k] - t[k - 1]):.6g} s after the previous sample; sample_time = "
-                             f"{lg.sample_time:.6g} s: expected samples at a fixed period (each interval within "
-                             f"{JITTER_TOLERANCE:.0%} of it)", field="t")
+                             f"{lg.sample_time:.6g} s: expected samples at a fixed period (a sample missing or "
+                             f"doubled: each interval within {2 * JITTER_TOLERANCE:.0%} of it, the stamps within "
+                             f"{JITTER_TOLERANCE:.0%} of a fixed grid)", field="t")
         raise InputError(f"{lg.name}: column t: sample {k} (t = {float(t[k]):.10g}) is {abs(dev[k]):.3g} s off the "
                          f"grid of sample_time = {lg.sample_time:.6g} s (at the stamps' own period, {Ts:.9g} s): "
                          f"expected samples at a fixed period (time stamps within {JITTER_TOLERANCE:.0%} of it)",

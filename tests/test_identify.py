@@ -237,6 +237,33 @@ def test_jittering_time_stamps_are_read_on_the_fixed_period(logs: Callable, resu
         read_log(drift)
 
 
+def test_stamps_within_the_jitter_tolerance_are_read_whatever_their_intervals(logs: Callable, results: Callable,
+                                                                             tmp_path: Path) -> None:
+    """Stamps each up to 20 % of a period off the grid (within the documented 25 %): two neighbours may lie 40 % of
+    a period further apart or closer. read_log refused such a file on that interval (the Python API read it); now
+    both read it on the grid, with the estimate of the evenly stamped log. A missing sample is still named."""
+    path, _ = logs("identify", 1.0)
+    log = read_log(path)
+    ref, _ = results("identify", 1.0, "motor+load")
+    rng = np.random.default_rng(5)
+    t = log.t + rng.uniform(-0.2, 0.2, log.n) * log.sample_time
+    assert np.max(np.abs(np.diff(t) - log.sample_time)) > ident.JITTER_TOLERANCE * log.sample_time
+    jittered = tmp_path / "jitter20.csv"
+    write_log(jittered, dataclasses.replace(log, t=t))
+    got = read_log(jittered)
+    assert got.jitter[1] < ident.JITTER_TOLERANCE * got.sample_time
+    assert_allclose(got.sample_time, log.sample_time, rtol=1e-4)
+    assert_allclose(identify(jittered, START_MODEL).backlash, ref.backlash, rtol=1e-9)
+    assert_allclose(identify(dataclasses.replace(log, t=t), START_MODEL).backlash, ref.backlash, rtol=1e-9)
+    gap = tmp_path / "gap.csv"
+    keep = np.arange(log.n) != 3000
+    write_log(gap, dataclasses.replace(log, t=t[keep], torque=log.torque[keep], theta1=log.theta1[keep],
+                                       theta2=log.theta2[keep], extra={}))
+    with pytest.raises(InputError, match=r"t = 3\.00\d* is 0\.00[12]\d* s after the previous sample") as exc:
+        read_log(gap)
+    assert exc.value.field == "t"
+
+
 def test_log_round_trip(tmp_path: Path) -> None:
     t = np.arange(600) * 1e-3
     log = EncoderLog(t=t, torque=np.sin(t), theta1=0.1 * np.cos(t), theta2=None, extra={"r": t**2},
