@@ -1446,8 +1446,10 @@ def _profile_start(p: _Problem, wins: list[_Window], theta: NDArray[np.float64],
 
     For each backlash on a log grid from ``b_nom / 5`` to ``5 b_nom`` (and each share 0, 0.5, 1), the
     motor's initial angle and speed of each window are fitted by one Gauss-Newton step (the motion is
-    nearly linear in them) and the costs summed: a least-squares fit started from the best grid point
-    does not get caught in the local minima a gap crossing's timing makes.
+    nearly linear in them): a least-squares fit started from the best grid point does not get caught in the
+    local minima a gap crossing's timing makes. Each window picks its own best grid point and the start is
+    their median (geometric for ``b``): a window that is no crossing from flank to flank (a log that starts
+    with the motor inside the gap) does not set every fit's start, as it did when the costs were summed.
     """
     from .kernel import Kernel
 
@@ -1455,14 +1457,13 @@ def _profile_start(p: _Problem, wins: list[_Window], theta: NDArray[np.float64],
     grid = np.geomspace(b_nom / 5, min(5 * b_nom, b_hi), 9)
     phis = (0.0, 0.5, 1.0) if split else (None,)
     m = p.m
-    best = (math.inf, b_nom, 0.0)
-    for ph in phis:
+    costs = np.full((len(phis), grid.size, len(wins)), np.inf)
+    for i_ph, ph in enumerate(phis):
         th = theta if ph is None else _split(theta, p.N, phi=ph)
-        for bb in grid.tolist():
+        for i_b, bb in enumerate(grid.tolist()):
             q = _with_values(p.nominal, th, bb, p.tc_floor)
             kn = Kernel(q, np.zeros(4), dt=p.Ts)
-            cost = 0.0
-            for w in wins:
+            for i_w, w in enumerate(wins):
                 seg = p.log.torque[w.k0:w.k1]
                 y = p.log.theta1[w.k0:w.k1 + 1]
                 sw = max(m.v_thr, 1e-3 * abs(float(m.w[w.k0])), 1e-9)
@@ -1475,10 +1476,11 @@ def _profile_start(p: _Problem, wins: list[_Window], theta: NDArray[np.float64],
                 r0 = r(0.0, 0.0)
                 J = np.column_stack([(r(10 * m.sigma, 0.0) - r0) / 10, (r(0.0, 10 * sw) - r0) / 10])
                 step = np.linalg.lstsq(J, -r0, rcond=None)[0]
-                cost += min(float(np.sum(r(step[0] * m.sigma, step[1] * sw) ** 2)), float(np.sum(r0**2)))
-            if cost < best[0]:
-                best = (cost, bb, 0.0 if ph is None else ph)
-    return best[1], best[2]
+                costs[i_ph, i_b, i_w] = min(float(np.sum(r(step[0] * m.sigma, step[1] * sw) ** 2)),
+                                            float(np.sum(r0**2)))
+    i_ph, i_b = np.unravel_index(np.argmin(costs.reshape(-1, len(wins)), axis=0), costs.shape[:2])
+    b_start = float(np.exp(np.median(np.log(grid[i_b]))))
+    return b_start, float(np.median([phis[i] or 0.0 for i in i_ph]))
 
 
 def _systematic(p: _Problem, wins: list[_Window], fits: list[_Fit], theta: NDArray[np.float64],
@@ -1979,7 +1981,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         split = teq > 1e-3 * u_rms
         b_nom = nominal.backlash if nominal.backlash > 0 else 1e-3 * p.module
         sub = _spread_evenly(wins, SPLIT_WINDOWS)
-        b_start, phi = _profile_start(p, sub[:2], theta, b_nom, split)
+        b_start, phi = _profile_start(p, sub, theta, b_nom, split)
         sfits = [_fit_window(p, w, theta, b_start, free=("b", "phi") if split else ("b",), phi=phi) for w in sub]
         if split:
             theta = _split(theta, N, phi=float(np.median([f.phi for f in sfits])))
