@@ -491,3 +491,43 @@ def test_the_adaptive_inverse_examines_a_long_window_in_linear_time(tmp_path: Pa
     examined, cpu, u = _build_and_run(src, tmp_path / "long", d, [str(d / "gearctl_ctrl.c")], timeout=600.0)
     assert int(examined) >= 2 and math.isfinite(float(u))
     assert float(cpu) < 0.5, f"{cpu} s of CPU for 300000 steps with {examined} examined windows"
+
+
+class _FakeDist:
+    """An installed distribution whose only file is a licence of the given text."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    @property
+    def files(self) -> list[object]:
+        text = self.text
+
+        class _File:
+            name = "LICENSE"
+
+            def read_text(self) -> str:
+                return text
+
+        return [_File()]
+
+
+@pytest.mark.parametrize("dist_text", ["mit", "apache"])
+def test_an_installed_export_takes_gearctl_s_licence_not_site_packages(tmp_path: Path, monkeypatch,  # noqa: ANN001
+                                                                        dist_text: str) -> None:
+    # installed, the folder above the package is site-packages: a LICENSE there is another package's and must
+    # not be bundled as the licence of the exported sources (it was, before: the first place looked at)
+    from gearctl.export import emit
+
+    mit = (Path(__file__).resolve().parents[1] / "LICENSE").read_text()
+    site = tmp_path / "site-packages"
+    (site / "gearctl" / "export").mkdir(parents=True)
+    (site / "LICENSE").write_text("Apache License\nVersion 2.0, January 2004\n")
+    monkeypatch.setattr(emit, "__file__", str(site / "gearctl" / "export" / "emit.py"))
+    text = mit if dist_text == "mit" else "Apache License\nVersion 2.0, January 2004\n"
+    monkeypatch.setattr(emit.importlib.metadata, "distribution", lambda name: _FakeDist(text))
+    if dist_text == "mit":
+        assert emit.license_text() == mit
+    else:  # an installation whose licence is not the MIT one the SPDX headers name is refused
+        with pytest.raises(InputError, match="LICENSE"):
+            emit.license_text()

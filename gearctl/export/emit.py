@@ -22,6 +22,7 @@ import importlib.metadata
 import json
 import math
 import re
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -78,25 +79,43 @@ class ExportInfo:
 
 
 def license_text() -> str:
-    """gearctl's licence (the repository's LICENSE, or the installed distribution's copy).
+    """gearctl's licence (a source checkout's LICENSE, or the installed distribution's copy).
+
+    Notes
+    -----
+    The folder above the package is a gearctl checkout only if its ``pyproject.toml`` names the project
+    gearctl: installed, that folder is ``site-packages``, where a ``LICENSE`` (if any) is another package's.
+    The text found must be the MIT licence the exported files' SPDX headers name.
 
     Raises
     ------
     InputError
-        If neither can be found (a broken installation).
+        If neither can be found, or the one found is not the MIT licence (a broken installation).
     """
-    root = Path(__file__).resolve().parents[2] / "LICENSE"
-    if root.is_file():
-        return root.read_text()
+    text = None
+    root = Path(__file__).resolve().parents[2]
     try:
-        dist = importlib.metadata.distribution("gearctl")
-        for f in dist.files or ():
-            if f.name.upper().startswith(("LICENSE", "LICENCE")):
-                return f.read_text()
-    except importlib.metadata.PackageNotFoundError:
-        pass
-    raise InputError("gearctl's LICENSE file is not found (reinstall gearctl): the exported sources must carry it",
-                     field="license")
+        project = tomllib.loads((root / "pyproject.toml").read_text()).get("project", {})
+    except (OSError, ValueError):
+        project = {}
+    if project.get("name") == "gearctl" and (root / "LICENSE").is_file():
+        text = (root / "LICENSE").read_text()
+    else:
+        try:
+            dist = importlib.metadata.distribution("gearctl")
+            for f in dist.files or ():
+                if f.name.upper().startswith(("LICENSE", "LICENCE")):
+                    text = f.read_text()
+                    break
+        except importlib.metadata.PackageNotFoundError:
+            pass
+    if text is None:
+        raise InputError("gearctl's LICENSE file is not found (reinstall gearctl): the exported sources must carry it",
+                         field="license")
+    if "Permission is hereby granted, free of charge" not in text:  # the MIT licence's grant
+        raise InputError(f"gearctl's LICENSE file ({text.strip()[:40]!r}...) is not the MIT licence the exported "
+                         "sources name (reinstall gearctl)", field="license")
+    return text
 
 
 def _state_type(spec: KindSpec) -> str:
