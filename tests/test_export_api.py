@@ -531,3 +531,34 @@ def test_an_installed_export_takes_gearctl_s_licence_not_site_packages(tmp_path:
     else:  # an installation whose licence is not the MIT one the SPDX headers name is refused
         with pytest.raises(InputError, match="LICENSE"):
             emit.license_text()
+
+
+def _named_pid(tmp_path: Path, name: str) -> object:
+    """The catalog PID under another ``name`` (a TOML basic string: backslash and control characters escaped)."""
+    escaped = name.replace("\\", "\\\\").replace("\n", "\\n").replace("\r", "\\r").replace("\t", "\\t")
+    toml = tmp_path / "named.toml"
+    pid = (Path(__file__).resolve().parents[1] / "controllers" / "pid.toml").read_text()
+    toml.write_text(f'name = "{escaped}"\n' + pid, encoding="utf-8")
+    ctrl = load_controller(toml, build_plant(load_model(SERVO)))
+    assert ctrl.name == name
+    return ctrl
+
+
+@pytest.mark.parametrize("name", ["axis */ x", "a /* b", "axis\nsecond line", "cr\rname"])
+def test_a_name_the_c_comments_cannot_quote_is_refused(tmp_path: Path, name: str) -> None:
+    # the name is quoted in each C file's first comment and the Makefile's: '*/' ended the C comment and a line
+    # break the Makefile's, so the exported folder did not build; '/*' failed a build with -Wall -Werror
+    with pytest.raises(InputError, match="name"):
+        export_controller(_named_pid(tmp_path, name), tmp_path / "out", vectors=False)
+    assert not (tmp_path / "out" / "gearctl_ctrl.h").exists()
+
+
+@needs_make
+def test_an_unusual_but_quotable_name_builds(tmp_path: Path) -> None:
+    name = "axis 1\t(Régler) #2 \\ / * ?? ?\\"
+    d = tmp_path / "out"
+    export_controller(_named_pid(tmp_path, name), d, vectors=False)
+    proc = subprocess.run(["make", "-s", "-C", str(d), "CFLAGS=-O2 -Wall -Wextra -pedantic -Werror"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert f'"{name}"' in (d / "gearctl_ctrl.h").read_text(encoding="utf-8")

@@ -466,6 +466,20 @@ def check_prefix(prefix: str) -> str:
     return prefix
 
 
+def check_name(name: str) -> str:
+    """A controller name the exported files can quote, or an :class:`InputError` naming the rule.
+
+    The name goes into the first comment of each C file and of the Makefile: a ``*/`` ended the C comment and a
+    line break the Makefile's, so the folder did not build; a ``/*`` is a warning (``-Wcomment``) that fails a
+    build with ``-Wall -Werror``.
+    """
+    if "*/" in name or "/*" in name or any((ord(ch) < 32 and ch != "\t") or ord(ch) == 127 for ch in name):
+        raise InputError(f"name = {name!r} cannot be quoted in the exported C and Makefile comments: expected a "
+                         "name without '*/', '/*', line breaks or other control characters but tabs (rename it in the "
+                         "controller's file)", field="name")
+    return name
+
+
 def prefixed(text: str, prefix: str) -> str:
     """``text`` with gearctl's exported names under another prefix: ``gearctl_ctrl_step`` -> ``axis1_ctrl_step``,
     ``GEARCTL_TS`` -> ``AXIS1_TS``, and the internal ``gcx_`` / ``GCX_`` names -> ``axis1_gcx_`` / ``AXIS1_GCX_``, so
@@ -548,12 +562,14 @@ def export_controller(controller: Controller, out: str | Path, *, plant: Any = N
     Raises
     ------
     InputError
-        For a controller that is not one of gearctl's kinds, a bad prefix, or a folder that cannot be written or
+        For a controller that is not one of gearctl's kinds, a bad prefix, a name the C comments cannot quote
+        (``*/``, ``/*``, a line break), or a folder that cannot be written or
         holds files of the export's names that no gearctl export wrote. Files a previous export into the folder
         wrote and this one does not are removed.
     """
     check_prefix(prefix)
     spec = kind_spec(controller)
+    check_name(spec.name)
     out = Path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -591,10 +607,10 @@ def export_controller(controller: Controller, out: str | Path, *, plant: Any = N
     _clear_previous(out, prefix, {*files, "controller.json", *([vectors_file] if vectors else [])})
     try:
         for name, text in files.items():
-            (out / name).write_text(text)
+            (out / name).write_text(text, encoding="utf-8")  # the bytes the digests are of
         if vectors:
             write_vectors(out / vectors_file, spec.preview, cases)
-        (out / "controller.json").write_text(json.dumps(_jsonable(manifest), indent=1) + "\n")
+        (out / "controller.json").write_text(json.dumps(_jsonable(manifest), indent=1) + "\n", encoding="utf-8")
     except OSError as exc:
         raise InputError(f"cannot write into {out}: {exc.strerror}", field="out") from None
     names = sorted([*files, "controller.json", *([vectors_file] if vectors else [])])
