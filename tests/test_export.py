@@ -383,6 +383,18 @@ def test_cli_track_exported_equals_track(exported, capsys) -> None:
         assert err.count("\n") == 1 and "Traceback" not in err
 
 
+def test_cli_track_exported_refuses_realtime(tmp_path: Path, capsys) -> None:
+    """``--realtime`` asks for a fallback on an overrun, which the exported C (no clock) never makes: refused, not
+    silently ignored (it ran and printed the run as if the flag held)."""
+    from gearctl.cli import main
+
+    assert main(["export", MODEL, "mpc", "--out", str(tmp_path / "c"), "--no-vectors"]) == 0
+    capsys.readouterr()
+    assert main(["track", MODEL, "--realtime", "--exported", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and "--realtime" in err
+
+
 # --- the compiled batch loop ---------------------------------------------------------------------------
 
 

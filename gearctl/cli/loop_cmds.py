@@ -39,6 +39,10 @@ def _cmd_track(args: argparse.Namespace) -> int:
     if args.exported is not None and args.estimate is not None:
         raise InputError("--estimate and --exported: an exported controller runs with the numbers it was exported "
                          "with; export it again with `gearctl export ... --estimate B`", field="estimate")
+    if args.exported is not None and args.realtime:
+        raise InputError("--realtime and --exported: the exported C keeps no clock and never falls back on an overrun "
+                         "(max_solve_time has no effect in C); without --realtime the steps longer than it are counted "
+                         "as overruns", field="realtime")
     if args.controller is None:  # not named: the exported folder's controller, else the catalog's inverse
         args.controller = "deadzone_inverse"
         if args.exported is not None:
