@@ -562,3 +562,20 @@ def test_an_unusual_but_quotable_name_builds(tmp_path: Path) -> None:
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     assert f'"{name}"' in (d / "gearctl_ctrl.h").read_text(encoding="utf-8")
+
+
+@pytest.mark.skipif(CC is None, reason="needs a C compiler")
+@pytest.mark.parametrize("ctrl, prefix", [("pid", "gearctl"), ("deadzone_inverse", "axis1")])
+def test_the_folder_readme_call_example_compiles_as_written(tmp_path: Path, ctrl: str, prefix: str) -> None:
+    # the exported README's C example is what a firmware engineer copies first; it had statements at file scope
+    # and undeclared names (motor_angle), so it compiled nowhere
+    d, _ = _export(tmp_path, SERVO, ctrl, vectors=False, prefix=prefix)
+    readme = (d / "README.md").read_text()
+    blocks = readme.split("```c\n")[1:]
+    assert len(blocks) == 1
+    (tmp_path / "call.c").write_text(blocks[0].split("```")[0])
+    proc = subprocess.run([CC, "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-I", str(d), "-c",
+                           str(tmp_path / "call.c"), "-o", str(tmp_path / "call.o")],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert f"{prefix}_ctrl_step(&ctrl, y, ref, &u)" in blocks[0]
