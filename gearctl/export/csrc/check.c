@@ -47,7 +47,8 @@ int main(int argc, char **argv) {
         free(buf);
         return 2;
     }
-    long pos = 16, total = 0, flagged = 0, differ = 0, nans = 0;
+    long pos = 16, total = 0, differ = 0, nans = 0;
+    long statuses[4] = {0, 0, 0, 0}; /* steps that returned each GEARCTL_STEP_ status */
     double max_du = 0.0, max_u = 0.0;
     static gearctl_ctrl_t ctrl; /* statically allocated, as on a target */
     double *rows = NULL;
@@ -82,7 +83,8 @@ int main(int argc, char **argv) {
             }
             double y[2] = {rd_f64(ys + 16 * k), rd_f64(ys + 16 * k + 8)};
             double u_ref = rd_f64(us + 8 * k), u = (double)NAN;
-            if (gearctl_ctrl_step(&ctrl, y, rows + 3 * f, &u) > 0) flagged++;
+            int status = gearctl_ctrl_step(&ctrl, y, rows + 3 * f, &u);
+            if (status > 0 && status < 4) statuses[status]++;
             if (isnan(u) != isnan(u_ref)) {
                 nans++;
                 continue;
@@ -104,7 +106,9 @@ int main(int argc, char **argv) {
            !ok ? "FAILED" : differ ? "ok, within the limit" : "ok, bit for bit");
     if (differ) printf("gearctl check: %ld steps differ from the recorded torque\n", differ);
     if (nans) printf("gearctl check: %ld steps gave NaN where the recorded torque is a number, or the reverse\n", nans);
-    if (flagged) printf("gearctl check: %ld steps used the fallback\n", flagged);
+    if (statuses[1]) printf("gearctl check: %ld steps used the fallback (GEARCTL_STEP_FALLBACK)\n", statuses[1]);
+    if (statuses[2]) printf("gearctl check: %ld steps had a bad input (GEARCTL_STEP_BAD_INPUT)\n", statuses[2]);
+    if (statuses[3]) printf("gearctl check: %ld steps in the latched fault (GEARCTL_STEP_FAULT)\n", statuses[3]);
     return ok ? 0 : 1;
 bad:
     free(rows);
