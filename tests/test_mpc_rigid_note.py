@@ -33,3 +33,21 @@ def test_gap_plan_and_backlash_zero_have_no_such_note() -> None:
 def test_track_prints_the_note(capsys) -> None:  # noqa: ANN001
     assert main(["track", POINTING, "mpc", "--duration", "0.02"]) == 0
     assert "gearctl track: note: mpc: gap model off:" in capsys.readouterr().err
+
+
+def test_rigid_for_upstream_gaps_names_them_not_the_noise() -> None:
+    """On a train whose stages before the last hold over half the lost motion, the contact tolerance (which takes
+    those gaps in) exceeds half the gap and the plan is rigid. The reason said "the measured gap's noise (1.3e-05 m
+    std ...)", a std the design never had: the 2^20-count encoders' gap noise is 200x smaller (review hA, a speed
+    increaser 72 -> 24 teeth before a 30 -> 30 stage). It names the upstream share now."""
+    from gearctl.design.mpc import upstream_gap_share
+
+    m = load_model("servo_2stage_phm09")
+    plant = build_plant(m, backlash=(4e-5, 1e-5))  # the first stage: 2/3 of the lost motion
+    mpc = load_controller("mpc", plant, sensors=m.sensors)
+    assert mpc.describe()["gap_model"] == "rigid"
+    assert mpc._gap_reading_std() < 0.01 * mpc.settings.backlash  # the encoders resolve the gap
+    assert "noise" not in mpc.rigid_reason
+    assert f"{upstream_gap_share(plant):.0%} of the lost motion" in mpc.rigid_reason
+    # the catalog train (a third upstream) keeps its gap plan
+    assert load_controller("mpc", build_plant(m), sensors=m.sensors).rigid_reason == ""

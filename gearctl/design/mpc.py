@@ -58,7 +58,8 @@ Solve-time recording, fallbacks, overrun handling and the solver path are those 
 The same rigid design is taken for a gap the plan cannot resolve (:attr:`MPC.rigid_reason`, ``describe()``'s
 ``gap_model``): one the motor crosses within two samples at the crossing's quarter of the torque limit, or, with
 the load encoder, one whose contact tolerance (at least three times the measured gap's noise std, from
-``measurement_noise``) would exceed half of it. Why: on ``shing1993_servo`` the gap design with b = 1e-7 to 1e-5
+``measurement_noise``; on a train at least the upstream stages' share of the lost motion, see
+:func:`contact_tolerance`) would exceed half of it. Why: on ``shing1993_servo`` the gap design with b = 1e-7 to 1e-5
 m landed every sample and flipped its flank every sample (sine RMS 2.7e-5, 0.012, 0.30, 0.88, 7.3e-5 rad for b =
 1e-7, 1e-6, 3e-6, 5e-6, 1e-5; ``precision`` with 3e-6: A = 2.3 rad); the rigid design gives 9.2e-7, 3.5e-6,
 1.0e-5, 1.7e-5, 3.3e-5 (A = 3.9e-5 rad), an error that falls smoothly with b to that of b = 0 (8.4e-7). From
@@ -1208,17 +1209,21 @@ class MPC(Controller):
         t_cross = 2.0 * math.sqrt(2 * self._b / (_CROSS_SHARE * self._a_max))
         # contact when |s| >= b - tol; with the load encoder, tol is at least three times the noise of the measured
         # gap (else, with a small b, the reading's noise alone makes contact come and go)
-        self._tol = contact_tolerance(info) * st.backlash
-        if st.feedback == "load":
-            self._tol = max(self._tol, _GAP_NOISE_TOL * self._gap_reading_std())
+        share_tol = contact_tolerance(info) * st.backlash
+        noise_tol = _GAP_NOISE_TOL * self._gap_reading_std() if st.feedback == "load" else 0.0
+        self._tol = max(share_tol, noise_tol)
         # backlash-free (the rigid train, the mesh pushes and pulls): b = 0, or a gap the plan cannot resolve in time
-        # (crossed within _RIGID_SAMPLES samples) or the encoders in position (contact bands over half of it)
+        # (crossed within _RIGID_SAMPLES samples) or the contact bands over half of it: from the encoders' noise, or on
+        # a train from the upstream stages' gaps the tolerance takes in (name the one that sets it)
         self.rigid_reason = ("backlash estimate 0" if st.backlash == 0.0 else
                              f"the lost motion is crossed in {t_cross / Ts:.2g} samples at {_CROSS_SHARE:g} x the "
                              f"torque limit (at most {_RIGID_SAMPLES})" if t_cross <= _RIGID_SAMPLES * Ts else
-                             f"the measured gap's noise ({self._tol / _GAP_NOISE_TOL:.2g} m std, from "
-                             f"measurement_noise) is over b / {2 * _GAP_NOISE_TOL:g}" if self._tol > 0.5 * st.backlash
-                             else "")
+                             "" if self._tol <= 0.5 * st.backlash else
+                             f"the measured gap's noise ({noise_tol / _GAP_NOISE_TOL:.2g} m std, from "
+                             f"measurement_noise) is over b / {2 * _GAP_NOISE_TOL:g}" if noise_tol >= share_tol else
+                             f"the stages before the last hold {upstream_gap_share(info.nominal):.0%} of the lost "
+                             f"motion, which the one-gap plan leaves to its contact tolerance "
+                             f"({share_tol / st.backlash:.2g} b): over half the gap")
         self._rigid = bool(self.rigid_reason)
         # a load encoder too coarse for the gap, under a rigid plan: the centre of inertia from the motor encoder alone
         # (see *Coarse load encoders*)
