@@ -107,8 +107,13 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
     stages = []
     for i, sm in enumerate(model.stages):
         pf, df = stage_fields(GearPair, i), stage_fields(MeshDynamics, i)
-        stages.append(dataclasses.replace(sm, pair=dataclasses.replace(sm.pair, **pf) if pf else sm.pair,
-                                          dynamics=dataclasses.replace(sm.dynamics, **df) if df else sm.dynamics))
+        try:
+            stages.append(dataclasses.replace(sm, pair=dataclasses.replace(sm.pair, **pf) if pf else sm.pair,
+                                              dynamics=dataclasses.replace(sm.dynamics, **df) if df else sm.dynamics))
+        except InputError as exc:  # a check across a stage's keys (undercut, interference): name the stage
+            if len(model.stages) == 1:
+                raise
+            raise InputError(f"[stage {i + 1}] {exc}", field=exc.field, rule=exc.rule) from None
     out = dataclasses.replace(
         model, stages=tuple(stages),
         servo=dataclasses.replace(model.servo, **per[Servo]) if per[Servo] else model.servo,

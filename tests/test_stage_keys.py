@@ -74,3 +74,16 @@ def test_a_stage_number_with_leading_zeros_is_refused() -> None:
     # stage02.backlash was read as stage2's: a reproducer command should name one spelling
     with pytest.raises(InputError, match=r"without leading zeros \(stage2.backlash\)"):
         parse_set("stage02.backlash=1e-6")
+
+
+def test_a_check_across_one_stage_keys_names_that_stage(capsys: pytest.CaptureFixture[str]) -> None:
+    """An undercut or interference from ``--set stageN.KEY`` said ``teeth1 = 12 is below the undercut limit`` with no
+    stage, on a train where every stage has a teeth1 (review hA); range errors already said ``[stage 3]``."""
+    m = load_model(TWO)  # pinions of 32 and 48 teeth
+    with pytest.raises(InputError, match=r"^\[stage 2\] teeth1 = 12 is below the undercut limit"):
+        perturb_model(m, {"stage2.teeth1": 12})
+    with pytest.raises(InputError, match=r"^\[stage 1\] x1 = 1.5 .*interference"):
+        perturb_model(m, {"stage1.x1": 1.5})
+    assert main(["track", TWO, "pid", "--set", "stage2.teeth1=12", "--duration", "0.01"]) == 2
+    err = capsys.readouterr().err
+    assert "error: [stage 2] teeth1 = 12" in err and "Traceback" not in err
