@@ -39,6 +39,7 @@ def _stage_summary(pair: GearPair, dynamics: MeshDynamics, plant: Plant, i: int)
         "line_of_action": {"AB": geo.AB, "AC": geo.AC, "AD": geo.AD, "AE": geo.AE, "AF": geo.AF, "AP": geo.AP},
         "tooth_thickness": {
             "pitch": geo.tooth_thickness_pitch,
+            "reference": list(geo.tooth_thickness_reference),
             "base": list(geo.tooth_thickness_base),
             "addendum": list(geo.tooth_thickness_addendum),
         },
@@ -71,7 +72,8 @@ def model_summary(model: GearModel) -> dict[str, Any]:
     dict
         JSON-ready. For a pair: ``contact_ratio``, ``base_pitch`` [m], ``pitch_radius``, ``base_radius``,
         ``addendum_radius``, ``dedendum_radius`` [m, m], ``line_of_action`` {AB, AC, AD, AE, AF, AP} [m],
-        ``tooth_thickness`` {pitch, base, addendum} [m], ``inertia`` [I1, I2] [kg m^2],
+        ``tooth_thickness`` {pitch (``pi m / 2``, unshifted), reference (each gear's, with its profile shift:
+        ``m (pi/2 + 2 x tan(alpha))``), base, addendum} [m], ``inertia`` [I1, I2] [kg m^2],
         ``equivalent_mass`` [kg] (the gears alone, the report's), ``plant_equivalent_mass`` [kg] (with the
         shafts' inertias: the mesh mode's, which the plant's damping uses), ``mesh_stiffness`` {mean, c1, c2,
         min, max} [N/m] (eq 21 over the mesh cycle), ``mesh_stiffness_per_width`` [N/(mm um)],

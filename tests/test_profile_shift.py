@@ -415,3 +415,19 @@ def test_a_shift_refused_names_the_range_that_passes() -> None:
     GearPair(**base, x1=limit)
     with pytest.raises(InputError):
         GearPair(**base, x1=limit + 1e-4)
+
+
+def test_info_json_gives_the_shifted_reference_thickness() -> None:
+    """``info --json`` gave a shifted gear's tooth thickness only as ``pitch`` = pi m / 2, the unshifted value
+    (1.571 mm for a 12-tooth pinion with x = 1.0, whose reference thickness is 2.299 mm; review hA); it now gives
+    each gear's reference thickness m (pi/2 + 2 x tan(alpha)) too."""
+    from gearctl.summary import model_summary
+
+    model = load_model("pinion17_shifted_shing1993")
+    pair = model.stages[0].pair
+    info = model_summary(model)
+    m, phi = pair.module, pair.pressure_angle
+    assert_allclose(info["tooth_thickness"]["pitch"], math.pi * m / 2, rtol=1e-15)
+    assert_allclose(info["tooth_thickness"]["reference"],
+                    [m * (math.pi / 2 + 2 * x * math.tan(phi)) for x in (pair.x1, pair.x2)], rtol=1e-12)
+    assert info["tooth_thickness"]["reference"][0] > info["tooth_thickness"]["pitch"]  # x1 = +0.3 thickens it
