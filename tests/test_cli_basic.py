@@ -234,3 +234,14 @@ def test_a_plot_suffix_that_is_no_format_is_refused_before_the_run(tmp_path: Pat
     err = capsys.readouterr().err
     assert ".v2 is not a figure format" in err and "or no suffix (PNG)" in err
     assert not any(tmp_path.iterdir())
+
+
+def test_a_run_slower_than_real_time_is_not_printed_as_zero_speed() -> None:
+    """``track`` printed ``wall time 0.139 s (0 simulated s per wall s)`` for a 0.05 s run of a four-stage train
+    (review hA): the rate was rounded to a whole number. Below 10 it keeps two significant digits."""
+    from gearctl.cli.common import format_rate
+
+    assert format_rate(0.05, 0.139) == "0.36"
+    assert format_rate(3.0, 0.939) == "3.2"
+    assert format_rate(3.0, 0.0125) == "240"  # the README's figure for the pair keeps its form
+    assert float(format_rate(1e-3, 10.0)) == pytest.approx(1e-4)

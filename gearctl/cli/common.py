@@ -258,6 +258,13 @@ def check_writable(path: str, *, directory: bool = False, key: str = "out") -> N
                 d.rmdir()
 
 
+def format_rate(simulated: float, wall: float) -> str:
+    """Simulated seconds per wall second [s/s] as ``track`` prints it: whole numbers from 10 up, two significant
+    digits below (a run slower than real time, 0.36, printed as 0)."""
+    rate = simulated / max(wall, 1e-9)
+    return f"{rate:.0f}" if rate >= 10 else f"{rate:.2g}"
+
+
 def say_written(*pairs: tuple[str | None, str]) -> None:
     """Print ``wrote FILE (what)`` for each file the user asked for."""
     for path, what in pairs:

@@ -18,6 +18,7 @@ from .common import (
     TARGETS,
     check_writable,
     dump_json,
+    format_rate,
     positive_float,
     progress_bar,
     save_figure,
@@ -120,7 +121,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     if ctrl.get("preview", 1) > 1:
         ahead = (ctrl["preview"] - 1) * ctrl["Ts"] * 1e3
         print(f"  preview                {ctrl['preview']} reference samples ({ahead:.3g} ms ahead)")
-    print(f"  wall time              {m.wall_time:.3g} s ({m.duration / max(m.wall_time, 1e-9):.0f} "
+    print(f"  wall time              {m.wall_time:.3g} s ({format_rate(m.duration, m.wall_time)} "
           f"simulated s per wall s)")
     say_written((args.csv, "CSV"), (args.plot, "plot"))
     return 0 if out.ok else 2
