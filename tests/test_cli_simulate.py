@@ -210,3 +210,26 @@ def test_csv_dash_is_standard_output(argv: list[str], capsys: pytest.CaptureFixt
     assert "wrote standard output (CSV)" in cap.err and not Path("-").exists()
     assert main([*argv, "--csv", "-", "--json"]) == 2
     assert "both would write standard output" in capsys.readouterr().err
+
+
+def test_the_model_load_torque_is_reported_with_the_case_torques(capsys: pytest.CaptureFixture[str]) -> None:
+    """A gravity-loaded model's ``load_torque`` acts in every case (simulate adds it), but the output spoke only of
+    the case ("free case": no torque; "load case": -1 N m) and its JSON had no torque (review hA: a -40 N m arm).
+    The JSON now gives the torques applied, and the text says where the load's came from."""
+    data = str(Path(__file__).resolve().parent / "data" / "robot_joint_2stage_gravity.toml")  # load_torque -1.5
+    out = run_json(["simulate", data, "--case", "load", "--duration", "0.005"], capsys)
+    assert out["torque"] == {"motor": 1.0, "load": -1.0 - 1.5}
+    # the run applied that total: the same model without its load torque, given -2.5 N m by the case, ends alike
+    from dataclasses import replace
+
+    from gearctl import load_model
+
+    m = load_model(data)
+    bare = build_plant(replace(m, servo=replace(m.servo, load_torque=0.0)))
+    ref = report_case(bare, "load", 0.005, torque2=-2.5)
+    assert_allclose(out["final"]["theta"], ref.x[: ref.x.shape[0] // 2, -1], rtol=1e-9, atol=1e-12)
+    assert main(["simulate", data, "--duration", "0.005"]) == 0
+    text = capsys.readouterr().out
+    assert "load -1.5 N m (the free case's 0 plus the model's load_torque -1.5)" in text
+    assert main(["simulate", "shing1993_servo", "--duration", "0.005"]) == 0
+    assert "torques" not in capsys.readouterr().out  # no load torque: the case's torques are the whole story

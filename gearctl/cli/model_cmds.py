@@ -260,10 +260,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                                   f"with torque1 = {c['torque1']:g}, torque2 = {c['torque2']:g} N m on shafts of "
                                   f"{j[0]:.3g} and {j[1]:.3g} kg m^2; for this model choose smaller --omega1, "
                                   "--torque1, --torque2", result=exc.result) from None
-    summary = _simulate_summary(model, plant, args, res)
     from ..simulate import CASES
 
     tq = {k: v if (v := getattr(args, k, None)) is not None else CASES[args.case][k] for k in ("torque1", "torque2")}
+    summary = _simulate_summary(model, plant, args, res)
+    # the torques the run applied: the case's, and on the load the model's load_torque too (simulate adds it)
+    summary["torque"] = {"motor": tq["torque1"], "load": tq["torque2"] + plant.load_torque}
     limit = plant.torque_limit
     if math.isfinite(limit) and (abs(tq["torque1"]) > limit or abs(tq["torque2"]) > plant.gear_ratio * limit):
         warn("simulate", [f"the {args.case} case's torques ({tq['torque1']:g} N m on the motor, {tq['torque2']:g} N m "
@@ -287,6 +289,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     f = summary["final"]
     print(f"{model.name} ({plant.kind.value} plant, {args.case} case, {_duration_text(summary['duration'])}, "
           f"{res.solver} solver, {summary['rows']} rows every {summary['output_interval']:.3g} s)")
+    if plant.load_torque != 0.0:  # the case's torques are not the whole story: say what acted on the load
+        print(f"  torques                motor {tq['torque1']:g} N m; load {summary['torque']['load']:g} N m (the "
+              f"{args.case} case's {tq['torque2']:g} plus the model's load_torque {plant.load_torque:g})")
     if plant.n_stages == 1:
         counts = summary["impacts"]
         print(f"  impacts                front {counts['front']}, back {counts['back']}, fastest "
