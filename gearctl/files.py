@@ -134,6 +134,9 @@ def read_toml(path: Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise InputError(f"{path}: not valid TOML here: arrays or inline tables nested too deeply (a model or "
+                         f"controller file nests a few levels)") from None
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

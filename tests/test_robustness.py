@@ -219,6 +219,18 @@ def test_binary_model_file_is_one_line(name: str, tmp_path: Path, capsys: pytest
         assert out == ""
 
 
+def test_deeply_nested_toml_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Arrays nested 5000 deep (well under the 1 MB file cap) ended in tomllib's RecursionError, a traceback."""
+    path = tmp_path / "deep.toml"
+    path.write_text("kind = \"pid\"\nx = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(InputError, match="nested too deeply"):
+        load_model(path)
+    for argv in (["info", str(path)], ["track", "shing1993_servo", str(path)]):
+        code, out, err = cli(argv, capsys)
+        assert_one_line_error(code, err, argv[0], str(path), "nested too deeply")
+        assert out == ""
+
+
 # --- outputs that would not fit ------------------------------------------------------------------------------
 
 def test_simulate_tiny_dt_is_refused_with_the_figure(server, tmp_path: Path) -> None:
