@@ -407,6 +407,17 @@ def test_controller_file_unknown_kind(tmp_path: Path, nominal: Plant) -> None:
     assert info.value.field == "kind"
 
 
+@pytest.mark.parametrize("kind", ["[1, 2]", "{x = 1}"])
+def test_controller_file_kind_not_a_string(tmp_path: Path, nominal: Plant, kind: str) -> None:
+    # an array or inline table ended in "TypeError: unhashable type", a traceback at the CLI
+    path = tmp_path / "ctrl.toml"
+    path.write_text(BASE.format(kind="pid", Ts="1e-3", extra="", bw="20.0").replace('"pid"', kind))
+    with pytest.raises(InputError, match="is not a controller kind: expected one of pid") as info:
+        load_controller(path, nominal)
+    assert info.value.field == "kind"
+    assert main(["track", "shing1993_servo", str(path)]) == 2
+
+
 @pytest.mark.parametrize("Ts", ["0.0", "-1e-3", "2.0"])
 def test_controller_file_sample_time_out_of_range(tmp_path: Path, nominal: Plant, Ts: str) -> None:
     with pytest.raises(InputError, match="sample_time") as info:

@@ -70,7 +70,7 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
     if kind is None:
         raise InputError(f"{path}: missing key kind: expected one of {', '.join(MODULES)} (kind = \"pid\", ...)",
                          field="kind")
-    if kind not in MODULES:
+    if not isinstance(kind, str) or kind not in MODULES:  # a list or table is no kind (and unhashable)
         close = difflib.get_close_matches(str(kind), list(MODULES), n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
         raise InputError(f"{path}: kind = {kind!r} is not a controller kind: expected one of "
