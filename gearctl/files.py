@@ -67,7 +67,9 @@ def resolve(name_or_path: str | Path, kind: str) -> Path:
     if p.suffix == ".toml" or p.exists() or len(p.parts) > 1:
         if p.is_file():
             return p
-        what = "is a folder, not a file" if p.is_dir() else "does not exist"
+        what = ("is a folder, not a file" if p.is_dir() else
+                "is not a regular file (a device, pipe or socket): expected a TOML file" if p.exists() else
+                "does not exist")
         raise InputError(f"{kind[:-1]} file {str(p)!r} {what}", field=kind[:-1])
     for d in catalog_dirs(kind):
         cand = d / f"{p.name}.toml"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from pathlib import Path
 
 import pytest
@@ -384,3 +385,18 @@ def test_a_folder_named_like_a_catalog_entry_does_not_hide_it(tmp_path: Path,
     assert resolve("shing1993", "models").name == "shing1993.toml"
     with pytest.raises(InputError, match="is a folder"):
         resolve(str(tmp_path / "pid"), "controllers")
+
+
+@pytest.mark.parametrize("kind", ["models", "controllers"])
+def test_a_device_or_pipe_is_not_said_not_to_exist(tmp_path: Path, kind: str) -> None:
+    """/dev/null or a named pipe given as a file: it exists, so "does not exist" misled (the pipe is not opened:
+    reading one would wait for a writer)."""
+    from gearctl.files import resolve
+
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    for path in (os.devnull, str(fifo)):
+        with pytest.raises(InputError, match="is not a regular file"):
+            resolve(path, kind)
+    with pytest.raises(InputError, match="does not exist"):
+        resolve(str(tmp_path / "missing.toml"), kind)
