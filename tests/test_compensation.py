@@ -542,6 +542,8 @@ def test_reversal_offset_bad_input(keys: dict, match: str) -> None:
 
 @pytest.mark.parametrize(("key", "value", "match"), [
     ("crossing_time", -0.001, r"crossing_time = -0.001 is out of range"),
+    # below a microsecond: a ramp of 1e-308 s at t = 0 divided by T^2 = 0 (ZeroDivisionError, a traceback)
+    ("crossing_time", 1e-308, r"crossing_time = 1e-308 is out of range.*either 0 or at least 1e-06 \[s\]"),
     ("observer_hz", 2000.0, r"observer_hz = 2000.0 is out of range"),
     ("disturbance_threshold", -1.0, r"disturbance_threshold = -1.0 is out of range"),
     ("friction_feedforward", "yes", r"friction_feedforward = 'yes' is not allowed"),
@@ -552,6 +554,21 @@ def test_inverse_bad_input(key: str, value: object, match: str) -> None:
     with pytest.raises(InputError, match=match) as exc:
         build_controller(spec, plant, path=Path("deadzone_inverse.toml"))
     assert exc.value.field == key
+
+
+def test_tiny_crossing_times_are_refused_everywhere() -> None:
+    """The adaptive inverse's converged crossing time and the API's set_crossing_time share the floor; a track with
+    crossing_time = 1e-308 ended in ZeroDivisionError."""
+    plant = build_plant(load_model(SERVO))
+    spec = read_toml(resolve("adaptive_inverse", "controllers"))
+    spec = {**spec, "adaptation": {**spec["adaptation"], "converged_crossing_time": 1e-300}}
+    with pytest.raises(InputError, match=r"\[adaptation\] converged_crossing_time = 1e-300 is out of range"):
+        build_controller(spec, plant, path=Path("adaptive_inverse.toml"))
+    inv = load_controller("deadzone_inverse", plant)
+    with pytest.raises(InputError, match="crossing_time = 1e-09 is out of range"):
+        inv.set_crossing_time(1e-9)
+    inv.set_crossing_time(1e-6)
+    inv.set_crossing_time(0.0)
 
 
 def test_inverse_holds_its_flank_at_rest_unless_friction_is_exceeded() -> None:

@@ -123,8 +123,8 @@ class AdaptationSettings:
                                         default=1e-6)
     apply_threshold: float = quantity(unit="1", doc="relative change of the estimate that is handed to the "
                                       "inverse", low=0.0, high=0.5, default=0.01)
-    converged_crossing_time: float = quantity(unit="s", doc="crossing time (sin^2 ramp) once the estimate has "
-                                              "converged (0: never switch)", low=0.0, high=1.0, default=0.01)
+    converged_crossing_time: float = deadzone.CROSSING_TIME.field(doc="crossing time (sin^2 ramp) once the estimate "
+                                                                  "has converged (0: never switch)", default=0.01)
     converged_tolerance: float = quantity(unit="1", doc="relative difference between a measurement and the "
                                           "estimate under which it counts towards convergence", low=0.0,
                                           low_open=True, high=0.5, default=0.02)

@@ -172,12 +172,12 @@ from ..errors import InputError
 from ..files import Layout, build_dataclass, spec_values
 from ..params import Sensors
 from ..plant import Plant
-from ..units import BACKLASH, check_choice, quantity, validate_fields
+from ..units import BACKLASH, Spec, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
 from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, pid_from_values, restate
 
 __all__ = ["DeadzoneInverse", "InverseSettings", "LoadObserver", "OffsetRamp", "RAMPS", "ramp_shape",
-           "carried_by_motor", "offset_torque", "KIND", "LAYOUT", "build"]
+           "carried_by_motor", "offset_torque", "CROSSING_TIME", "KIND", "LAYOUT", "build"]
 
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "deadzone_inverse"
@@ -204,6 +204,11 @@ _REF_AMPLITUDE, _REF_OMEGA = 0.1, 2.0 * math.pi
 _BENCH_LOAD_TORQUE = 0.0408081125116859
 #: A landing's lag is taken up asking at most this share of the load acceleration the torque limit gives.
 TAKE_UP_ACCELERATION = 0.25
+
+#: A crossing time [s]: 0 (a step) or at least a microsecond, the shortest sample time. Shorter ones are a step in
+#: effect, and a ramp of 1e-308 s started at t = 0 divided its acceleration by T^2 = 0 (a traceback).
+CROSSING_TIME = Spec(unit="s", doc="time the motor takes to cross the gap (sin^2 ramp of the offset; 0: a step)",
+                     low=0.0, high=1.0, floor=1e-6)
 
 #: Shapes of the offset's ramp between the flanks (``sin2``: Beckhoff's; ``linear``: Heidenhain's speed
 #: command held over the compensation time; ``step``: all in one sample).
@@ -491,8 +496,7 @@ class InverseSettings:
                                    default=None)
     backlash: float | None = BACKLASH.field(default=None, optional=True, doc="backlash estimate (default: the "
                                             "model's)")
-    crossing_time: float = quantity(unit="s", doc="time the motor takes to cross the gap (sin^2 ramp of the "
-                                    "offset; 0: a step)", low=0.0, high=1.0, default=0.01)
+    crossing_time: float = CROSSING_TIME.field(default=0.01)
     observer_hz: float = quantity(unit="Hz", doc="bandwidth of the load-disturbance observer (0: none, the "
                                   "flank follows the reference alone)", low=0.0, high=1e3, default=5.0)
     disturbance_threshold: float | None = quantity(unit="N m", doc="load torque the observer must see beyond the "
@@ -560,8 +564,8 @@ class DeadzoneInverse(Controller):
             disturbance_threshold = 0.02 * scale
         if not (self.width > 0 and math.isfinite(self.width)):
             raise InputError(f"width = {self.width!r} is out of range: expected a number > 0", field="width")
-        for key, v, hi, unit in (("crossing_time", crossing_time, 1.0, " [s]"),
-                                 ("observer_hz", observer_hz, 0.5 / pid.Ts,
+        CROSSING_TIME.check("crossing_time", crossing_time)
+        for key, v, hi, unit in (("observer_hz", observer_hz, 0.5 / pid.Ts,
                                   f" [Hz] (at most the Nyquist frequency 0.5 / sample_time, sample_time = "
                                   f"{pid.Ts:g} s)"),
                                  ("disturbance_threshold", disturbance_threshold, 1e3, " [N m]")):
@@ -614,15 +618,13 @@ class DeadzoneInverse(Controller):
                 self._cross_end = self._ramp.end
 
     def set_crossing_time(self, crossing_time: float) -> None:
-        """Change the crossing time [s] (``0 <= crossing_time <= 1``) and with it the ramp: ``sin^2`` for a
+        """Change the crossing time [s] (:data:`CROSSING_TIME`: 0, or 1e-6 to 1) and with it the ramp: ``sin^2`` for a
         positive time, a step for 0 (as at construction). Every other state is kept.
 
         Call it with the offset at rest (``not self.offset_moving(t)``, e.g. an adaptive law between
         crossings): a ramp under way would go on in the new shape.
         """
-        if not (0.0 <= crossing_time <= 1.0):
-            raise InputError(f"crossing_time = {crossing_time!r} is out of range: expected 0 <= value <= 1",
-                             field="crossing_time")
+        CROSSING_TIME.check("crossing_time", crossing_time)
         self.crossing_time = crossing_time
         self._ramp.shape = "sin2" if crossing_time > 0.0 else "step"
         self._ramp.duration = crossing_time
