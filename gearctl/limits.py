@@ -62,7 +62,8 @@ def check_output_size(samples: int, columns: int, *, field: str, fix: str, what:
     cap = MAX_OUTPUT_BYTES if avail is None else min(MAX_OUTPUT_BYTES, avail // 2)
     if need > cap:
         why = "half the memory available" if cap < MAX_OUTPUT_BYTES else "the cap"
-        size = (f"the output would hold {samples:,} samples x {columns} columns = {need / 1e9:.3g} GB" if what is None
-                else f"{what} would take about {need / 1e9:.3g} GB ({samples:,} samples of {8 * columns} bytes)")
+        count = f"{samples:,}" if samples < 10**15 else f"{samples:.3g}"  # not 290 digits for --dt 1e-300
+        size = (f"the output would hold {count} samples x {columns} columns = {need / 1e9:.3g} GB" if what is None
+                else f"{what} would take about {need / 1e9:.3g} GB ({count} samples of {8 * columns} bytes)")
         raise InputError(f"{field}: {size}, more than the {cap / 1e9:.3g} GB this run may use ({why}); ask for fewer "
                          f"samples: {fix}", field=field)

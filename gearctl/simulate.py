@@ -25,7 +25,7 @@ from .plant import Mode, Plant, check_plant, mesh_force, signal_names
 from .units import DURATION
 
 __all__ = ["Event", "SimulationResult", "simulate", "report_case", "contact_force", "CASES", "DIVERGENCE_LIMIT",
-           "default_output_interval", "located_events"]
+           "default_output_interval", "output_steps", "located_events"]
 
 #: |omega| above which a simulation is declared divergent [rad/s].
 DIVERGENCE_LIMIT = 1e6
@@ -40,6 +40,23 @@ CASES: dict[str, dict[str, float]] = {
 
 #: Output rows the default output interval aims at (:func:`default_output_interval`).
 DEFAULT_ROWS = 20_000
+
+
+def output_steps(duration: float, dt: float, *, field: str = "dt") -> int:
+    """The output intervals of a run of ``duration`` at ``dt`` [s]: at least one, so that an interval longer than
+    the run still gives its end (one of 1e308 s gave the initial state alone, and a summary that failed on it).
+
+    Raises
+    ------
+    InputError
+        Naming ``field`` when the count is not even a finite number (``dt = 5e-324``); a finite count is sized by
+        :func:`gearctl.limits.check_output_size`.
+    """
+    steps = duration / dt
+    if not math.isfinite(steps):
+        raise InputError(f"{field} = {dt!r}: the output would hold {steps} samples; ask for fewer samples: a larger "
+                         f"output interval", field=field)
+    return max(1, int(math.ceil(steps - 1e-9)))
 
 
 def default_output_interval(duration: float) -> float:
@@ -283,7 +300,7 @@ def simulate(
         if len(pair) != 2 or not all(math.isfinite(v) for v in pair):
             raise InputError(f"torque = {torque!r} is not a torque: expected (xi_motor, xi_load), two finite "
                              "numbers [N m], or a function f(t, x) -> (xi_motor, xi_load)", field="torque")
-    n = int(math.ceil(duration / dt - 1e-9))
+    n = output_steps(duration, dt)
     nx, ns = plant.nx, plant.n_stages
     check_output_size(n + 1, 3 * nx + 3 * ns + 4, field="dt", fix="a larger output interval --dt")
     kn = Kernel(plant, x0, dt=min(dt, duration), rtol=rtol, compiled=compiled)

@@ -242,6 +242,22 @@ def test_simulate_tiny_dt_is_refused_with_the_figure(server, tmp_path: Path) -> 
     assert exc.value.field == "dt"
 
 
+def test_simulate_extreme_dt_and_duration(capsys: pytest.CaptureFixture[str]) -> None:
+    """--dt 5e-324 ended in OverflowError (duration / dt = inf), and --dt 1e308 or --duration 1e-308 in
+    IndexError: the grid had no interval, the run stopped at t = 0. Now: refused with the figure; one interval."""
+    code, out, err = cli(["simulate", "shing1993", "--dt", "5e-324"], capsys)
+    assert_one_line_error(code, err, "simulate", "--dt", "inf samples", "a larger output interval")
+    code, out, err = cli(["simulate", "shing1993", "--dt", "1e-300"], capsys)
+    assert_one_line_error(code, err, "simulate", "--dt", "2e+298 samples", "a larger --dt")  # not 299 digits
+    code, out, err = cli(["simulate", "shing1993", "--dt", "1e308", "--json"], capsys)
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["rows"] == 2 and res["duration"] == 0.02 and res["impacts"]["front"] > 0  # the whole run, its end
+    code, out, err = cli(["simulate", "shing1993", "--duration", "1e-308", "--json"], capsys)
+    assert code == 0, err
+    assert json.loads(out)["rows"] == 2
+
+
 def test_stiffness_points_out_of_range(server, tmp_path: Path) -> None:
     (r,) = capped(server, [["stiffness", "shing1993", "--points", "100000000"]], tmp_path, timeout=120)
     assert_one_line_error(r["rc"], r["stderr"], "stiffness", "--points", "100000000", POINTS.rule())

@@ -236,12 +236,12 @@ PENETRATION_WARNING = 0.05
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from ..plant import build_plant
-    from ..simulate import default_output_interval, report_case
+    from ..simulate import default_output_interval, output_steps, report_case
 
     model = load_model(args.model)
     plant = build_plant(model, args.plant)
     dt = args.dt if args.dt is not None else default_output_interval(args.duration)
-    rows = int(math.ceil(args.duration / dt - 1e-9)) + 1
+    rows = output_steps(args.duration, dt, field="--dt") + 1
     check_output_size(rows, 3 * plant.nx + 3 * plant.n_stages + 4, field="--dt", fix="a larger --dt")
     # a rough figure for the progress bar: ~2 us per output row, 2 us per 10 us of simulated time
     expected = rows * 2e-6 + args.duration * 0.2
