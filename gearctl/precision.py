@@ -247,6 +247,9 @@ def precision_test(
                     ("overshoot", overshoot)):
         if not (v > 0 and math.isfinite(v)):
             raise InputError(f"{name} = {v!r} is out of range: expected a number > 0", field=name)
+    if (travel + 2 * overshoot) / velocity > DURATION.high:  # before the program's sums overflow (travel = 1e308)
+        raise InputError(f"travel = {travel:g} rad at velocity = {velocity:g} rad/s: the test program would last more "
+                         f"than {DURATION.high:g} s; lower travel", field="travel")
     rng = np.random.default_rng(seed)
     spacing = travel / (targets - 1)
     P = np.arange(targets) * spacing

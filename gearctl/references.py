@@ -38,6 +38,8 @@ def move_times(distance: float, velocity: float, accel: float, profile: str = "s
     if velocity * ta > distance:  # triangular: never reaches the cruise velocity
         ta = math.sqrt(distance / mean)
         velocity = mean * ta
+        if velocity == 0.0:  # distance / mean underflows (a travel of 5e-324 rad): the move is made at once
+            return 0.0, 0.0, 0.0
     return ta, (distance - velocity * ta) / velocity, velocity
 
 

@@ -294,3 +294,21 @@ def test_a_program_that_would_not_fit_in_memory_is_refused_first() -> None:
     plant = build_plant(load_model("shing1993_servo"))
     with pytest.raises(InputError, match=r"the closed loop would take about 7\d(\.\d)? GB .*lower travel, dwell"):
         precision_test(plant, load_controller("pid", plant), targets=50, cycles=50, dwell=19.0)
+
+
+def test_extreme_travel_is_refused_or_runs_without_warnings(capsys: pytest.CaptureFixture[str]) -> None:
+    """--travel 1e308 printed numpy's overflow warnings before its refusal; --travel 5e-324 was refused as a program
+    of inf s (its S-curve divided by a ramp speed that underflowed to 0) and told to lower the travel."""
+    from gearctl.references import move_times
+
+    assert move_times(5e-324, 1.0, 10.0) == (0.0, 0.0, 0.0)  # done at once
+    plant = build_plant(load_model("shing1993_servo_friction"))
+    ctrl = load_controller("pid", plant)
+    with pytest.raises(InputError, match=r"travel = 1e\+308 rad .* more than 100000 s") as exc:
+        precision_test(plant, ctrl, travel=1e308)
+    assert exc.value.field == "travel"
+    code = main(["precision", "shing1993_servo_friction", "pid", "--cycles", "1", "--targets", "2", "--travel",
+                 "5e-324", "--dwell", "0.05", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "Warning" not in err and math.isfinite(json.loads(out)["accuracy"])
