@@ -23,8 +23,10 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InputError
+from .limits import available_memory
 
-__all__ = ["Engine", "map_tasks", "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
+__all__ = ["Engine", "map_tasks", "check_local_workers", "WORKER_BYTES",
+           "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
            "checked", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
 
 #: Seconds to reach a scheduler, and for its first worker to join.
@@ -141,6 +143,31 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
                      f"{str(exc)[:120]})") from None
     if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
         raise refuse(f"the server there is not a Dask scheduler (it says it is {str(reply)[:80]})")
+
+
+#: Memory of one local worker process [bytes]: 170 MB measured on the two-core machine (Python, numpy, SciPy, Dask
+#: and gearctl loaded, a sweep running), budgeted at 200 MB.
+WORKER_BYTES = 200_000_000
+
+
+def check_local_workers(workers: int) -> None:
+    """Refuse a local cluster whose worker processes would not fit in half the available memory.
+
+    ``gearctl sweep --workers 1000`` (in its range, 1..1024) started a thousand processes on a two-core machine
+    with 23 GB, until the kernel's out-of-memory killer ended processes of the whole machine.
+
+    Raises
+    ------
+    InputError
+        With the figure and the most workers that fit (``error.field``: ``workers``).
+    """
+    avail = available_memory()
+    if avail is None or workers * WORKER_BYTES <= avail / 2:
+        return
+    most = max(1, int(avail / 2 // WORKER_BYTES))
+    raise InputError(f"workers = {workers}: {workers} local worker processes would take about "
+                     f"{workers * WORKER_BYTES / 1e9:.3g} GB ({WORKER_BYTES / 1e9:g} GB each), more than half the "
+                     f"{avail / 1e9:.3g} GB available; ask for at most {most} (--workers / --jobs)", field="workers")
 
 
 def local_cluster(workers: int) -> Any:
@@ -268,8 +295,9 @@ class Engine:
         else:
             from .kernel import compiled_available
 
-            compiled_available()  # compile the kernel once, before the workers start
             n = workers or default_workers()
+            check_local_workers(n)
+            compiled_available()  # compile the kernel once, before the workers start
             self.cluster = local_cluster(n)
             self.client = distributed.Client(self.cluster, set_as_default=False)
             self.where = f"local cluster ({n} process{'es' if n > 1 else ''})"

@@ -816,3 +816,21 @@ def test_a_local_cluster_starts_while_port_8787_is_taken() -> None:
         s.listen()
         cluster = local_cluster(1)
         cluster.close()
+
+
+def test_local_workers_that_would_not_fit_are_refused(monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """`gearctl sweep --workers 1000` (in range) started a thousand processes on a two-core machine until the
+    out-of-memory killer ended processes of the whole machine. Workers beyond half the available memory are refused
+    before any starts, with the figure and the most that fit (here 1 GB available: 2 of 0.2 GB)."""
+    import gearctl.parallel as parallel
+
+    monkeypatch.setattr(parallel, "available_memory", lambda: 1_000_000_000)
+    parallel.check_local_workers(2)
+    with pytest.raises(InputError, match=r"workers = 4: 4 local worker processes would take about 0.8 GB") as exc:
+        parallel.check_local_workers(4)
+    assert exc.value.field == "workers" and "ask for at most 2" in str(exc.value)
+    code = main(["sweep", "shing1993_servo", "pid", "--runs", "2", "--workers", "4", "--duration", "0.05", "--quiet",
+                 "--vary", "backlash=0.5x:2x"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "ask for at most 2 (--workers / --jobs)" in err
