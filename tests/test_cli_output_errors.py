@@ -67,3 +67,22 @@ def test_csv_to_a_full_stdout_names_standard_output() -> None:
     assert p.returncode == 2
     assert p.stderr.decode().splitlines()[-1] == ("gearctl stiffness: error: cannot write standard output: "
                                                   "No space left on device")
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["linearize", "shing1993_servo", "--bode", "-"], "--bode -: this output cannot go to standard output"),
+    (["stiffness", "shing1993", "--plot", "-"], "--plot -: this output cannot go to standard output"),
+    (["excite", "shing1993_servo_friction", "--out", "-"], "--out -: this output cannot go to standard output"),
+    (["export", "shing1993_servo", "pid", "--out", ""], "--out '': an empty name"),
+    (["track", "shing1993_servo", "pid", "--csv", ""], "--csv '': an empty name: expected a file or folder name (or -"),
+    (["linearize", "shing1993_servo", "--step", " "], "--step ' ': an empty name"),
+])
+def test_empty_and_dash_outputs_are_refused(argv: list[str], needle: str, tmp_path, monkeypatch: pytest.MonkeyPatch,
+                                            capsys: pytest.CaptureFixture[str]) -> None:  # noqa: ANN001
+    """"" wrote nothing without a word (export --out "" wrote into the current folder); "-", standard output for
+    --csv, wrote a file named "-" for --plot, --bode, excite --out and identify --write-model."""
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and needle in err, err
+    assert list(tmp_path.iterdir()) == []

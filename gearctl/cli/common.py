@@ -154,7 +154,9 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, i
 
 #: Arguments that name files a command reads, and those that name what it writes.
 INPUT_ARGS = ("model", "controller", "log")
-OUTPUT_ARGS = ("csv", "plot", "out", "write_model", "reference_only", "json")
+OUTPUT_ARGS = ("csv", "plot", "out", "write_model", "reference_only", "json", "bode", "step")
+#: The outputs ``-`` sends to standard output (``--json`` where it takes a file: ``bench``, ``sweep``).
+STDOUT_ARGS = ("csv", "json")
 #: The files a command writes into its ``--out DIR`` (another output named like one of them there is overwritten).
 OUT_DIR_FILES = {"sweep": ("runs.csv", "summary.md", "*.png"), "bench": ("report.md", "*.png")}
 
@@ -182,6 +184,15 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
     """
     import os
 
+    for key in OUTPUT_ARGS:  # "" was no output at all, without a word; "-" a file named "-" (--plot, --out ...)
+        out = getattr(args, key, None)
+        flag = f"--{key.replace('_', '-')}"
+        if isinstance(out, str) and not out.strip():
+            std = " (or - for standard output)" if key in STDOUT_ARGS else ""
+            raise InputError(f"{flag} {out!r}: an empty name: expected a file or folder name{std}", field=key)
+        if out == "-" and key not in STDOUT_ARGS:
+            raise InputError(f"{flag} -: this output cannot go to standard output (- is standard output for --csv, "
+                             f"and for --json FILE of bench and sweep): give a file name", field=key)
     check_plot_format(getattr(args, "plot", None))
     inputs = [v for k in INPUT_ARGS if isinstance(v := getattr(args, k, None), str) and Path(v).is_file()]
     for key in OUTPUT_ARGS:
