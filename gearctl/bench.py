@@ -254,7 +254,7 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     _warn_worse_than_pid(iso_rows)
     spec_d = dataclasses.asdict(spec)
     return {"spec": spec_d, "runs": rows, "precision": iso_rows, "ratios": _ratios(rows, iso_rows),
-            "skipped": skipped}
+            "skipped": skipped, "tasks": len(tasks)}
 
 
 def _warn_worse_than_pid(iso: Sequence[dict[str, Any]]) -> None:

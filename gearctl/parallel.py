@@ -423,6 +423,12 @@ def completed(client: Any, futures: Sequence[Any], *,
 _NAP = 0.01
 
 
+def local_processes(tasks: int, workers: int | None = None) -> int:
+    """The processes :func:`map_tasks` runs ``tasks`` on without a scheduler: ``workers`` (default
+    :func:`default_workers`), never more than the tasks (1: here, one after the other)."""
+    return max(1, min(workers or default_workers(), tasks))
+
+
 def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | None = None,
               scheduler: str | None = None, progress: Callable[[int, int], Any] | None = None,
               name: str = "gearctl") -> list[Any]:
@@ -450,7 +456,7 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
     if n == 0:
         return []
-    if scheduler is None and ((workers or default_workers()) == 1 or n == 1):
+    if scheduler is None and local_processes(n, workers) == 1:
         out = []
         for i, x in enumerate(items):
             out.append(fn(x))
@@ -458,7 +464,7 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
                 progress(i + 1, n)
         return out
     results: list[Any] = [None] * n
-    with Engine(workers=min(workers or default_workers(), n), scheduler=scheduler) as eng:
+    with Engine(workers=local_processes(n, workers), scheduler=scheduler) as eng:
         tag = uuid.uuid4().hex[:12]
         mine = code_id()
         futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False): k

@@ -315,6 +315,7 @@ def bench_wall_time(*, jobs: int | None = None) -> dict[str, Any]:
     result = run_bench(spec, jobs=jobs)
     wall = time.perf_counter() - t0
     sim = sum(r.get("duration", 0.0) for r in result["runs"])
-    from .parallel import default_workers
+    from .parallel import local_processes
 
-    return {"wall_time": wall, "runs": len(result["runs"]), "simulated_time": sim, "jobs": jobs or default_workers()}
+    return {"wall_time": wall, "runs": len(result["runs"]), "simulated_time": sim,
+            "jobs": local_processes(result["tasks"], jobs)}

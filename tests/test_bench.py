@@ -298,3 +298,14 @@ def test_a_run_that_would_not_fit_is_refused_before_the_bench(capsys: pytest.Cap
     assert main(["bench", "--duration", "7000", "--quiet", "--jobs", "1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "the closed loop would take about" in err and "--duration" in err
+
+
+def test_bench_names_the_processes_it_ran_on(capsys) -> None:  # noqa: ANN001
+    # 'bench --jobs 256' on two runs said "on 256 process(es)": map_tasks starts no more workers than runs
+    from gearctl.parallel import local_processes
+
+    assert local_processes(2, 256) == 2 and local_processes(0, 4) == 1 and local_processes(100, 3) == 3
+    assert main(["bench", "--controllers", "pid", "--plants", "improved", "--references", "sine", "--duration",
+                 "0.05", "--no-precision", "--jobs", "256", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "2 runs in" in out and "on 2 process(es)" in out, out[-300:]

@@ -227,10 +227,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if bar is not None:
         bar.close()
     result["wall_time"] = wall
-    from ..parallel import default_workers
+    from ..parallel import local_processes
 
     where = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
-    result["jobs"] = None if where else (args.jobs or default_workers())
+    # the processes the runs had: never more than the runs (bench --jobs 256 with 2 runs started 2)
+    result["jobs"] = None if where else local_processes(result["tasks"], args.jobs)
     text = bench_table(result)
     tables = sys.stderr if to_stdout else sys.stdout
     print(text, end="", file=tables)
