@@ -45,3 +45,17 @@ def test_a_missing_kind_is_a_missing_key(capsys) -> None:  # noqa: ANN001
     # was "kind = None is not a controller kind"
     err = _refusal(capsys, "no_kind.toml")
     assert "no_kind.toml: missing key kind: expected one of pid," in err and "None" not in err
+
+
+def test_a_name_that_is_no_one_line_string_is_refused(capsys, tmp_path) -> None:  # noqa: ANN001
+    # name = [1, 2] headed the notes '[1, 2]:' and a line break split them; the file's stem stays the default
+    text = (Path(__file__).resolve().parents[1] / "controllers" / "pid.toml").read_text()
+    for value, shown in (("[1, 2]", "[1, 2]"), ('"axis\\nsecond"', "'axis\\nsecond'"), ('""', "''")):
+        f = tmp_path / "named.toml"
+        f.write_text(f"name = {value}\n" + text)
+        assert main(["track", MODEL, str(f), "--duration", "0.05"]) == 2
+        err = capsys.readouterr().err
+        assert f"named.toml: name = {shown} is not a controller name" in err, err
+    f.write_text('name = "axis 2"\n' + text)
+    assert main(["track", MODEL, str(f), "--duration", "0.05", "--json"]) == 0
+    assert '"axis 2"' in capsys.readouterr().out
