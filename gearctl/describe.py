@@ -1009,8 +1009,8 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
     plant = train.equivalent_pair()  # a train is analysed as its one-gap pair (the controllers' design model)
     ctrl = load_controller(controller, train, sensors=gm.sensors)  # (refused if it reads a missing load encoder)
     if not isinstance(ctrl, PID):
-        raise InputError(f"controller {str(controller)!r} is a {type(ctrl).__name__}: the describing-function "
-                         f"analysis covers kind = 'pid' controllers", field="controller")
+        raise InputError(f"controller {str(controller)!r} is of kind = {ctrl.describe().get('kind')!r}: "
+                         f"the describing-function analysis covers kind = 'pid' controllers", field="controller")
     _check_coulomb(train)  # on the train itself: its keys are named (the pair lumps the intermediate shafts')
     pred = predict_limit_cycle(plant, ctrl)
     imp = predict_limit_cycle(plant, ctrl, method="impact")

@@ -382,8 +382,8 @@ def test_bad_input(plant, pid_load):
         loop_around_backlash(plant.with_backlash(0.0), pid_load)
     with pytest.raises(InputError, match="pade_order"):
         loop_around_backlash(plant, pid_load, pade_order=0)
-    with pytest.raises(InputError, match="controller"):
-        describe("shing1993_servo", "deadzone_inverse")
+    with pytest.raises(InputError, match="is of kind = 'deadzone_inverse': the describing-function analysis covers"):
+        describe("shing1993_servo", "deadzone_inverse")  # (was "is a DeadzoneInverse", the class)
     with pytest.raises(InputError, match="window"):
         simulate_limit_cycle(plant, pid_load, window=0.0)
     with pytest.raises(InputError, match="oversample"):
