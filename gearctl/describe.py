@@ -987,6 +987,8 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
         - ``model``, ``controller`` (names), ``feedback``, ``sample_time`` [s];
         - ``prediction``: list of dicts of :func:`predict_limit_cycle` (describing function);
         - ``impact_prediction``: the same for ``method="impact"``;
+        - ``torque_limit``: the servo's [N m] (None without one): a predicted cycle whose ``torque_amplitude``
+          exceeds it cannot run as predicted (the prediction is linear in the torque; the text table marks it);
         - ``simulation``: dict of :func:`simulate_limit_cycle`;
         - ``agreement``: prediction / simulation for the first stable describing-function cycle:
           ``amplitude_ratio``, ``frequency_ratio``, ``load_amplitude_ratio``, ``penetration_ratio``
@@ -1040,6 +1042,7 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
         "model": gm.name, "controller": ctrl.name, "feedback": ctrl.feedback, "sample_time": ctrl.Ts,
         "design_notes": list(ctrl.design_notes),
         "backlash": plant.backlash, "stages": train.n_stages, "prediction": pred, "impact_prediction": imp,
+        "torque_limit": train.torque_limit if math.isfinite(train.torque_limit) else None,
         "simulation": sim, "agreement": agreement, "verdict": verdict,
         "gap_loop": None if gap is None else {"growth_rate": gap[0], "frequency_hz": gap[1]},
         "method_notes": notes,

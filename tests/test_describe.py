@@ -477,3 +477,18 @@ def test_describe_says_why_nothing_is_compared(watch, pid_at_20hz):
     # the load-side PID: the torque is on its limit all the time, which the describing function ignores
     d = describe(watch, "pid_load")
     assert d["simulation"]["saturated_fraction"] > 0.9 and "limit" in d["verdict"] and d["gap_loop"] is None
+
+
+def test_a_predicted_cycle_beyond_the_torque_limit_is_marked(capsys: pytest.CaptureFixture[str]) -> None:
+    # a reviewer's 1 mm backlash servo: the describing function and the impact balance predict cycles at 117 and
+    # 130 Hz asking 2.9 and 4.7 N m of a 1 N m motor; the table printed them as any other
+    from gearctl.cli import main
+
+    path = str(Path(__file__).parent / "data" / "huge_backlash_1mm.toml")
+    d = describe(path, "pid", duration=0.5)
+    assert d["torque_limit"] == 1.0
+    over = [p for p in d["prediction"] + d["impact_prediction"] if p["torque_amplitude"] > d["torque_limit"]]
+    assert over, d["prediction"]
+    assert main(["describe", path, "pid", "--duration", "0.5"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("*  ") == len(over) and "beyond the servo's 1 N m torque limit" in out

@@ -411,10 +411,13 @@ def _cmd_describe(args: argparse.Namespace) -> int:
     def fmt(v: float | None, scale: float = 1.0, spec: str = ".4g") -> str:
         return "—" if v is None else format(v * scale, spec)
 
+    limit, beyond = d.get("torque_limit"), False
     for name, p in rows:
-        a = p.get("amplitude")
+        a, tq = p.get("amplitude"), p.get("torque_amplitude")
+        over = limit is not None and tq is not None and tq > limit  # a cycle the saturated motor cannot run
+        beyond |= over
         print(f"  {name:28s} {fmt(p.get('frequency_hz')):>9s} {fmt(a / b if a and b else None):>8s} "
-              f"{fmt(p.get('load_amplitude'), 1e6):>12s} {fmt(p.get('torque_amplitude')):>13s}  {p.get('stable')}")
+              f"{fmt(p.get('load_amplitude'), 1e6):>12s} {fmt(tq) + ('*' if over else ''):>13s}  {p.get('stable')}")
     if not rows:
         print("  (no limit cycle predicted)")
     a = sim.get("amplitude")
@@ -425,6 +428,9 @@ def _cmd_describe(args: argparse.Namespace) -> int:
     ratios = ", ".join(f"{k.replace('_ratio', '')} {v:.3g}" for k, v in d["agreement"].items() if v is not None)
     if ratios:
         print("  prediction / simulation    " + ratios)
+    if beyond:
+        print(f"  * beyond the servo's {limit:g} N m torque limit: the prediction, linear in the torque, does not "
+              f"hold there")
     print("  " + d["verdict"])
     return 0
 
