@@ -85,10 +85,10 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
             raise InputError(f"{path}: {exc}", field="backlash", rule=exc.rule) from None
     name = spec.get("name", path.stem)
     if not (isinstance(name, str) and name.strip() and len(name) <= 200
-            and not any(ord(ch) < 32 or ord(ch) == 127 for ch in name)):
+            and not any((ord(ch) < 32 and ch != "\t") or ord(ch) == 127 for ch in name)):
         # the name heads the controller's notes, tables and files: a list or a line break there misreads them
         raise InputError(f"{path}: name = {name!r} is not a controller name: expected a string of 1 to 200 "
-                         "characters without line breaks or other control characters", field="name")
+                         "characters without line breaks or other control characters but tabs", field="name")
     info = loop_info(plant)
     if kind == "mpc":  # the MPC takes its sample time as an argument (its settings have none)
         ts = spec.get("sample_time", 1e-3)
