@@ -438,6 +438,20 @@ def test_run_compiled_equals_execute_with_noise_a_train_and_a_wrong_estimate() -
 
 
 @needs_cc
+def test_run_compiled_equals_execute_holding_a_load_step_on_a_light_train() -> None:
+    # the rattle guard explains the motor's speed change by the torque less what holds the load (the observer's
+    # disturbance): a light train under the catalog step's 0.5 N m load step, where that term decides the guard
+    from gearctl.export import run_compiled
+    from gearctl.runs import execute, make_run
+
+    run = make_run(Path(__file__).parent / "data" / "light_train_load_step.toml", "deadzone_inverse",
+                   reference_kind="step")
+    a = execute(run)
+    _same(a, run_compiled(run))
+    assert abs(a.metrics.final_error) < 1e-4
+
+
+@needs_cc
 def test_run_compiled_runs_execute_for_the_other_kinds() -> None:
     from gearctl.export import compiled_kinds, run_compiled
     from gearctl.runs import execute, make_run

@@ -715,19 +715,26 @@ class DeadzoneInverse(Controller):
             self._sigma = sigma
         return self._sigma
 
-    def _watch_rattle(self, y_motor: float) -> None:
+    def _watch_rattle(self, y_motor: float, rd: float) -> None:
         """Update the rattle level from the motor encoder (see :attr:`rattling`).
 
         The motor's speed change over the last sample, less what the torque held over it explains (alone or
         with the load), is an impact's velocity jump; the level is a leaky count of jumps above
-        :attr:`jump_threshold` (decay 0.9 per sample)."""
+        :attr:`jump_threshold` (decay 0.9 per sample). With the load, the torque that moves the train is the
+        motor's less what holds the load: the model's load torque and Coulomb friction (at reference speed
+        ``rd`` [rad/s]) and the observer's disturbance, as the observer's own model has it. (Without them, a
+        light train holding a load step the model does not give, 0.5 N m on a 2e-5 kg m^2 train, read each
+        sample's held torque as a 14 rad/s jump: the guard stayed on and its softened loop dropped the load
+        every few tens of ms, a 0.15 rad limit cycle where the PID held the step.)"""
         y1, y2 = self._y_hist
         self._y_hist = (y_motor, y1)
         if y2 is None:
             return
         dv = (y_motor - 2.0 * y1 + y2) / self.Ts  # motor speed change [rad/s]
         u_mean = 0.5 * (self._u_hist[0] + self._u_hist[1])
-        jump = min(abs(dv - u_mean * self.Ts / self._J1), abs(dv - u_mean * self.Ts / self.pid.info.J_eq))
+        friction = math.copysign(self._tc2, rd) if (self._tc2 > 0.0 and rd != 0.0) else 0.0
+        u_train = u_mean + (self._tl - friction + self.disturbance) / self.pid.N  # LoadObserver.update's torque
+        jump = min(abs(dv - u_mean * self.Ts / self._J1), abs(dv - u_train * self.Ts / self.pid.info.J_eq))
         self._rattle = RATTLE_DECAY * self._rattle + (1.0 if jump > self.jump_threshold else 0.0)
         if self._rattle > RATTLE_LEVEL:
             self.rattling = True
@@ -810,7 +817,7 @@ class DeadzoneInverse(Controller):
             return self.pid.step(t, y_motor, y_load, ref)
         r, rd, rdd = ref.at(t)
         self._t = t
-        self._watch_rattle(y_motor)
+        self._watch_rattle(y_motor, rd)
         a = self.pid.reference_update(rd, rdd)  # at mid-sample (see PID)
         if self._tc2 > 0.0 and rd != 0.0 and not self._moving_ref:
             # a move starts: what the integrator held against the load's static friction at rest is released

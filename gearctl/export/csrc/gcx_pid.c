@@ -399,7 +399,7 @@ GCX_FN void gcx_inv_free_load(const gcx_inv_p *P, gcx_inv_s *S, double out[3]) {
 }
 
 /* DeadzoneInverse._watch_rattle */
-GCX_FN void gcx_inv_watch_rattle(const gcx_inv_p *P, gcx_inv_s *S, double y_motor) {
+GCX_FN void gcx_inv_watch_rattle(const gcx_inv_p *P, gcx_inv_s *S, double y_motor, double rd) {
     double y1 = S->y_hist[0], y2 = S->y_hist[1];
     int have2 = S->y_hist_n >= 2;
     S->y_hist[1] = y1, S->y_hist[0] = y_motor;
@@ -408,7 +408,10 @@ GCX_FN void gcx_inv_watch_rattle(const gcx_inv_p *P, gcx_inv_s *S, double y_moto
     double Ts = P->pid.Ts;
     double dv = (y_motor - 2.0 * y1 + y2) / Ts; /* motor speed change [rad/s] */
     double u_mean = 0.5 * (S->u_hist[0] + S->u_hist[1]);
-    double jump = gcx_min(fabs(dv - u_mean * Ts / P->plant.J1), fabs(dv - u_mean * Ts / P->pid.J_eq));
+    /* with the load: the motor's torque less what holds the load, as LoadObserver.update has it */
+    double friction = (P->plant.tc2 > 0.0 && rd != 0.0) ? copysign(P->plant.tc2, rd) : 0.0;
+    double u_train = u_mean + (P->plant.load_torque - friction + gcx_inv_disturbance(P, S)) / P->pid.N;
+    double jump = gcx_min(fabs(dv - u_mean * Ts / P->plant.J1), fabs(dv - u_train * Ts / P->pid.J_eq));
     S->rattle = P->rattle_decay * S->rattle + (jump > S->jump_threshold ? 1.0 : 0.0);
     if (S->rattle > P->rattle_level)
         S->rattling = 1;
@@ -521,7 +524,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
         return gcx_pid_step(&P->pid, &S->pid, y, ref);
     double r = ref[0], rd = ref[1], rdd = ref[2];
     S->t = t;
-    gcx_inv_watch_rattle(P, S, y_motor);
+    gcx_inv_watch_rattle(P, S, y_motor, rd);
     double a = gcx_pid_reference_update(&P->pid, &S->pid, rd, rdd); /* at mid-sample (see PID) */
     if (pl->tc2 > 0.0 && rd != 0.0 && !S->moving_ref) S->pid.integral = -gcx_inv_beyond_friction(P, S) / P->pid.N;
     S->moving_ref = rd != 0.0;
