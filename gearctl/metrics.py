@@ -3,7 +3,8 @@
 :func:`tracking_metrics` returns a :class:`TrackingMetrics` (a frozen dataclass that also reads like a
 mapping, ``m.rms_error`` or ``m["rms_error"]``); :func:`loop_health` says what is wrong with a loop that
 produced numbers: a load that does not follow the reference, a controller that keeps falling back, a
-sustained limit cycle, a saturated actuator, an impact rate above a threshold, a growing or runaway error.
+sustained limit cycle, a saturated actuator, an impact rate above a threshold, a growing error or one beyond the
+reference's excursion.
 """
 
 from __future__ import annotations
@@ -255,8 +256,10 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
         warnings.append(f"growing error: {last:.3g} rad in the last quarter against {early:.3g} rad in the "
                         f"middle half{beyond}")
     elif runaway:
-        warnings.append(f"runaway error: {last:.3g} rad in the last quarter, {last / peak:.3g} times the "
-                        f"reference's largest excursion of {peak:.3g} rad from where the load started")
+        # a load run off, or one that swings that far in a sustained oscillation: the last quarter cannot tell
+        warnings.append(f"error beyond the reference: {last:.3g} rad in the last quarter, {last / peak:.3g} times "
+                        f"the reference's largest excursion of {peak:.3g} rad from where the load started (the load "
+                        f"ran off, or swings that far)")
     return LoopHealth(not_following=not_following, falling_back=falling_back, limit_cycle=cycle,
                       saturated=sat > lim["saturated_fraction"], impact_rate_high=rate > lim["impact_rate"],
                       growing=growing or runaway, impact_rate=rate, tracking_ratio=ratio, fallback_share=share,
