@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["GearctlError", "InputError", "SimulationError", "SolverError"]
+__all__ = ["GearctlError", "InputError", "SimulationError", "SolverError", "short_repr"]
 
 
 class GearctlError(Exception):
@@ -53,3 +53,16 @@ class SimulationError(GearctlError, RuntimeError):
 
 class SolverError(GearctlError, RuntimeError):
     """An optimisation solver could not be built or run at all (not a per-step failure)."""
+
+
+def short_repr(value: Any, width: int = 80) -> str:
+    """``repr(value)`` on one line and at most ``width`` characters, for an :class:`InputError`'s message.
+
+    An array's repr breaks its rows over lines and a model's runs to a page: the message must stay one line.
+    A gear model (it has ``servo`` and a ``name``) is shown as ``<GearModel 'name'>``.
+    """
+    name = getattr(value, "name", None)
+    if hasattr(value, "servo") and isinstance(name, str):
+        return f"<{type(value).__name__} {name!r}>"
+    text = " ".join(repr(value).split())
+    return text if len(text) <= width else text[:width - 3] + "..."

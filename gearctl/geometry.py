@@ -16,7 +16,7 @@ import dataclasses
 import math
 from typing import Any
 
-from .errors import InputError
+from .errors import InputError, short_repr
 from .units import BACKLASH, FACE_WIDTH, MODULE, quantity, validate_fields
 
 __all__ = [
@@ -486,12 +486,10 @@ def check_pair(pair: Any, *, field: str = "pair") -> GearPair:
         return pair
     stages = getattr(pair, "stages", None)
     if stages is not None and hasattr(pair, "servo"):
-        name = getattr(pair, "name", "?")
         hint = (f": a train of {len(stages)} stages, pass one stage's gear pair, model.stages[i].pair"
                 if len(stages) > 1 else ": pass its gear pair, model.pair")
-        raise InputError(f"{field} = <{type(pair).__name__} {name!r}> is not a GearPair{hint}", field=field)
-    shown = repr(pair) if len(repr(pair)) <= 80 else repr(pair)[:77] + "..."
-    raise InputError(f"{field} = {shown} is not a GearPair: expected a gear model's pair, "
+        raise InputError(f"{field} = {short_repr(pair)} is not a GearPair{hint}", field=field)
+    raise InputError(f"{field} = {short_repr(pair)} is not a GearPair: expected a gear model's pair, "
                      "gearctl.load_model(name).pair", field=field)
 
 

@@ -445,7 +445,7 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
     a many-state mode model (a train's eight) multiplies out into a badly conditioned transfer function whose
     low-frequency response is wrong (a lower gain margin of -64.7 dB for 22.3 on ``servo_3stage_quanser_srv02``).
     """
-    from .errors import InputError
+    from .errors import InputError, short_repr
 
     if not isinstance(loop, ct.LTI):
         raise InputError(f"loop = {loop!r} is not a python-control LTI system: expected the open loop, e.g. "
@@ -462,9 +462,7 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
         except (TypeError, ValueError):
             w = np.empty(0)
         if not (w.ndim == 1 and w.size >= 2 and np.all(np.isfinite(w)) and w[0] > 0 and np.all(np.diff(w) > 0)):
-            shown = " ".join(repr(omega).split())  # an array's repr on one line
-            shown = shown if len(shown) <= 80 else shown[:77] + "..."
-            raise InputError(f"omega = {shown} is not a frequency grid: expected a 1-D array of at least 2 "
+            raise InputError(f"omega = {short_repr(omega)} is not a frequency grid: expected a 1-D array of at least 2 "
                              "increasing frequencies > 0 [rad/s], e.g. np.logspace(-1, 4, 5000)", field="omega")
         omega = w
     resp = ct.frequency_response(loop, omega)

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import InputError
+from .errors import InputError, short_repr
 from .geometry import pair_geometry
 from .model import MAX_BACKLASH_PER_MODULE, per_stage_backlash
 from .params import ContactLaw, FrictionLaw
@@ -498,16 +498,7 @@ def check_plant(plant: Any, *, field: str = "plant") -> Plant:
         hint = f": build it first, gearctl.build_plant(gearctl.load_model({str(plant)!r}))"
     else:
         hint = ": expected a gearctl.build_plant(model)"
-    raise InputError(f"{field} = {_short_repr(plant)} is not a Plant{hint}", field=field)
-
-
-def _short_repr(value: Any) -> str:
-    """``repr`` of a value cut to one readable line (a gear model's repr runs to a page)."""
-    name = getattr(value, "name", None)
-    if hasattr(value, "servo") and isinstance(name, str):
-        return f"<{type(value).__name__} {name!r}>"
-    text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
+    raise InputError(f"{field} = {short_repr(plant)} is not a Plant{hint}", field=field)
 
 
 def signal_names(plant: Plant) -> tuple[list[str], list[str]]:

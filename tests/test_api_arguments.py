@@ -298,3 +298,18 @@ def test_tracking_metrics_refuses_what_is_no_run(servo) -> None:  # noqa: ANN001
     assert err.value.field == "res"
     run = gearctl.simulate_closed_loop(plant, ctrl, gearctl.reference("sine"), 0.05)
     assert gearctl.tracking_metrics(run).duration == pytest.approx(0.05, abs=1e-3)
+
+
+@pytest.mark.parametrize("call", [gearctl.linearize_modes, gearctl.mesh_stiffness, gearctl.pair_geometry,
+                                  lambda v: gearctl.loop_margins(gearctl.linearize_modes(
+                                      gearctl.build_plant(gearctl.load_model("shing1993_servo"))).motor_angle, v)],
+                         ids=["plant", "mesh_stiffness", "pair_geometry", "omega"])
+def test_a_refused_array_is_shown_on_one_line(call) -> None:  # noqa: ANN001
+    # a 2-D array's repr breaks over lines: loop_margins showed it on one (12b94d3), check_plant and check_pair
+    # printed the rows on three lines; one short_repr (gearctl.errors) for the three
+    import numpy as np
+
+    shown = r"array\(\[\[1., 1., 1.\], \[1., 1., 1.\], \[1., 1., 1.\]\]\)"
+    with pytest.raises(InputError, match=rf"^\w+ = {shown} is not") as err:
+        call(np.ones((3, 3)))
+    assert "\n" not in str(err.value)
