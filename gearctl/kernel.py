@@ -50,7 +50,6 @@ import ctypes
 import dataclasses
 import functools
 import math
-import numbers
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +72,7 @@ from .plant import (
     mode_matrices,
 )
 from .stiffness import yang_sun_damping_factor
+from .units import OUTPUT_INTERVAL
 
 __all__ = [
     "Kernel", "EventKind", "compiled_available", "contact_matrices", "ZENO_VELOCITY", "cache_dir", "c_compiler",
@@ -463,8 +463,7 @@ class Kernel:
             shown = self.x0 if x0 is None else x0.tolist()
             raise InputError(f"x0 = {shown!r} is not an initial state: expected {nx} finite numbers "
                              f"[rad x {w}, rad/s x {w}]", field="x0")
-        if not (isinstance(self.dt, numbers.Real) and self.dt > 0 and math.isfinite(self.dt)):
-            raise InputError(f"dt = {self.dt!r} is out of range: expected a number > 0 [s]", field="dt")
+        OUTPUT_INTERVAL.check("dt", self.dt)  # a string or a bool is named as such, not 'out of range'
         self.exact = p.is_piecewise_linear
         lib = _load() if self.compiled in (None, True) else None
         if self.compiled and lib is None:

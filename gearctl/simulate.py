@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -22,7 +21,7 @@ from .errors import InputError, SimulationError
 from .kernel import EVENT_DTYPE, EventKind, Kernel
 from .limits import check_output_size
 from .plant import Mode, Plant, check_plant, mesh_force, signal_names
-from .units import DURATION
+from .units import DURATION, OUTPUT_INTERVAL
 
 __all__ = ["Event", "SimulationResult", "simulate", "report_case", "contact_force", "CASES", "DIVERGENCE_LIMIT",
            "default_output_interval", "output_steps", "located_events"]
@@ -290,8 +289,7 @@ def simulate(
     plant = check_plant(plant)
     DURATION.check("duration", duration)
     dt = default_output_interval(duration) if dt is None else dt
-    if not (isinstance(dt, numbers.Real) and dt > 0 and math.isfinite(dt)):
-        raise InputError(f"dt = {dt!r} is out of range: expected a number > 0 [s]", field="dt")
+    dt = OUTPUT_INTERVAL.check("dt", dt)  # a string or a bool is named as such, not 'out of range'
     if not callable(torque):
         try:
             pair = [float(v) for v in torque]  # type: ignore[union-attr]

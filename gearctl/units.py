@@ -24,7 +24,7 @@ __all__ = [
     "check_number", "MODULE", "FACE_WIDTH", "BACKLASH_FLOOR",
     "BACKLASH", "GAP", "INERTIA", "ADDED_INERTIA", "VISCOUS_FRICTION", "COULOMB_FRICTION", "COULOMB_VELOCITY",
     "TORQUE_LIMIT", "LOAD_TORQUE", "MESH_STIFFNESS", "MESH_DAMPING", "DAMPING_RATIO", "BASE_RADIUS",
-    "SAMPLE_TIME", "ENCODER_CPR", "ENCODER_NOISE", "DURATION", "SEED", "POINTS",
+    "SAMPLE_TIME", "ENCODER_CPR", "ENCODER_NOISE", "DURATION", "OUTPUT_INTERVAL", "SEED", "POINTS",
 ]
 
 
@@ -269,6 +269,9 @@ SAMPLE_TIME = Spec(unit="s", doc="sample period", low=1e-6, high=1.0)
 ENCODER_CPR = Spec(unit="counts/rev", doc="encoder resolution", low=4, high=2**40, integer=True)
 ENCODER_NOISE = Spec(unit="rad", doc="encoder noise (std)", low=0.0, high=1.0)
 DURATION = Spec(unit="s", doc="simulated time", low=0.0, low_open=True, high=1e5)
+#: A simulation's output interval (``dt`` of :func:`gearctl.simulate.simulate` and the kernel); its size against
+#: the duration is checked by :func:`gearctl.limits.check_output_size`.
+OUTPUT_INTERVAL = Spec(unit="s", doc="output interval", low=0.0, low_open=True)
 SEED = Spec(unit="1", doc="random seed", low=0, high=2**63 - 1, integer=True)
 #: Sample points of a computed curve over a mesh cycle or a path of contact (``points`` of
 #: :func:`gearctl.stiffness.mesh_stiffness` and :func:`~gearctl.stiffness.tooth_deflections`, the CLI's ``--points``).

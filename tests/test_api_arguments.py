@@ -237,14 +237,19 @@ def test_simulate_refuses_a_torque_function_value_that_is_no_pair(servo, value) 
     assert run.success and run.x[2, -1] > 0
 
 
-@pytest.mark.parametrize("kwargs, field", [({"x0": "zero"}, "x0"), ({"x0": ["a", 0, 0, 0]}, "x0"),
-                                           ({"x0": [[0, 0], [0, 0]]}, "x0"), ({"dt": "1e-3"}, "dt")])
-def test_simulate_names_an_initial_state_or_interval_that_is_no_number(servo, kwargs, field) -> None:  # noqa: ANN001
+@pytest.mark.parametrize("kwargs, field, rule", [
+    ({"x0": "zero"}, "x0", "is not an initial state"), ({"x0": ["a", 0, 0, 0]}, "x0", "is not an initial state"),
+    ({"x0": [[0, 0], [0, 0]]}, "x0", "is not an initial state"),
+    # a string or a bool is named as such, as every other number's check does (it was 'is out of range', and
+    # True ran as 1 s)
+    ({"dt": "1e-3"}, "dt", r"is not a number \(a string"), ({"dt": True}, "dt", r"is not a number \(true/false\)"),
+    ({"dt": -1e-3}, "dt", r"is out of range: expected 0 < value \[s\]")])
+def test_simulate_names_an_initial_state_or_interval_that_is_no_number(servo, kwargs, field, rule) -> None:  # noqa: ANN001
     from gearctl.simulate import simulate
 
     _, plant, _ = servo
     args = {"x0": [0.0] * 4, **kwargs}
-    with pytest.raises(InputError, match=rf"^{field} = .* (is not an initial state|is out of range)") as err:
+    with pytest.raises(InputError, match=rf"^{field} = .* {rule}") as err:
         simulate(plant, args.pop("x0"), 0.01, **args)
     assert err.value.field == field
 
