@@ -54,7 +54,8 @@ def resolve(name_or_path: str | Path, kind: str) -> Path:
     InputError
         If it is neither an existing file nor a catalog name; the message lists close names.
     """
-    if not isinstance(name_or_path, str | Path):
+    # any path-like of text is a path (pathlib's own rule; a py.path or an os.DirEntry was read before this check)
+    if not (isinstance(name_or_path, str | os.PathLike) and isinstance(os.fspath(name_or_path), str)):
         raise InputError(f"{kind[:-1]} = {name_or_path!r} ({type(name_or_path).__name__}): expected a catalog "
                          "name or a path to a .toml file (str or pathlib.Path)", field=kind[:-1])
     p = Path(name_or_path)

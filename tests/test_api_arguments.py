@@ -293,6 +293,28 @@ def test_a_name_that_is_no_string_is_named(servo, field) -> None:  # noqa: ANN00
     with pytest.raises(InputError, match=rf"^{field} = 123 \(int\): expected a catalog name or a path") as err:
         load(123)
     assert err.value.field == field
+    with pytest.raises(InputError, match=rf"^{field} = b'pid' \(bytes\): expected a catalog name"):
+        load(b"pid")
+
+
+class _PathLike:
+    """A path-like that is no pathlib.Path (as py.path.local or os.DirEntry)."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+
+    def __fspath__(self) -> str:
+        return self.path
+
+
+def test_a_path_like_name_is_read(servo) -> None:  # noqa: ANN001
+    # 84b9a3d refused whatever was no str or Path: an os.PathLike, which pathlib reads, too
+    from pathlib import Path
+
+    _, plant, _ = servo
+    root = Path(__file__).resolve().parents[1]
+    assert gearctl.load_model(_PathLike(str(root / "models" / "shing1993.toml"))).name == "shing1993"
+    assert gearctl.load_controller(_PathLike(str(root / "controllers" / "pid.toml")), plant).name == "pid"
 
 
 def test_tracking_metrics_refuses_what_is_no_run(servo) -> None:  # noqa: ANN001
