@@ -432,9 +432,10 @@ def test_a_reviewers_log_with_the_torque_late_is_no_traceback() -> None:
 
 
 def test_one_inertia_not_identified_leaves_the_other_not_identified() -> None:
-    # another simulator's log (log 104 of a reviewer's campaign: 250 Hz, jittered stamps, the catalog's friction
-    # servo): the log hardly constrains J1, and J2 = N^2 (J_eq - J1) holds the rest of the sum the log sees and
-    # what J1 missed with it (on a sibling log J1 came out 0.12 of the truth and J2 32 % high on a 12 % interval,
+    # another simulator's log (tests/data/logs/other_sim/make_log.py, seed 104 of a reviewer's campaign: a 250 Hz
+    # sine, shuffled columns; truth J1 2.34e-4, J2 1.13e-2, b 46.3 um against the catalog friction servo's model):
+    # the log hardly constrains J1, and J2 = N^2 (J_eq - J1) holds the rest of the sum the log sees and what J1
+    # missed with it (on a sibling log J1 came out 0.12 of the truth and J2 32 % high on a 12 % interval,
     # unflagged): both named
     res = identify(DATA / "other_sim_j1_unconstrained.csv", "shing1993_servo_friction")
     assert res.encoders == "motor+load"
