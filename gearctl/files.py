@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
-from .errors import InputError
+from .errors import InputError, short_repr
 from .units import describe_range
 
 __all__ = ["catalog_dirs", "catalog_names", "resolve", "read_toml", "toml_value", "toml_dumps", "build_dataclass",
@@ -56,8 +56,9 @@ def resolve(name_or_path: str | Path, kind: str) -> Path:
     """
     # any path-like of text is a path (pathlib's own rule; a py.path or an os.DirEntry was read before this check)
     if not (isinstance(name_or_path, str | os.PathLike) and isinstance(os.fspath(name_or_path), str)):
-        raise InputError(f"{kind[:-1]} = {name_or_path!r} ({type(name_or_path).__name__}): expected a catalog "
-                         "name or a path to a .toml file (str or pathlib.Path)", field=kind[:-1])
+        raise InputError(f"{kind[:-1]} = {short_repr(name_or_path)} is not a name or a path (a "
+                         f"{type(name_or_path).__name__}): expected a catalog name or a path to a .toml file (str or "
+                         "pathlib.Path)", field=kind[:-1])
     p = Path(name_or_path)
     # a bare name that is a folder here (``gearctl export ... --out pid``) still names the catalog entry
     bare_dir = p.suffix == "" and len(p.parts) == 1 and p.is_dir()

@@ -289,10 +289,10 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         ``duration`` [s], ``wall_time`` [s], ``health`` (:func:`loop_health`).
     """
     if not isinstance(res, ClosedLoopResult):
-        from .errors import InputError
+        from .errors import InputError, short_repr
 
-        raise InputError(f"res = {type(res).__name__}: expected the ClosedLoopResult of simulate_closed_loop (or a "
-                         "precision test's .run)", field="res")
+        raise InputError(f"res = {short_repr(res)} is not a closed-loop run (a {type(res).__name__}): expected the "
+                         "ClosedLoopResult of simulate_closed_loop (or a precision test's .run)", field="res")
     end = float(res.t[-1]) if res.t.size else 0.0
     if settle is not None and not (isinstance(settle, int | float | np.floating) and 0.0 <= settle <= end):
         from .errors import InputError

@@ -290,10 +290,10 @@ def test_a_name_that_is_no_string_is_named(servo, field) -> None:  # noqa: ANN00
     # load_model(123) ended in pathlib's "expected str, bytes or os.PathLike object, not int"
     _, plant, _ = servo
     load = gearctl.load_model if field == "model" else (lambda name: gearctl.load_controller(name, plant))
-    with pytest.raises(InputError, match=rf"^{field} = 123 \(int\): expected a catalog name or a path") as err:
+    with pytest.raises(InputError, match=rf"^{field} = 123 is not a name or a path \(a int\): expected") as err:
         load(123)
     assert err.value.field == field
-    with pytest.raises(InputError, match=rf"^{field} = b'pid' \(bytes\): expected a catalog name"):
+    with pytest.raises(InputError, match=rf"^{field} = b'pid' is not a name or a path \(a bytes\)"):
         load(b"pid")
 
 
@@ -320,7 +320,7 @@ def test_a_path_like_name_is_read(servo) -> None:  # noqa: ANN001
 def test_tracking_metrics_refuses_what_is_no_run(servo) -> None:  # noqa: ANN001
     # tracking_metrics(None) ended in "'NoneType' object has no attribute 't'"
     _, plant, ctrl = servo
-    with pytest.raises(InputError, match=r"^res = NoneType: expected the ClosedLoopResult") as err:
+    with pytest.raises(InputError, match=r"^res = None is not a closed-loop run \(a NoneType\): expected") as err:
         gearctl.tracking_metrics(None)
     assert err.value.field == "res"
     run = gearctl.simulate_closed_loop(plant, ctrl, gearctl.reference("sine"), 0.05)
