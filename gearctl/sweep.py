@@ -108,7 +108,7 @@ FLAGS = ("limit_cycle", "saturated", "impact_rate_high", "growing", "not_followi
 ISO_FIGURES = ("reversal_value", "repeatability", "accuracy")
 
 _ESTIMATE = Spec(unit="m", doc="backlash estimate of the controller", low=BACKLASH.low, high=BACKLASH.high,
-                 high_open=BACKLASH.high_open)
+                 high_open=BACKLASH.high_open, floor=BACKLASH.floor)  # the floor too: 1e-12 failed every run
 _ESTIMATE_ERROR = Spec(unit="1", doc="relative error of the backlash estimate against the true backlash",
                        low=-1.0, high=10.0)
 _DISTS = {"uniform": 2, "loguniform": 2, "normal": (2, 4), "lognormal": (2, 4)}
@@ -716,11 +716,23 @@ def _build_run(ctx: SweepContext, job: Job) -> tuple[Run, float | None]:
     if "estimate_error" in params:
         estimate = (1.0 + params["estimate_error"]) * float(true.equivalent_pair().backlash)
     if estimate is not None:
-        BACKLASH.check("estimate", estimate)
+        try:
+            BACKLASH.check("estimate", estimate)
+        except InputError as exc:  # a train's estimate is known here only: the row's command carries it
+            raise _BadEstimate(str(exc), field="estimate", rule=exc.rule, estimate=float(estimate)) from None
     design = ctx.design if estimate is None else dataclasses.replace(ctx.design, backlash=float(estimate))
     run = Run(plant=true, design=design, reference=ctx.reference, duration=ctx.duration, seed=seed,
               sensors=model.sensors, tags={"index": index})
     return run, (None if estimate is None else float(estimate))
+
+
+class _BadEstimate(InputError):
+    """A run's estimate out of range (:func:`_build_run`), with the estimate: the failed run's command gives it to
+    ``track``, which refuses it with the same words (without it the command ran the nominal estimate, healthy)."""
+
+    def __init__(self, message: str, *, estimate: float, **kw: Any) -> None:
+        super().__init__(message, **kw)
+        self.estimate = estimate
 
 
 def run_batch(runs: Sequence[Run], *, precision: bool = False) -> list[tuple[RunResult, dict[str, Any] | None]]:
@@ -822,7 +834,7 @@ def sweep_task(ctx: SweepContext, jobs: Sequence[Job]) -> list[dict[str, Any]]:
         try:
             run, est = _build_run(ctx, job)
         except GearctlError as exc:
-            rows[k] = _row(ctx, job, None, None, None, message=str(exc))
+            rows[k] = _row(ctx, job, None, None, getattr(exc, "estimate", None), message=str(exc))
             continue
         built.append((k, run, est))
     results = run_batch([r for _, r, _ in built], precision=ctx.precision)

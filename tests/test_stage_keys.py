@@ -87,3 +87,17 @@ def test_a_check_across_one_stage_keys_names_that_stage(capsys: pytest.CaptureFi
     assert main(["track", TWO, "pid", "--set", "stage2.teeth1=12", "--duration", "0.01"]) == 2
     err = capsys.readouterr().err
     assert "error: [stage 2] teeth1 = 12" in err and "Traceback" not in err
+
+
+def test_an_estimate_below_the_floor_is_refused_before_any_run_and_a_trains_failed_run_says_it() -> None:
+    # the estimate's range lacked the 1 nm floor: estimate=1e-12 passed the plan and failed its run; on a train
+    # (whose estimate from estimate_error is known in the run only) the failed run's command lacked --estimate and
+    # reproduced a healthy run with the nominal estimate instead of the refusal
+    with pytest.raises(InputError, match=r"estimate = 1e-12 is out of range.*at least 1e-09"):
+        sweep("shing1993_servo", "deadzone_inverse", vary=["estimate=1e-12,5e-5"], grid=True, duration=0.1,
+              engine="serial")
+    res = sweep(TWO, "deadzone_inverse", vary=["estimate_error=-0.9999999"], grid=True, duration=0.1,
+                engine="serial")
+    (row,) = res.runs
+    assert row["status"] == "failed" and "at least 1e-09" in row["message"]
+    assert row["estimate"] < 1e-9 and f"--estimate {row['estimate']!r}" in row["command"]
