@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from .errors import InputError
@@ -20,7 +20,8 @@ from .model import GearModel, check_model
 from .params import MeshDynamics, Sensors, Servo
 from .plant import build_plant
 
-__all__ = ["Scale", "perturb_model", "stage_values", "split_stage_key", "MODEL_CLASSES", "OWNER_FIELDS"]
+__all__ = ["Scale", "perturb_model", "stage_values", "split_stage_key", "check_keys_act", "MODEL_CLASSES",
+           "OWNER_FIELDS", "UNREAD_BY_PLANT"]
 
 #: The dataclasses whose fields a model key names, in the order an override looks for it.
 MODEL_CLASSES: tuple[type, ...] = (GearPair, MeshDynamics, Servo, Sensors)
@@ -47,6 +48,30 @@ def split_stage_key(key: str) -> tuple[int | None, str]:
     if n < 1:
         raise InputError(f"{key}: stages are numbered from 1 (the motor's)", field=key)
     return n - 1, field
+
+
+#: Model keys a true plant does not read, by plant kind: the Yang-Sun plant's stiffness is Hertz's (eq 39) and its
+#: damping comes from each impact's restitution (eqs 36-37), whatever the mesh dynamics say.
+UNREAD_BY_PLANT: dict[str, tuple[str, ...]] = {"yang-sun": ("mesh_stiffness", "damping_ratio", "damping_coefficient")}
+
+
+def check_keys_act(keys: Iterable[str], plant: str, *, option: str = "--set") -> None:
+    """Refuse a changed key (``stageN.`` or not) that the true plant ``plant`` does not read: its runs would all be the
+    nominal plant's, and a sweep reported no sensitivity to it without a word.
+
+    Raises
+    ------
+    InputError
+        Naming the option, the key, the plant and where the key acts.
+    """
+    unread = UNREAD_BY_PLANT.get(str(plant), ())
+    for key in keys:
+        m = STAGE_KEY.match(key)
+        field = m.group(2) if m else key
+        if field in unread:
+            raise InputError(f"{option} {key}: the {plant} plant does not read {field} (its stiffness is Hertz's, eq "
+                             f"39, and its damping comes from the restitution, eqs 36-37), so it would change "
+                             f"nothing; change it on the improved or tvms plant", field=key)
 
 
 class Scale(float):

@@ -25,7 +25,7 @@ from .design.registry import build_controller
 from .errors import GearctlError
 from .metrics import TrackingMetrics, tracking_metrics
 from .model import GearModel
-from .overrides import Scale, perturb_model, split_stage_key
+from .overrides import Scale, check_keys_act, perturb_model, split_stage_key
 from .params import Sensors
 from .plant import Plant, build_plant
 from .references import DEFAULT_DURATION, Reference, reference
@@ -165,10 +165,12 @@ def controller_spec(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
     return read_toml(path), str(path)
 
 
-def true_model(name: str | Path, model: GearModel, overrides: Mapping[str, Any]) -> GearModel:
+def true_model(name: str | Path, model: GearModel, overrides: Mapping[str, Any], plant: str = "improved") -> GearModel:
     """The model ``name`` (already loaded as ``model``) with ``overrides`` (``--set``): read from the file again, or,
     where a value is a factor of the nominal one (:class:`~gearctl.overrides.Scale`, ``--set backlash=1.5x``), each
-    stage's own value scaled, and a key of one stage (``--set stage2.backlash=3e-5``) that stage's alone."""
+    stage's own value scaled, and a key of one stage (``--set stage2.backlash=3e-5``) that stage's alone. A key the
+    true ``plant`` does not read is refused (:func:`~gearctl.overrides.check_keys_act`)."""
+    check_keys_act(overrides, plant)
     if any(isinstance(v, Scale) or split_stage_key(k)[0] is not None for k, v in overrides.items()):
         return perturb_model(model, overrides)  # a factor, or one stage's value: from the loaded model
     return load_model(name, **overrides)
@@ -221,7 +223,7 @@ def make_run(model: str | Path, controller: str | Path, *, plant: str = "improve
         designed on the unchanged model, as in reality.
     """
     m = load_model(model)
-    m_true = true_model(model, m, overrides) if overrides else m
+    m_true = true_model(model, m, overrides, plant) if overrides else m
     true = build_plant(m_true, plant, backlash=backlash)
     nominal = build_plant(m, design_plant, backlash=backlash)
     spec, label = controller_spec(controller)

@@ -68,7 +68,7 @@ from .catalog import load_model
 from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
 from .model import GearModel
-from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, split_stage_key, stage_values
+from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, check_keys_act, split_stage_key, stage_values
 from .overrides import perturb_model as _perturb
 from .parallel import (
     CONNECT_TIMEOUT,
@@ -622,6 +622,7 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     dup = sorted({k for k in keys if keys.count(k) > 1})
     if dup:
         raise InputError(f"--vary {dup[0]} is given twice", field=dup[0])
+    check_keys_act(keys, plant, option="--vary")
     if "estimate" in keys and "estimate_error" in keys:
         raise InputError("--vary estimate and estimate_error set the same thing: give one", field="estimate")
     n = _count(varies, points, grid)

@@ -134,7 +134,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     from ..runs import true_model as true_model_of
 
     model = load_model(args.model)
-    true_model = true_model_of(args.model, model, dict(args.set)) if args.set else model
+    true_model = true_model_of(args.model, model, dict(args.set), args.plant) if args.set else model
     nominal = build_plant(model, backlash=args.backlash)
     plant = build_plant(true_model, args.plant, backlash=args.backlash)
     ctrl = load_controller(args.controller, nominal, backlash=args.estimate, sensors=model.sensors)
