@@ -43,8 +43,15 @@ def split_stage_key(key: str) -> tuple[int | None, str]:
     if m.group(1) != str(n):
         raise InputError(f"{key}: write the stage number without leading zeros (stage{n}.{field})", field=key)
     if not (field in OWNER_FIELDS[GearPair] or field in OWNER_FIELDS[MeshDynamics]):
+        import difflib
+
+        units = {f.name: f.metadata.get("unit") for cls in (GearPair, MeshDynamics) for f in dataclasses.fields(cls)}
+        close = difflib.get_close_matches(field, sorted(k for k, u in units.items() if u), n=1)  # numbers only
+        hint = (f"; {field} is not a stage's: give it without the prefix" if field in OWNER_FIELDS[Servo] |
+                OWNER_FIELDS[Sensors] else f"; did you mean 'stage{n}.{close[0]}' [{units[close[0]]}]?" if close
+                else "")
         raise InputError(f"{key}: {field} is not a stage's key (a stageN. prefix takes a gear pair's or its mesh "
-                         f"dynamics' key: backlash, mesh_stiffness, damping_ratio, face_width, ...)", field=key)
+                         f"dynamics' key: backlash, mesh_stiffness, damping_ratio, face_width, ...){hint}", field=key)
     if n < 1:
         raise InputError(f"{key}: stages are numbered from 1 (the motor's)", field=key)
     return n - 1, field

@@ -3,6 +3,8 @@ user could change a key on every stage only: ``stage2.backlash`` was refused as 
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from gearctl import InputError, build_plant, load_model
@@ -101,3 +103,15 @@ def test_an_estimate_below_the_floor_is_refused_before_any_run_and_a_trains_fail
     (row,) = res.runs
     assert row["status"] == "failed" and "at least 1e-09" in row["message"]
     assert row["estimate"] < 1e-9 and f"--estimate {row['estimate']!r}" in row["command"]
+
+
+@pytest.mark.parametrize(("text", "hint"), [
+    ("stage2.backlsh=1e-5", "did you mean 'stage2.backlash' [m]?"),
+    ("stage2.pressure_angle_deg=20", "did you mean 'stage2.pressure_angle' [rad]?"),  # the file's key: degrees
+    ("stage1.face_widht=1e-3", "did you mean 'stage1.face_width' [m]?"),
+    ("stage1.load_inertia=1", "load_inertia is not a stage's: give it without the prefix"),
+])
+def test_a_misspelt_stage_key_gets_a_suggestion(text: str, hint: str) -> None:
+    # a key without the prefix got "did you mean"; with it, none (stage2.pressure_angle_deg, the file's spelling)
+    with pytest.raises(InputError, match=re.escape(hint)):
+        parse_set(text)
