@@ -17,7 +17,7 @@ from typing import Any
 from .errors import InputError
 from .geometry import GearPair, pair_geometry
 from .model import GearModel, check_model
-from .params import MeshDynamics, Sensors, Servo
+from .params import FrictionLaw, MeshDynamics, Sensors, Servo
 from .plant import build_plant
 
 __all__ = ["Scale", "perturb_model", "stage_values", "split_stage_key", "check_keys_act", "MODEL_CLASSES",
@@ -62,9 +62,10 @@ def split_stage_key(key: str) -> tuple[int | None, str]:
 UNREAD_BY_PLANT: dict[str, tuple[str, ...]] = {"yang-sun": ("mesh_stiffness", "damping_ratio", "damping_coefficient")}
 
 
-def check_keys_act(keys: Iterable[str], plant: str, *, option: str = "--set") -> None:
-    """Refuse a changed key (``stageN.`` or not) that the true plant ``plant`` does not read: its runs would all be the
-    nominal plant's, and a sweep reported no sensitivity to it without a word.
+def check_keys_act(keys: Iterable[str], plant: str, model: GearModel | None = None, *, option: str = "--set") -> None:
+    """Refuse a changed key (``stageN.`` or not) that the true plant does not read: the ``plant`` kind's
+    (:data:`UNREAD_BY_PLANT`), or ``coulomb_velocity`` where ``model``'s friction law is stick-slip (it is the smooth
+    law's). Its runs would all be the nominal plant's, and a sweep reported no sensitivity to it without a word.
 
     Raises
     ------
@@ -79,6 +80,10 @@ def check_keys_act(keys: Iterable[str], plant: str, *, option: str = "--set") ->
             raise InputError(f"{option} {key}: the {plant} plant does not read {field} (its stiffness is Hertz's, eq "
                              f"39, and its damping comes from the restitution, eqs 36-37), so it would change "
                              f"nothing; change it on the improved or tvms plant", field=key)
+        if field == "coulomb_velocity" and model is not None and model.servo.friction_law is FrictionLaw.STICK_SLIP:
+            raise InputError(f"{option} {key}: {model.name}'s friction_law is stick_slip, which does not read "
+                             f"coulomb_velocity (the smooth law's omega_s), so it would change nothing; set "
+                             f"friction_law = \"smooth\" in the model's [servo] to vary it", field=key)
 
 
 class Scale(float):

@@ -170,7 +170,7 @@ def true_model(name: str | Path, model: GearModel, overrides: Mapping[str, Any],
     where a value is a factor of the nominal one (:class:`~gearctl.overrides.Scale`, ``--set backlash=1.5x``), each
     stage's own value scaled, and a key of one stage (``--set stage2.backlash=3e-5``) that stage's alone. A key the
     true ``plant`` does not read is refused (:func:`~gearctl.overrides.check_keys_act`)."""
-    check_keys_act(overrides, plant)
+    check_keys_act(overrides, plant, model)
     if any(isinstance(v, Scale) or split_stage_key(k)[0] is not None for k, v in overrides.items()):
         return perturb_model(model, overrides)  # a factor, or one stage's value: from the loaded model
     return load_model(name, **overrides)

@@ -622,7 +622,7 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     dup = sorted({k for k in keys if keys.count(k) > 1})
     if dup:
         raise InputError(f"--vary {dup[0]} is given twice", field=dup[0])
-    check_keys_act(keys, plant, option="--vary")
+    check_keys_act(keys, plant, nominal_model, option="--vary")
     if "estimate" in keys and "estimate_error" in keys:
         raise InputError("--vary estimate and estimate_error set the same thing: give one", field="estimate")
     n = _count(varies, points, grid)

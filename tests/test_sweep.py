@@ -248,6 +248,21 @@ def test_a_key_the_true_plant_does_not_read_is_refused(key: str) -> None:
     plan_sweep("servo_2stage_phm09", "pid", vary=[key], grid=True, plant="tvms", duration=0.1)  # it reads them
 
 
+def test_coulomb_velocity_is_refused_under_the_stick_slip_law(tmp_path: Path) -> None:
+    # omega_s is the smooth law's: under stick-slip (the default) a sweep of it gave every run the same figures
+    # (shing1993_servo_friction, pid: 8.446e-4 rad RMS at 1e-3 and 1e-2 rad/s)
+    with pytest.raises(InputError, match="--vary coulomb_velocity: .*stick_slip, which does not read"):
+        plan_sweep("shing1993_servo_friction", "pid", vary=["coulomb_velocity=1e-3,1e-2"], grid=True, duration=0.1)
+    rc, _, err = _cli(["track", "shing1993_servo_friction", "pid", "--duration", "0.1", "--set",
+                       "coulomb_velocity=1e-2"])
+    assert rc == 2 and "does not read coulomb_velocity" in err
+    text = (Path(load_model("shing1993_servo_friction").path)).read_text()
+    smooth = tmp_path / "smooth.toml"
+    smooth.write_text(text.replace("[servo]\n", '[servo]\nfriction_law = "smooth"\n', 1)
+                      .replace("coulomb_velocity = 1e-4", "coulomb_velocity = 1e-2"))
+    plan_sweep(str(smooth), "pid", vary=["coulomb_velocity=1e-2,2e-2"], grid=True, duration=0.1)  # it reads it
+
+
 def test_estimate_needs_a_controller_that_has_one() -> None:
     with pytest.raises(InputError, match="pid uses no backlash estimate"):
         plan_sweep(MODEL, "pid", vary=["estimate=0.5x:2x"], runs=2, duration=0.3)
