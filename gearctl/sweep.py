@@ -87,7 +87,8 @@ from .units import BACKLASH, DURATION, SEED, Spec, check_number
 
 __all__ = ["Vary", "SweepResult", "SweepContext", "SweepPlan", "sweep", "plan_sweep", "run_batch", "parse_vary",
            "parse_set", "perturb_model", "Scale", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
-           "ROW_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size", "run_cost", "default_workers",
+           "ROW_BYTES", "KEY_BYTES", "PRECISION_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size",
+           "run_cost", "default_workers",
            "SWEEP_RUNS", "GRID_POINTS", "METRICS", "FLAGS", "ISO_FIGURES", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
 
 #: Monte Carlo runs of one sweep.
@@ -97,6 +98,9 @@ GRID_POINTS = Spec(unit="1", doc="grid points per key", low=1, high=10_000, inte
 #: Memory one run's result takes on the client, measured on a row with three varied keys and its
 #: command (``sys.getsizeof`` over the dict, its keys and values: 2.6 kB), rounded up [bytes].
 ROW_BYTES = 4096
+#: What each varied key beyond three, and ``precision``, add to :data:`ROW_BYTES` [bytes], with the same headroom
+#: (measured on a three-stage train: 2.75 kB a row with 3 keys, 4.3 kB with 12, 5.8 kB with 12 and the ISO figures).
+KEY_BYTES, PRECISION_BYTES = 400, 1536
 #: Figures of each run (from :class:`~gearctl.metrics.TrackingMetrics`; timing figures are left out: they
 #: differ from one machine, or one run, to the next, and the results must not).
 METRICS = ("rms_error", "max_error", "final_error", "impacts", "max_impact_velocity", "torque_rms",
@@ -562,8 +566,10 @@ def _count(vary: Sequence[Vary], points: int, grid: bool) -> int:
     return math.prod(len(v.args) if v.kind == "list" else points for v in vary)
 
 
-def check_memory(n: int, *, grid: bool) -> None:
-    """Refuse a sweep whose results would not fit in half of the free memory (:data:`ROW_BYTES` a run).
+def check_memory(n: int, *, grid: bool, keys: int = 3, precision: bool = False) -> None:
+    """Refuse a sweep whose results would not fit in half of the free memory (:data:`ROW_BYTES` a run, more with over
+    three varied ``keys`` or ``precision``: :data:`KEY_BYTES`, :data:`PRECISION_BYTES`; with 12 keys and the ISO
+    figures a row took 5.8 kB, over the 4 kB that were assumed for every sweep).
 
     Raises
     ------
@@ -572,11 +578,12 @@ def check_memory(n: int, *, grid: bool) -> None:
     """
     import psutil
 
-    need = n * ROW_BYTES
+    row = ROW_BYTES + KEY_BYTES * max(0, keys - 3) + (PRECISION_BYTES if precision else 0)
+    need = n * row
     free = psutil.virtual_memory().available
     if need > free / 2:
         what = "fewer points per key (--runs) or fewer keys" if grid else "fewer runs (--runs)"
-        raise InputError(f"runs = {n} would hold about {need / 1e9:.3g} GB of results ({ROW_BYTES} B a run) and "
+        raise InputError(f"runs = {n} would hold about {need / 1e9:.3g} GB of results ({row} B a run) and "
                          f"{free / 1e9:.3g} GB of memory is free (at most half of it is used): ask for {what}",
                          field="runs")
 
@@ -629,7 +636,7 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     if n > SWEEP_RUNS.high:
         raise InputError(f"the grid has {n} runs: expected at most {SWEEP_RUNS.high:.0f}; use fewer points per key "
                          f"(--runs) or fewer keys", field="runs")
-    check_memory(n, grid=grid)
+    check_memory(n, grid=grid, keys=len(varies), precision=precision)
     # the design, once, on the nominal model: a controller that cannot be designed stops here
     design = Design(spec=spec, nominal=build_plant(nominal_model), label=label, sensors=nominal_model.sensors)
     ctrl = design_controller(design)

@@ -282,6 +282,24 @@ def test_too_many_runs_are_refused_with_the_figure_and_the_flag(monkeypatch: pyt
                    grid=True, runs=1000, duration=0.3)
 
 
+def test_the_memory_check_counts_the_keys_and_the_iso_figures(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a row with 12 keys and --precision took 5.8 kB (4.3 kB without), where 4096 B were assumed for every sweep
+    import psutil
+
+    class Free:
+        available = 1e8
+
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: Free())
+    keys = [f"stage{i}.{k}=0.5x:2x" for i in (1, 2, 3) for k in ("backlash", "mesh_stiffness", "damping_ratio",
+                                                                    "face_width")]
+    with pytest.raises(InputError, match=r"runs = 10000 would hold about 0\.0923 GB .*\(9232 B a run\)"):
+        plan_sweep(TRAIN, "pid", vary=keys, runs=10_000, duration=0.1, precision=True)
+    with pytest.raises(InputError, match=r"\(7696 B a run\)"):
+        plan_sweep(TRAIN, "pid", vary=keys, runs=10_000, duration=0.1)
+    with pytest.raises(InputError, match=r"\(4096 B a run\)"):  # three keys or fewer: as before
+        plan_sweep(TRAIN, "pid", vary=keys[:3], runs=15_000, duration=0.1)
+
+
 def test_perturb_model_equals_load_model_overrides() -> None:
     nominal = load_model(MODEL)
     for overrides in ({"backlash": 7e-5}, {"mesh_stiffness": 3e8, "damping_ratio": 0.02},
