@@ -182,6 +182,17 @@ def test_a_run_that_would_not_fit_is_refused_before_the_sweep() -> None:
     assert rc == 2 and out == "" and "the closed loop would take about" in err and err.count("\n") == 1
 
 
+def test_a_run_that_would_not_fit_at_its_controllers_sample_time_is_refused(tmp_path: Path) -> None:
+    # the check ran at the catalog's 1 ms: a 0.1 ms PID's 1000 s runs passed it and every run failed, exit 0
+    fast = tmp_path / "pid10k.toml"
+    fast.write_text(Path(controller_spec("pid")[1]).read_text().replace("sample_time = 1e-3", "sample_time = 1e-4"))
+    with pytest.raises(InputError, match=r"duration: the closed loop would take about .* \(10,000,001 samples"):
+        plan_sweep(TRAIN, str(fast), runs=2, duration=1000.0)
+    rc, _, err = _cli(["sweep", TRAIN, str(fast), "--runs", "2", "--duration", "1000", "--quiet"])
+    assert rc == 2 and "10,000,001 samples" in err
+    plan_sweep(TRAIN, "pid", runs=2, duration=1000.0)  # at 1 ms it fits
+
+
 def test_parse_set() -> None:
     assert parse_set("backlash=7e-05") == ("backlash", 7e-05)
     key, v = parse_set("motor_encoder_cpr=4096")

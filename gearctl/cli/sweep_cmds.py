@@ -172,8 +172,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     from ..plant import build_plant
     from ..runs import DEFAULT_DURATION
 
-    # a run that would not fit in memory is refused before the sweep, not reported as every run failed (at the
-    # catalog's 1 ms loop: a controller with a shorter sample time is checked again by each run)
+    # a run that would not fit in memory is refused before the sweep, not reported as every run failed (here at the
+    # catalog's 1 ms loop, before the controller is read; plan_sweep checks again at the controller's sample time)
     dur = args.duration if args.duration is not None else DEFAULT_DURATION[args.reference]
     check_loop_memory(build_plant(load_model(args.model)), dur)
     # where the results go is checked before the runs: a sweep of hours must not end unable to write them
