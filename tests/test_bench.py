@@ -328,3 +328,15 @@ def test_tracking_rows_worse_than_the_pid_carry_a_warning(capsys: pytest.Capture
     assert inv["rms_error"] < 0.1 * pid["rms_error"]
     assert not any(w.startswith("tracks worse") for w in inv["warnings"] + pid["warnings"])
     assert "warning: tracks worse than the pid in" in err and "mpc on improved (sine)" in err
+
+
+def test_a_run_that_would_not_fit_at_its_controllers_sample_time_is_refused(tmp_path: Path,
+                                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    # the check ran at the catalog's 1 ms: a 0.1 ms PID's 1000 s runs passed it, every run FAILED, exit 0
+    fast = tmp_path / "pid10k.toml"
+    fast.write_text(resolve("pid", "controllers").read_text().replace("sample_time = 1e-3", "sample_time = 1e-4"))
+    argv = ["bench", "servo_3stage_quanser_srv02", "--controllers", str(fast), "--plants", "improved",
+            "--references", "sine", "--no-precision", "--quiet", "--jobs", "1", "--duration", "1000"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "(10,000,001 samples of 832 bytes)" in err

@@ -202,10 +202,16 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                      realtime=args.realtime, precision=not args.no_precision)
     runs = spec.runs()
     n = len(runs)
-    from ..closedloop import check_loop_memory
+    from ..closedloop import DEFAULT_TS, check_loop_memory
 
-    for r in {(id(run.plant), run.duration): run for run in runs}.values():  # a run that would not fit: refused first
-        check_loop_memory(r.plant, r.duration)
+    def sample_time(run: Any) -> float:  # the controller file's (a 0.1 ms PID's 1000 s runs all failed, exit 0)
+        ts = (run.design.spec or {}).get("sample_time", DEFAULT_TS)
+        ok = isinstance(ts, int | float) and not isinstance(ts, bool) and ts > 0
+        return float(ts) if ok else DEFAULT_TS  # a bad one is the design's error, with its file
+
+    # a run that would not fit: refused first
+    for r in {(id(run.plant), run.duration, sample_time(run)): run for run in runs}.values():
+        check_loop_memory(r.plant, r.duration, sample_time(r))
     to_stdout = args.json == "-"  # the JSON on standard output, the tables then on standard error
     if args.json and not to_stdout:  # checked before the runs, as the sweep's
         check_writable(args.json, key="json")
