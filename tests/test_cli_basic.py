@@ -245,3 +245,15 @@ def test_a_run_slower_than_real_time_is_not_printed_as_zero_speed() -> None:
     assert format_rate(3.0, 0.939) == "3.2"
     assert format_rate(3.0, 0.0125) == "240"  # the README's figure for the pair keeps its form
     assert float(format_rate(1e-3, 10.0)) == pytest.approx(1e-4)
+
+
+def test_stiffness_figures_do_not_depend_on_the_sampled_points(capsys) -> None:  # noqa: ANN001
+    # 'stiffness --points 2' said "(2 points): mean ..." as if two samples made the figures; they come from a
+    # quadrature over the cycle's smooth segments, the points sample the curves of --csv and --plot
+    lines = []
+    for n in ("2", "3000"):
+        assert main(["stiffness", "shing1993", "--points", n]) == 0
+        out = capsys.readouterr().out.splitlines()[0]
+        assert out.endswith(f"(the curves sampled at {n} points)")
+        lines.append(out.rsplit(" (", 1)[0])
+    assert lines[0] == lines[1] and "mean 1.3854e+08 N/m" in lines[0]

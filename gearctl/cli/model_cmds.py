@@ -171,8 +171,9 @@ def _cmd_stiffness(args: argparse.Namespace) -> int:
         title = model.name if n == 1 else f"{model.name}, stage {args.stage}"
         save_figure(plot_stiffness(td, ms, title=title), args.plot)
     where = "" if n == 1 else f" stage {args.stage}"
-    print(f"{model.name}{where}: mesh stiffness over one mesh cycle ({ms.theta1.size} points): "
-          f"mean {ms.mean:.5g} N/m, C1 {ms.c1:.4g}, C2 {ms.c2:.4g}, min {ms.min:.4g}, max {ms.max:.4g} N/m")
+    # the figures come from a quadrature over each smooth segment of the cycle, not from the --points samples
+    print(f"{model.name}{where}: mesh stiffness over one mesh cycle: mean {ms.mean:.5g} N/m, C1 {ms.c1:.4g}, "
+          f"C2 {ms.c2:.4g}, min {ms.min:.4g}, max {ms.max:.4g} N/m (the curves sampled at {args.points} points)")
     say_written((args.csv, "theta1 over the path of contact C->D, deflections per unit load [m/N]"),
                 (args.plot, "report Figures 8-11"))
     return 0
