@@ -80,10 +80,41 @@ def check_keys_act(keys: Iterable[str], plant: str, model: GearModel | None = No
             raise InputError(f"{option} {key}: the {plant} plant does not read {field} (its stiffness is Hertz's, eq "
                              f"39, and its damping comes from the restitution, eqs 36-37), so it would change "
                              f"nothing; change it on the improved or tvms plant", field=key)
+        if field in MATERIAL_STIFFNESS_KEYS and model is not None and _plant_unchanged(model, key, field, plant):
+            raise InputError(f"{option} {key}: {model.name} sets its mesh stiffness (mesh_stiffness in [dynamics]), "
+                             f"so {field}, which feeds only the stiffness, would change nothing on the {plant} plant; "
+                             f"vary mesh_stiffness instead", field=key)
         if field == "coulomb_velocity" and model is not None and model.servo.friction_law is FrictionLaw.STICK_SLIP:
             raise InputError(f"{option} {key}: {model.name}'s friction_law is stick_slip, which does not read "
                              f"coulomb_velocity (the smooth law's omega_s), so it would change nothing; set "
                              f"friction_law = \"smooth\" in the model's [servo] to vary it", field=key)
+
+
+#: Material keys that feed only the mesh stiffness (and the Yang-Sun plant's Hertz stiffness): a model that sets
+#: ``mesh_stiffness`` leaves them nothing to change on the improved and tvms plants.
+MATERIAL_STIFFNESS_KEYS: tuple[str, ...] = ("young_modulus", "poisson_ratio")
+
+
+def _plant_unchanged(model: GearModel, key: str, field: str, plant: str) -> bool:
+    """Whether changing ``key`` (``field`` of every stage, or of one) by 10 % leaves the ``plant`` kind built from
+    ``model`` equal, field for field."""
+    top = max(getattr(st.pair, field) for st in model.stages)
+    bumped = Scale(0.9) if field == "poisson_ratio" or top * 1.1 > 1e12 else Scale(1.1)  # inside their ranges
+    try:
+        return _same(build_plant(perturb_model(model, {key: bumped}), plant), build_plant(model, plant))
+    except InputError:  # out of range: let the runs say so
+        return False
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Field-for-field equality of plants (their dataclasses compare by identity; arrays by value)."""
+    if dataclasses.is_dataclass(a) and type(a) is type(b):
+        return all(_same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
+    if isinstance(a, tuple | list) and isinstance(b, tuple | list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if hasattr(a, "shape") or hasattr(b, "shape"):
+        return hasattr(a, "shape") and hasattr(b, "shape") and a.shape == b.shape and bool((a == b).all())
+    return bool(a == b)
 
 
 class Scale(float):

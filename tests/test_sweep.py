@@ -259,6 +259,19 @@ def test_a_key_the_true_plant_does_not_read_is_refused(key: str) -> None:
     plan_sweep("servo_2stage_phm09", "pid", vary=[key], grid=True, plant="tvms", duration=0.1)  # it reads them
 
 
+@pytest.mark.parametrize("key", ["young_modulus=1.5e11,2.5e11", "poisson_ratio=0.25,0.35"])
+def test_a_material_key_is_refused_where_the_model_sets_its_mesh_stiffness(key: str) -> None:
+    # shing1993_report sets mesh_stiffness and damping_coefficient (the report's Table 1 and eq 38): a sweep of
+    # young_modulus gave 3.3102e-3 rad RMS for both runs, "rank correlation -", without a word (review hJ)
+    with pytest.raises(InputError, match=rf"--vary {key.split('=')[0]}: shing1993_report sets its mesh stiffness"):
+        plan_sweep("shing1993_report", "pid", vary=[key], grid=True, duration=0.1)
+    rc, _, err = _cli(["track", "shing1993_report", "pid", "--duration", "0.1", "--set", key.split(",")[0]])
+    assert rc == 2 and err.count("\n") == 1 and "vary mesh_stiffness instead" in err
+    # where it acts it is taken: a model whose stiffness comes from the material, and the Yang-Sun plant's Hertz law
+    plan_sweep(MODEL, "pid", vary=[key], grid=True, duration=0.1)
+    plan_sweep("shing1993_report", "pid", vary=[key], grid=True, plant="yang-sun", duration=0.1)
+
+
 def test_coulomb_velocity_is_refused_under_the_stick_slip_law(tmp_path: Path) -> None:
     # omega_s is the smooth law's: under stick-slip (the default) a sweep of it gave every run the same figures
     # (shing1993_servo_friction, pid: 8.446e-4 rad RMS at 1e-3 and 1e-2 rad/s)
