@@ -98,12 +98,27 @@ MATERIAL_STIFFNESS_KEYS: tuple[str, ...] = ("young_modulus", "poisson_ratio")
 def _plant_unchanged(model: GearModel, key: str, field: str, plant: str) -> bool:
     """Whether changing ``key`` (``field`` of every stage, or of one) by 10 % leaves the ``plant`` kind built from
     ``model`` equal, field for field."""
-    top = max(getattr(st.pair, field) for st in model.stages)
-    bumped = Scale(0.9) if field == "poisson_ratio" or top * 1.1 > 1e12 else Scale(1.1)  # inside their ranges
+    index, _ = split_stage_key(key)
+    if index is not None and index >= model.n_stages:
+        return False  # no such stage: perturb_model says so
+    meta = next(f.metadata for f in dataclasses.fields(GearPair) if f.name == field)
+    bumped = {}
+    for i in range(model.n_stages) if index is None else (index,):
+        # each changed stage's own value by 10 %, up or down, whichever stays inside the key's range: one factor
+        # for all left a train with one stage near each end of the range (or a stage key's stage near one end
+        # while another stage sat near the other) unchecked, a no-op taken without a word
+        v = getattr(model.stages[i].pair, field)
+        bumped[f"stage{i + 1}.{field}"] = next((x for x in (v * 1.1, v * 0.9) if _inside(meta, x)), v * 1.1)
     try:
-        return _same(build_plant(perturb_model(model, {key: bumped}), plant), build_plant(model, plant))
+        return _same(build_plant(perturb_model(model, bumped), plant), build_plant(model, plant))
     except InputError:  # out of range: let the runs say so
         return False
+
+
+def _inside(meta: Mapping[str, Any], x: float) -> bool:
+    """Whether ``x`` is inside the range of a field's ``quantity`` metadata."""
+    lo, hi = meta.get("low", -math.inf), meta.get("high", math.inf)
+    return ((x > lo) if meta.get("low_open") else (x >= lo)) and ((x < hi) if meta.get("high_open") else (x <= hi))
 
 
 def _same(a: Any, b: Any) -> bool:

@@ -272,6 +272,32 @@ def test_a_material_key_is_refused_where_the_model_sets_its_mesh_stiffness(key: 
     plan_sweep("shing1993_report", "pid", vary=[key], grid=True, plant="yang-sun", duration=0.1)
 
 
+def _train_with_mesh_stiffness(tmp_path: Path, first: str, second: str) -> str:
+    """servo_2stage_phm09 with mesh_stiffness and the given extra keys on each stage."""
+    text = (Path(__file__).resolve().parents[1] / "models" / "servo_2stage_phm09.toml").read_text()
+    text = text.replace("teeth1 = 32\n", f"teeth1 = 32\nmesh_stiffness = 2e8\n{first}")
+    text = text.replace("teeth1 = 48\n", f"teeth1 = 48\nmesh_stiffness = 3e8\n{second}")
+    path = tmp_path / "train_k.toml"
+    path.write_text(text)
+    return str(path)
+
+
+def test_a_material_key_is_refused_on_a_train_whose_stages_sit_near_both_ends_of_its_range(tmp_path: Path) -> None:
+    # one factor for every stage (0.9 once any stage's E x 1.1 passed 1e12) took the 1e9 Pa stage out of range, and
+    # the check let a sweep that changes nothing through; each stage is now bumped inside the range on its own
+    path = _train_with_mesh_stiffness(tmp_path, "young_modulus = 9.5e11\n", "young_modulus = 1e9\n")
+    for key in ("young_modulus=1.5e11,2.5e11", "stage2.young_modulus=1e9,2e9"):
+        with pytest.raises(InputError, match="sets its mesh stiffness"):
+            plan_sweep(path, "pid", vary=[key], grid=True, duration=0.1)
+    # a stage without mesh_stiffness reads E: the key acts there and is taken
+    text = Path(path).read_text().replace("mesh_stiffness = 3e8\n", "")
+    Path(path).write_text(text)
+    plan_sweep(path, "pid", vary=["young_modulus=1.5e11,2.5e11"], grid=True, duration=0.1)
+    plan_sweep(path, "pid", vary=["stage2.young_modulus=1e9,2e9"], grid=True, duration=0.1)
+    with pytest.raises(InputError, match="sets its mesh stiffness"):
+        plan_sweep(path, "pid", vary=["stage1.young_modulus=5e11,9e11"], grid=True, duration=0.1)
+
+
 def test_coulomb_velocity_is_refused_under_the_stick_slip_law(tmp_path: Path) -> None:
     # omega_s is the smooth law's: under stick-slip (the default) a sweep of it gave every run the same figures
     # (shing1993_servo_friction, pid: 8.446e-4 rad RMS at 1e-3 and 1e-2 rad/s)
