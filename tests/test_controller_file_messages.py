@@ -59,3 +59,18 @@ def test_a_name_that_is_no_one_line_string_is_refused(capsys, tmp_path) -> None:
     f.write_text('name = "axis 2"\n' + text)
     assert main(["track", MODEL, str(f), "--duration", "0.05", "--json"]) == 0
     assert '"axis 2"' in capsys.readouterr().out
+
+
+def test_a_long_file_name_is_still_the_default_name(capsys, tmp_path) -> None:  # noqa: ANN001
+    # the 1-200 rule is the name key's: a file of 210 characters and no name = (it ran before the rule) was refused
+    # with "name = 'ppp...' is not a controller name", a key the file does not have
+    text = (Path(__file__).resolve().parents[1] / "controllers" / "pid.toml").read_text()
+    f = tmp_path / ("p" * 210 + ".toml")
+    f.write_text(text)
+    assert main(["track", MODEL, str(f), "--duration", "0.05", "--json"]) == 0
+    assert '"' + "p" * 210 + '"' in capsys.readouterr().out
+    f = tmp_path / "line\nbreak.toml"  # the stem cannot head the notes: said of the file's name, on one line
+    f.write_text(text)
+    assert main(["track", MODEL, str(f), "--duration", "0.05"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the file's name 'line\\nbreak', the controller's default name" in err, err

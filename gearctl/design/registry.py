@@ -84,8 +84,15 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
         except InputError as exc:
             raise InputError(f"{path}: {exc}", field="backlash", rule=exc.rule) from None
     name = spec.get("name", path.stem)
-    if not (isinstance(name, str) and name.strip() and len(name) <= 200
-            and not any((ord(ch) < 32 and ch != "\t") or ord(ch) == 127 for ch in name)):
+    control = isinstance(name, str) and any((ord(ch) < 32 and ch != "\t") or ord(ch) == 127 for ch in name)
+    if "name" not in spec:
+        if control or not name.strip():
+            # the default, the file's stem: no name = was given to name in the message, and the 200-character cap
+            # is the key's (a file named with 201-255 characters ran before that cap, and still does)
+            raise InputError(f"{str(path)!r}: the file's name {name!r}, the controller's default name, cannot head "
+                             "its notes (a line break or other control character but a tab, or no name): set name = "
+                             "\"...\" in the file, or rename it", field="name")
+    elif not (isinstance(name, str) and name.strip() and len(name) <= 200 and not control):
         # the name heads the controller's notes, tables and files: a list or a line break there misreads them
         raise InputError(f"{path}: name = {name!r} is not a controller name: expected a string of 1 to 200 "
                          "characters without line breaks or other control characters but tabs", field="name")
