@@ -83,7 +83,8 @@ class MeshStiffness:
     harmonics : ndarray, shape (m,)
         Magnitudes of the Fourier harmonics 1..m of K over the mesh cycle [N/m] (Table 1 C1, C2).
     min, max : float
-        Extremes of K [N/m].
+        Extremes of K over the mesh cycle [N/m], of the curve (not of the sampled ``K``: they do not change with
+        ``points``).
     """
 
     theta1: NDArray[np.float64]
@@ -372,6 +373,13 @@ def _mesh_stiffness(pair: GearPair, points: int, harmonics: int, order: int) -> 
         weights.append(0.5 * (b - a) * wq)
     tq, wts = np.concatenate(nodes), np.concatenate(weights)
     Kq = mesh_stiffness_at(pair, tq, geo)
+    # the curve's extremes, not the --points samples' (liou1992_28x28_hcr's min read 9.059e7 or 9.06e7 with the
+    # sample count): each segment's ends (just inside it, K jumps there) and its inner extremes, refined from the
+    # quadrature node nearest to them
+    ends = [t for a, b in zip(breaks[:-1], breaks[1:], strict=True) for t in (a + 1e-12 * (b - a), b - 1e-12 * (b - a))]
+    ext = [_segment_extreme(pair, geo, a, b, sign) for a, b in zip(breaks[:-1], breaks[1:], strict=True)
+           for sign in (1.0, -1.0)]
+    Ke = np.concatenate([mesh_stiffness_at(pair, np.array(ends), geo), ext])
     mean = float(np.sum(wts * Kq) / period)
     n = np.arange(1, harmonics + 1)[:, None]
     cn = 2.0 / period * np.sum(wts * Kq * np.exp(-2j * np.pi * n * tq / period), axis=1)
@@ -388,9 +396,24 @@ def _mesh_stiffness(pair: GearPair, points: int, harmonics: int, order: int) -> 
         teeth_in_contact=count,
         mean=mean,
         harmonics=cn,
-        min=float(min(K.min(), Kq.min())),
-        max=float(max(K.max(), Kq.max())),
+        min=float(min(Kq.min(), Ke.min())),
+        max=float(max(Kq.max(), Ke.max())),
     )
+
+
+def _segment_extreme(pair: GearPair, geo: Geometry, a: float, b: float, sign: float) -> float:
+    """The least (``sign`` 1) or largest (-1) ``K`` inside ``[a, b]``, a segment where it is smooth."""
+    from scipy.optimize import minimize_scalar
+
+    t = np.linspace(a, b, 65)[1:-1]
+    k = sign * mesh_stiffness_at(pair, t, geo)
+    j = int(np.argmin(k))
+    lo, hi = t[max(j - 1, 0)], t[min(j + 1, t.size - 1)]
+    if hi <= lo:
+        return float(sign * k[j])
+    res = minimize_scalar(lambda x: sign * float(mesh_stiffness_at(pair, np.array([x]), geo)[0]), bounds=(lo, hi),
+                          method="bounded", options={"xatol": 1e-12 * (b - a)})
+    return float(sign * min(res.fun, k[j]))
 
 
 def equivalent_mass(inertia1: float, inertia2: float, rb1: float, rb2: float) -> float:

@@ -324,3 +324,13 @@ def test_tooth_deflection_invariants(name: str) -> None:
     # default angles span the path of contact C -> D; rtol 1e-12
     g = pair_geometry(pair)
     assert_allclose(td.theta1[[0, -1]], [0.0, (g.AD - g.AC) / g.base_radius[0]], rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("name", ["liou1992_28x28_hcr", "servo_2stage_phm09", "detc1992_21x29_25deg"])
+def test_the_min_and_max_are_the_curves_not_the_samples(name: str) -> None:
+    # they were min(samples, quadrature nodes): liou1992_28x28_hcr's min printed 9.059e+07 or 9.06e+07, and every
+    # model's max moved in its 6th digit, with --points; the stiffness command says they do not depend on it
+    pair = load_model(name).stages[0].pair
+    runs = [mesh_stiffness(pair, points=p) for p in (2, 3, 7, 401, 3001, 100_000)]
+    assert len({(ms.min, ms.max) for ms in runs}) == 1
+    assert all(runs[0].min <= ms.K.min() and ms.K.max() <= runs[0].max for ms in runs)
