@@ -80,6 +80,7 @@ from .parallel import (
     completed,
     default_workers,
     local_cluster,
+    local_processes,
 )
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
@@ -900,6 +901,8 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         raise InputError(f"engine = {engine!r}: expected 'dask' or 'serial'", field="engine")
     from distributed import KilledWorker
 
+    if client is None and not (scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")):
+        workers = local_processes(n, workers)  # a local cluster of no more processes than runs (3 runs: 3, not 8)
     eng = Engine(workers=workers, scheduler=scheduler, client=client)
     try:
         w = eng.workers

@@ -925,6 +925,13 @@ def test_a_local_cluster_starts_while_port_8787_is_taken() -> None:
         cluster.close()
 
 
+def test_a_local_sweep_starts_no_more_processes_than_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    # 'sweep --workers 8' on 3 runs started and reported 8 worker processes (bench caps its cluster at the runs)
+    assert main(["sweep", MODEL, "pid", "--vary", "backlash=0.5x,1x,2x", "--grid", "--duration", "0.05",
+                 "--workers", "8", "--quiet"]) == 0
+    assert "local cluster (3 processes)" in capsys.readouterr().out
+
+
 def test_local_workers_that_would_not_fit_are_refused(monkeypatch: pytest.MonkeyPatch,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
     """`gearctl sweep --workers 1000` (in range) started a thousand processes on a two-core machine until the
@@ -937,7 +944,7 @@ def test_local_workers_that_would_not_fit_are_refused(monkeypatch: pytest.Monkey
     with pytest.raises(InputError, match=r"workers = 4: 4 local worker processes would take about 0.8 GB") as exc:
         parallel.check_local_workers(4)
     assert exc.value.field == "workers" and "ask for at most 2" in str(exc.value)
-    code = main(["sweep", "shing1993_servo", "pid", "--runs", "2", "--workers", "4", "--duration", "0.05", "--quiet",
-                 "--vary", "backlash=0.5x:2x"])
+    code = main(["sweep", "shing1993_servo", "pid", "--runs", "8", "--workers", "4", "--duration", "0.05", "--quiet",
+                 "--vary", "backlash=0.5x:2x"])  # (with 2 runs the cluster has 2 processes only, and they fit)
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "ask for at most 2 (--workers / --jobs)" in err
