@@ -83,9 +83,10 @@ def check_keys_act(keys: Iterable[str], plant: str, model: GearModel | None = No
                              f"39, and its damping comes from the restitution, eqs 36-37), so it would change "
                              f"nothing; change it on the improved or tvms plant", field=key)
         if field in MATERIAL_STIFFNESS_KEYS and model is not None and _plant_unchanged(model, key, field, plant):
-            raise InputError(f"{option} {key}: {model.name} sets its mesh stiffness (mesh_stiffness in [dynamics]), "
+            table = "[[stage]]" if model.n_stages > 1 else "[dynamics]"
+            raise InputError(f"{option} {key}: {model.name} sets its mesh stiffness (mesh_stiffness in {table}), "
                              f"so {field}, which feeds only the stiffness, would change nothing on the {plant} plant; "
-                             f"vary mesh_stiffness instead", field=key)
+                             f"change mesh_stiffness instead", field=key)
         if field == "coulomb_velocity" and model is not None and model.servo.friction_law is FrictionLaw.STICK_SLIP:
             raise InputError(f"{option} {key}: {model.name}'s friction_law is stick_slip, which does not read "
                              f"coulomb_velocity (the smooth law's omega_s), so it would change nothing; set "

@@ -479,17 +479,18 @@ def test_ramp_shapes(shape: str) -> None:
         assert abs(np.trapezoid(o[:, 1], t) - 2.0) < 2e-4
 
 
-@pytest.mark.parametrize(("duration", "target"), [(1e-308, 2.0), (0.01, 1e-12), (5e-10, 2.0)])
-def test_a_ramp_shorter_than_a_nanosecond_is_a_step(duration: float, target: float) -> None:
-    # a reversal offset's take_up_time of 1e-308 s (in its 0..1 s range) divided its acceleration by T^2 = 0
-    # (ZeroDivisionError), and a tiny share of a full move fed an acceleration of d / T^2 forward, growing as the
-    # share shrinks: below deadzone.MIN_RAMP_TIME the offset steps, as it does within a sample anyway
+@pytest.mark.parametrize(("duration", "target"), [(1e-308, 2.0), (0.01, 1e-12), (0.01, 2e-6), (5e-7, 2.0)])
+def test_a_ramp_shorter_than_a_microsecond_is_a_step(duration: float, target: float) -> None:
+    # a take_up_time of 1e-308 s (then in its 0..1 s range) divided the ramp's acceleration by T^2 = 0
+    # (ZeroDivisionError), and a tiny share of a full move read an acceleration d / T^2 that grows as the share
+    # shrinks (a 1e-6 share of a 10 ms crossing: 10 ns, 1e11 rad/s^2): below deadzone.MIN_RAMP_TIME, the shortest
+    # sample time, the offset steps, as it does within a sample anyway
     ramp = OffsetRamp("sin2", duration, 2.0)
     ramp.move_to(0.0, target)
     assert not ramp.moving(0.0) and ramp.at(0.0) == (target, 0.0, 0.0)
     longer = OffsetRamp("sin2", 0.01, 2.0)
-    longer.move_to(0.0, 2e-6)  # a share of 1e-6: a 10 ns ramp, above the floor, is still a ramp
-    assert longer.moving(0.0) and longer.end == pytest.approx(1e-8, rel=1e-12)
+    longer.move_to(0.0, 4e-4)  # a share of 2e-4: a 2 us ramp, above the floor, is still a ramp
+    assert longer.moving(0.0) and longer.end == pytest.approx(2e-6, rel=1e-12)
 
 
 def test_reversal_offset_takes_up_the_value_on_each_reversal() -> None:

@@ -205,8 +205,8 @@ _BENCH_LOAD_TORQUE = 0.0408081125116859
 #: A landing's lag is taken up asking at most this share of the load acceleration the torque limit gives.
 TAKE_UP_ACCELERATION = 0.25
 
-#: Shortest ramp of the offset [s]; a shorter one (a tiny share of a short take-up) is a step.
-MIN_RAMP_TIME = 1e-9
+#: Shortest ramp of the offset [s], the shortest sample time; a shorter one (a tiny share of a crossing) is a step.
+MIN_RAMP_TIME = 1e-6
 
 #: A crossing time [s]: 0 (a step) or at least a microsecond, the shortest sample time. Shorter ones are a step in
 #: effect, and a ramp of 1e-308 s started at t = 0 divided its acceleration by T^2 = 0 (a traceback).
@@ -297,8 +297,8 @@ class OffsetRamp:
         frac = dist / self.span if self.span > 0.0 else 1.0
         self._o0, self._o1, self._t0 = o, value, t
         T = self.duration * min(frac, 1.0) if self.shape != "step" else 0.0
-        # a ramp shorter than MIN_RAMP_TIME is a step: within any sample it is one, and its acceleration
-        # d / T^2 (T^2 underflowing to 0 for T below 1e-162) fed forward would be a spike, or a division by zero
+        # a ramp shorter than MIN_RAMP_TIME is a step: within any sample it is one, and its acceleration d / T^2
+        # (T^2 underflowing to 0 for T below 1e-162) read at its start would be a spike, or a division by zero
         self._T = T if T >= MIN_RAMP_TIME else 0.0
 
     def at(self, t: float) -> tuple[float, float, float]:

@@ -55,7 +55,7 @@ from typing import Any
 from ..controller import ReferenceLike
 from ..errors import InputError
 from ..files import Layout, build_dataclass, spec_values
-from ..units import BACKLASH, check_choice, quantity, validate_fields
+from ..units import BACKLASH, Spec, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
 from .deadzone import RAMPS, OffsetRamp, offset_torque
 from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, pid_from_values, restate
@@ -64,6 +64,11 @@ __all__ = ["ReversalOffset", "ReversalSettings", "KIND", "LAYOUT", "build"]
 
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "reversal_offset"
+
+#: A take-up time [s]: 0 (a step) or at least a microsecond, the shortest sample time, as the inverse's crossing
+#: time (a shorter one is a step in effect; 1e-308 s divided the ramp's acceleration by T^2 = 0).
+TAKE_UP_TIME = Spec(unit="s", doc="time a reversal's offset is spread over (0: a step)", low=0.0, high=1.0,
+                    floor=1e-6)
 
 #: Default take-up time when a file gives neither ``take_up_time`` nor ``take_up_cycles`` [s].
 DEFAULT_TAKE_UP_TIME = 0.01
@@ -75,8 +80,7 @@ class ReversalSettings:
 
     backlash: float | None = BACKLASH.field(default=None, optional=True, doc="backlash estimate b (the backlash "
                                             "value at the load is 2 b / r_b2; default: the model's)")
-    take_up_time: float | None = quantity(unit="s", doc="time a reversal's offset is spread over", low=0.0,
-                                          high=1.0, optional=True, default=None)
+    take_up_time: float | None = TAKE_UP_TIME.field(default=None, optional=True)
     take_up_cycles: int | None = quantity(unit="cycles", doc="position-control cycles a reversal's offset is "
                                           "spread over", low=0, high=1000, integer=True, optional=True, default=None)
     ramp: str = "sin2"
@@ -120,9 +124,9 @@ class ReversalOffset(Controller):
         super().__init__()
         BACKLASH.check("backlash", backlash)
         check_choice("ramp", ramp, RAMPS)
-        for key, v, hi in (("take_up_time", take_up_time, 1.0), ("gain", gain, 2.0)):
-            if not (0.0 <= v <= hi):
-                raise InputError(f"{key} = {v!r} is out of range: expected 0 <= value <= {hi:g}", field=key)
+        TAKE_UP_TIME.check("take_up_time", take_up_time)
+        if not (0.0 <= gain <= 2.0):
+            raise InputError(f"gain = {gain!r} is out of range: expected 0 <= value <= 2", field="gain")
         self.pid, self.backlash, self.take_up_time, self.ramp, self.gain = pid, backlash, take_up_time, ramp, gain
         self.name = name
         self.Ts = pid.Ts

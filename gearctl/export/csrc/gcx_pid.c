@@ -154,7 +154,7 @@ GCX_FN void gcx_ramp_move_to(gcx_ramp_s *R, int shape, double duration, double t
     double frac = R->span > 0.0 ? dist / R->span : 1.0;
     R->o0 = o, R->o1 = value, R->t0 = t;
     double T = shape != GCX_STEP ? duration * gcx_min(frac, 1.0) : 0.0;
-    R->T = T >= 1e-9 ? T : 0.0; /* MIN_RAMP_TIME: a shorter ramp is a step (deadzone.py) */
+    R->T = T >= 1e-6 ? T : 0.0; /* MIN_RAMP_TIME: a shorter ramp is a step (deadzone.py) */
 }
 
 /* ---- offset_torque (deadzone.py) ---------------------------------------------------------------------- */
