@@ -286,11 +286,15 @@ def test_iso_rows_worse_than_the_pid_carry_a_warning() -> None:
     # larger A and 2 urad off is no worse, and is not warned of)
     rows = [row("pid", 3.3e-3), row("deadzone_inverse", 6.7e-3), row("mpc", 1e-3), row("pid", 1e-6, "backlash-free"),
             row("reversal_offset", 2e-3, "backlash-free"), row("adaptive_inverse", 9.0, ok=False),
-            row("pid", 6.58e-6, "gravity", largest=5.7e-4), row("deadzone_inverse", 6.83e-6, "gravity", largest=8e-6)]
+            row("pid", 6.58e-6, "gravity", largest=5.7e-4), row("deadzone_inverse", 6.83e-6, "gravity", largest=8e-6),
+            # (a load torque along the move, a review's servo: the PID's constant offset, 1.22 mrad, is the larger
+            # deviation, but the inverse scatters over 1446 urad, 230x the PID's A: warned of, as repeating worse)
+            row("pid", 6.3e-6, "push", largest=1.22e-3), row("deadzone_inverse", 1.446e-3, "push", largest=6.58e-4)]
     _warn_worse_than_pid(rows)
     warned = [r["controller"] for r in rows if r["warnings"]]
-    assert warned == ["deadzone_inverse", "reversal_offset"]
+    assert warned == ["deadzone_inverse", "reversal_offset", "deadzone_inverse"]
     assert "6.7e-03" in rows[1]["warnings"][0] or "0.0067" in rows[1]["warnings"][0]
+    assert rows[-1]["warnings"][0].startswith("repeats worse than the pid: ISO A 0.00145 rad, 230 times")
 
 
 def test_a_run_that_would_not_fit_is_refused_before_the_bench(capsys: pytest.CaptureFixture[str]) -> None:
