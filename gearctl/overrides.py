@@ -21,6 +21,7 @@ from .geometry import GearPair, pair_geometry
 from .model import GearModel, check_model
 from .params import FrictionLaw, MeshDynamics, Sensors, Servo
 from .plant import build_plant
+from .units import check_number
 
 __all__ = ["Scale", "perturb_model", "stage_values", "split_stage_key", "check_keys_act", "MODEL_CLASSES",
            "OWNER_FIELDS", "UNREAD_BY_PLANT"]
@@ -119,9 +120,12 @@ def _plant_unchanged(model: GearModel, key: str, field: str, plant: str) -> bool
 
 
 def _inside(meta: Mapping[str, Any], x: float) -> bool:
-    """Whether ``x`` is inside the range of a field's ``quantity`` metadata."""
-    lo, hi = meta.get("low", -math.inf), meta.get("high", math.inf)
-    return ((x > lo) if meta.get("low_open") else (x >= lo)) and ((x < hi) if meta.get("high_open") else (x <= hi))
+    """Whether ``x`` is inside the range of a field's ``quantity`` metadata (:func:`~gearctl.units.check_number`)."""
+    try:
+        check_number("value", x, dict(meta))
+    except InputError:
+        return False
+    return True
 
 
 #: Relative difference of a plant's numbers taken as rounding: the tvms plant's K(theta) is eq 21 (proportional to
