@@ -10,7 +10,14 @@ from .geometry import GearPair, pair_geometry
 from .model import GearModel
 from .params import MeshDynamics
 from .plant import Plant, build_plant
-from .stiffness import damping_coefficient, equivalent_mass, mesh_stiffness, yang_sun_stiffness
+from .stiffness import (
+    damping_coefficient,
+    equivalent_mass,
+    iso6336_mesh_stiffness,
+    mesh_stiffness,
+    stiffness_note,
+    yang_sun_stiffness,
+)
 
 __all__ = ["model_summary"]
 
@@ -48,6 +55,9 @@ def _stage_summary(pair: GearPair, dynamics: MeshDynamics, plant: Plant, i: int)
         "plant_equivalent_mass": plant.stage_m_eq(i),
         "mesh_stiffness": {"mean": ms.mean, "c1": ms.c1, "c2": ms.c2, "min": ms.min, "max": ms.max},
         "mesh_stiffness_per_width": ms.mean / pair.face_width * 1e-9,
+        "mesh_stiffness_iso6336": iso6336_mesh_stiffness(pair),
+        # where the plant uses the computed mean: a note if the report's beam makes it far too soft
+        "stiffness_note": None if dynamics.mesh_stiffness is not None else stiffness_note(pair, ms.mean),
         "damping_coefficient": st.c,
         "damping_coefficient_given": dynamics.damping_coefficient is not None,
         "plant_stiffness": st.k,
@@ -77,6 +87,8 @@ def model_summary(model: GearModel) -> dict[str, Any]:
         ``equivalent_mass`` [kg] (the gears alone, the report's), ``plant_equivalent_mass`` [kg] (with the
         shafts' inertias: the mesh mode's, which the plant's damping uses), ``mesh_stiffness`` {mean, c1, c2,
         min, max} [N/m] (eq 21 over the mesh cycle), ``mesh_stiffness_per_width`` [N/(mm um)],
+        ``mesh_stiffness_iso6336`` [N/m] (ISO 6336-1's estimate, a cross-check), ``stiffness_note`` (a warning
+        where the plant's computed stiffness is under half of ISO's for a large gear, else null),
         ``damping_coefficient`` [N s/m] (the
         plant's c: the file's value or eq 38 from the plant's k; ``damping_coefficient_given`` says which),
         ``plant_stiffness`` [N/m] (the plant's k: the file's ``mesh_stiffness`` if given, which

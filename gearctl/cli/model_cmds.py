@@ -110,6 +110,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
     from ..summary import model_summary
 
     s = model_summary(load_model(args.model))
+    stages = s["stages"] if s["stages_count"] > 1 else [s]
+    warn("info", [(f"stage {i}: " if len(stages) > 1 else "") + st["stiffness_note"]
+                  for i, st in enumerate(stages, start=1) if st["stiffness_note"]])
     if args.json:
         print(dump_json(s))
         return 0
@@ -148,7 +151,7 @@ def _print_sensors(s: dict[str, Any]) -> None:
 
 
 def _cmd_stiffness(args: argparse.Namespace) -> int:
-    from ..stiffness import COMPONENTS, mesh_stiffness, mesh_stiffness_at, tooth_deflections
+    from ..stiffness import COMPONENTS, mesh_stiffness, mesh_stiffness_at, stiffness_note, tooth_deflections
 
     model = load_model(args.model)
     n = model.n_stages
@@ -157,6 +160,11 @@ def _cmd_stiffness(args: argparse.Namespace) -> int:
                          f"{n}", field="stage")
     pair = model.stages[args.stage - 1].pair
     ms = mesh_stiffness(pair, points=args.points)
+    note = stiffness_note(pair, ms.mean)
+    if note:
+        given = model.stages[args.stage - 1].dynamics.mesh_stiffness
+        warn("stiffness", [("" if n == 1 else f"stage {args.stage}: ") + note
+                           + (f" (the plant uses the file's {given:.4g} N/m)" if given is not None else "")])
     td = tooth_deflections(pair, points=args.points)
     if args.csv:
         K = mesh_stiffness_at(pair, td.theta1)
