@@ -161,11 +161,12 @@ def _check_stage_geometry(sm: StageModel, geo: Geometry, multi: bool, i: int) ->
                 field=f"teeth{j}" if multi else "teeth")
     if p.face_width < MIN_FACE_WIDTH_PER_MODULE * m:
         raise InputError(f"{_label(multi, i, 'face_width')} = {p.face_width!r} is out of range: expected at least "
-                         f"{MIN_FACE_WIDTH_PER_MODULE:g} x module = {MIN_FACE_WIDTH_PER_MODULE * m:.4g} [m] for this "
-                         f"stage", field="face_width")
+                         f"{MIN_FACE_WIDTH_PER_MODULE:g} x module = {MIN_FACE_WIDTH_PER_MODULE * m:.4g} [m]"
+                         f"{' for this stage' if multi else ''}", field="face_width")
     if p.backlash > MAX_BACKLASH_PER_MODULE * m:
         raise InputError(f"{_label(multi, i, 'backlash')} = {p.backlash!r} is out of range: expected at most "
-                         f"{MAX_BACKLASH_PER_MODULE:g} x module = {MAX_BACKLASH_PER_MODULE * m:g} [m] for this stage",
+                         f"{MAX_BACKLASH_PER_MODULE:g} x module = {MAX_BACKLASH_PER_MODULE * m:g} [m]"
+                         f"{' for this stage' if multi else ''}",
                          field="backlash")
     for j, given in enumerate((p.inertia1, p.inertia2), start=1):
         if given is None:
@@ -316,7 +317,8 @@ def _check_mesh_damping(sm: StageModel, geo: Geometry, J1: float, J2: float, k: 
     if c > MESH_DAMPING.high:
         zmax = MESH_DAMPING.high / (2.0 * math.sqrt(k * m_eq))
         raise InputError(f"{_label(multi, i, 'damping_ratio')} = {dyn.damping_ratio!r} is out of range: expected "
-                         f"0 <= value <= {zmax:.4g} for this stage (its mesh damping c = 2 zeta sqrt(k m_eq) = "
+                         f"0 <= value <= {zmax:.4g} for this {'stage' if multi else 'pair'} (its mesh damping "
+                         f"c = 2 zeta sqrt(k m_eq) = "
                          f"{c:.4g} N s/m with k = {k:.4g} N/m and m_eq = {m_eq:.4g} kg of the shaft inertias; at most "
                          f"{MESH_DAMPING.high:g} N s/m); or give {_label(multi, i, 'damping_coefficient')}",
                          field="damping_ratio")

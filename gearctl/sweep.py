@@ -161,6 +161,15 @@ class _Keys(dict):
 _KEYS = _Keys(sweep_keys())
 
 
+#: A pair file's names of the keys that overrides spell as a train's stage keys: (where the file has it, what to write).
+_FILE_NAMES = {
+    "teeth": ("[gear1] and [gear2] teeth", "{pre}teeth1 (gear 1's) or {pre}teeth2 (gear 2's)"),
+    "profile_shift": ("[gear1] and [gear2] profile_shift", "{pre}x1 (gear 1's) or {pre}x2 (gear 2's)"),
+    "inertia": ("[gear1] and [gear2] inertia", "{pre}inertia1 (gear 1's) or {pre}inertia2 (gear 2's) [kg m^2]"),
+    "pressure_angle_deg": ("[pair] pressure_angle_deg, in degrees", "{pre}pressure_angle, in rad (20 deg = 0.349)"),
+}
+
+
 def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:
     """The metadata of a key a sweep varies or ``--set`` changes (``what`` names it in the error: a ``--set`` key is
     a model key, the sweep's may also be the controller's estimate)."""
@@ -172,6 +181,10 @@ def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:
         doing = "a sweep can vary" if sweep else "--set can change"
         raise InputError(f"{key} is not a number {doing}: numeric keys only (e.g. backlash, mesh_stiffness, "
                          f"coulomb_friction2, load_inertia, load_noise{', estimate' if sweep else ''})", field=key)
+    if key in _FILE_NAMES:  # a pair file's name of a key the overrides spell as the train's (a review's
+        # `--set profile_shift=0.3` was told of an unknown model key, `pressure_angle_deg` pointed to the rad key)
+        raise InputError(f"{key} is the model file's name ({_FILE_NAMES[key][0]}); {'--vary' if sweep else '--set'} "
+                         "names it " + _FILE_NAMES[key][1].format(pre=""), field=key)
     import difflib
 
     # a --set key is the model's: the controller's estimate has an option of its own, so it is no suggestion there

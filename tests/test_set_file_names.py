@@ -1,0 +1,44 @@
+"""``--set`` and ``--vary`` given a pair file's own key names (an h2 review): ``profile_shift`` was "unknown model key",
+``pressure_angle_deg`` suggested the radian key without saying so; a pair's range errors said "for this stage"."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from gearctl.cli import main
+
+SHIFT14 = str(Path(__file__).parent / "data" / "h2_shift14_49.toml")
+
+
+@pytest.mark.parametrize(("key", "says"), [
+    ("profile_shift=0.3", "profile_shift is the model file's name ([gear1] and [gear2] profile_shift); --set names it "
+                          "x1 (gear 1's) or x2 (gear 2's)"),
+    ("teeth=20", "--set names it teeth1 (gear 1's) or teeth2 (gear 2's)"),
+    ("inertia=1e-3", "--set names it inertia1 (gear 1's) or inertia2 (gear 2's) [kg m^2]"),
+    ("pressure_angle_deg=25", "--set names it pressure_angle, in rad (20 deg = 0.349)"),
+])
+def test_set_names_the_key_it_takes(capsys: pytest.CaptureFixture[str], key: str, says: str) -> None:
+    assert main(["track", SHIFT14, "pid", "--set", key]) == 2
+    err = capsys.readouterr().err
+    assert says in err and "unknown model key" not in err and err.count("gearctl track: error:") == 1
+
+
+def test_vary_names_the_key_it_takes(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["sweep", SHIFT14, "pid", "--vary", "profile_shift=0:0.2", "--runs", "2", "--workers", "1"]) == 2
+    assert "--vary names it x1 (gear 1's) or x2 (gear 2's)" in capsys.readouterr().err
+
+
+def test_the_names_it_takes_work(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["track", SHIFT14, "pid", "--set", "x1=0.4", "--duration", "0.2", "--json"]) == 0
+    capsys.readouterr()
+
+
+def test_a_pairs_range_error_names_no_stage(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "loose.toml"
+    f.write_text(Path(SHIFT14).read_text().replace("backlash = 3e-5", "backlash = 7e-4"))
+    assert main(["info", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert "[pair] backlash = 0.0007 is out of range: expected at most 0.5 x module = 0.000625 [m]\n" in err
+    assert "stage" not in err
