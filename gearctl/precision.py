@@ -149,15 +149,22 @@ def precision_health(res: PrecisionResult, lost_motion: float, travel: float) ->
     return dataclasses.replace(health, warnings=health.warnings + tuple(unreached_targets(res, lost_motion, travel)))
 
 
+#: A reversal value B beyond this many lost motions is warned of (:func:`unreached_targets`).
+REVERSAL_LIMIT = 2.0
+
+
 def unreached_targets(res: PrecisionResult, lost_motion: float, travel: float) -> list[str]:
     """Warnings for measurements that missed their target by more than backlash can explain, and for a constant
     offset the ISO figures leave out.
 
     A deviation beyond three times the lost motion plus a thousandth of the travel (rad, load side) means the
     loop did not position: an uncompensated gap leaves at most about the lost motion. One warning names the
-    largest such deviation and how many measurements were that far off. A mean deviation larger than the
-    accuracy A (and than a hundredth of the lost motion) is a constant offset that A, B and R do not show: a
-    load torque that holds the load on one flank leaves the motor-encoder PID half the lost motion off.
+    largest such deviation and how many measurements were that far off. A reversal value B beyond
+    :data:`REVERSAL_LIMIT` times the lost motion (plus a thousandth of the travel) is the loop's, not the gap's (a
+    review's four-stage train under the MPC: B 4.3 times its lost motion, with no deviation past the first limit).
+    A mean deviation larger than the accuracy A (and than a hundredth of the lost motion) is a constant offset that
+    A, B and R do not show: a load torque that holds the load on one flank leaves the motor-encoder PID half the
+    lost motion off.
     """
     dev = np.concatenate([res.deviations_up.ravel(), res.deviations_down.ravel()])
     limit = 3.0 * lost_motion + 1e-3 * travel
@@ -167,6 +174,11 @@ def unreached_targets(res: PrecisionResult, lost_motion: float, travel: float) -
         worst = float(dev[np.argmax(np.abs(dev))])
         out.append(f"targets not reached: {int(far.sum())} of {dev.size} measurements deviate by more than "
                    f"{limit:.3g} rad (3 x the lost motion + travel / 1000), the largest by {worst:.3g} rad")
+    B = res.stats["reversal_value"]
+    if B > REVERSAL_LIMIT * lost_motion + 1e-3 * travel:
+        out.append(f"reversal beyond the gap: B = {B:.3g} rad is {B / lost_motion:.3g} x the lost motion "
+                   f"{lost_motion:.3g} rad, which is about what an uncompensated gap reverses by: the loop itself "
+                   "lands the load on different sides of the targets in the two directions")
     offset, A = res.stats["mean_deviation"], res.stats["accuracy"]
     if abs(offset) > max(A, 0.01 * lost_motion):
         out.append(f"constant offset: the load misses the targets by {offset:.3g} rad on average, more than the "

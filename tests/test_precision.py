@@ -212,6 +212,20 @@ def test_a_target_missed_by_more_than_backlash_explains_is_warned(friction_runs:
     assert w.startswith("targets not reached: 1 of 50 measurements") and w.endswith("the largest by -0.1 rad")
 
 
+def test_a_reversal_beyond_the_gap_is_warned(friction_runs: dict[str, PrecisionResult]) -> None:
+    """B beyond twice the lost motion is the loop's doing, not the gap's (a review's four-stage train under the MPC:
+    B 4.3 lost motions, every deviation under the 'not reached' limit, and no word)."""
+    import dataclasses
+
+    res = friction_runs["pid"]
+    lost = res.run.plant.lost_motion
+    assert not [w for w in unreached_targets(res, lost, 0.5) if w.startswith("reversal beyond the gap")]
+    up, down = np.full_like(res.deviations_up, -1.4 * lost), np.full_like(res.deviations_down, 1.4 * lost)
+    wide = dataclasses.replace(res, deviations_up=up, deviations_down=down, stats=iso230_statistics(up, down))
+    (w,) = unreached_targets(wide, lost, 0.5)  # each deviation is within the 'not reached' limit
+    assert w.startswith("reversal beyond the gap: B = 0.00372 rad is 2.8 x the lost motion")
+
+
 def test_deadzone_inverse_cuts_reversal(friction_runs: dict[str, PrecisionResult]) -> None:
     b_pid = friction_runs["pid"].stats["reversal_value"]
     b_inv = friction_runs["deadzone_inverse"].stats["reversal_value"]
