@@ -397,6 +397,26 @@ def test_a_horizon_that_cannot_hold_a_crossing_is_refused(tmp_path: Path) -> Non
     assert mpc.metrics.rms_error < pid.metrics.rms_error
 
 
+def test_a_horizon_that_ends_with_the_landing_is_refused(tmp_path: Path) -> None:
+    # a reviewer's tuning (h4): on shing1993_servo a crossing takes 4.32 samples (5 planned), and horizon = 5 passed
+    # the 0.9-of-the-horizon rule. Every crossing then landed on the horizon's last sample, where it could not lower
+    # the plan's cost: the plan never crossed and the load ran off, 5.7 rad RMS on the 3 s sine, every step "ok".
+    # Now the crossing must also end before the horizon's last sample: horizon = 5 is refused naming 6, and 6 tracks
+    # (measured 2.2e-4 rad RMS; the catalog's 20: 2.9e-6)
+    from gearctl.catalog import resolve
+
+    text = resolve("mpc", "controllers").read_text()
+    for h, ok in ((5, False), (6, True)):
+        ctrl = _model(tmp_path, f"mpc{h}", text.replace("horizon = 20 ", f"horizon = {h} "))
+        if not ok:
+            with pytest.raises(InputError) as exc:
+                design_controller(make_run(SERVO, ctrl).design)
+            assert exc.value.field == "horizon" and "expected horizon >= 6" in str(exc.value)
+            continue
+        res = execute(make_run(SERVO, ctrl))
+        assert res.ok and res.metrics.rms_error < 1e-3
+
+
 def test_a_load_encoder_too_coarse_for_the_gap_is_weighed_by_its_own_error() -> None:
     # tests/data/fine_gap_coarse_load_encoder.toml: a load count 29 times the 22 urad lost motion. Weighed as the
     # motor encoder's, the load reading put the MPC's ISO accuracy at 624 urad (the PID's 15) and the sine at 5.8e-5

@@ -1000,7 +1000,7 @@ _FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this muc
 _FREE_ACCELERATION = 1000.0  # rad/s^2 at the motor: without a torque limit, torques are weighed in shares of J_eq x
 # this (the catalog servos' torque limits give their trains 1.2e3 to 1.5e4 rad/s^2)
 _HORIZON_MAX = 200  # the horizon key's upper bound (MPCSettings.horizon)
-_CROSS_HORIZON_SHARE = 0.9  # a crossing must land within this share of the horizon (else the design is refused)
+_CROSS_HORIZON_SHARE = 0.9  # a crossing must land within this share of the horizon (else the design is refused) ...
 _CROSS_SHARE = 0.25  # a planned crossing accelerates and decelerates the motor with this share of the torque limit
 _STANDSTILL_LANDING = 0.05  # at standstill, landings close at most this fraction of landing_velocity
 _STANDSTILL_RELEASE = 3.0  # a hold lasts while a slow load stays within this many standstill deadbands
@@ -1065,7 +1065,7 @@ def _check_pattern_memory(n: int, n_cross: int, rigid: bool, cross_steps: float)
                  if _pattern_count(h, 0 if rigid else max(2, _samples(cross_steps, h + 1)), rigid)
                  * _pattern_bytes(h) <= cap), None)
     why = "half the memory available" if cap < MAX_OUTPUT_BYTES else "the cap"
-    holds = fits is not None and cross_steps <= _CROSS_HORIZON_SHARE * fits
+    holds = fits is not None and _horizon_holds(cross_steps, fits)
     ask = f"a horizon of at most {fits} samples fits" if holds else "no horizon that holds a crossing fits"
     raise InputError(f"horizon = {n} samples: the MPC's {_pattern_count(n, n_cross, rigid):,} condensed QPs would take "
                      f"about {need / 1e9:.3g} GB, more than the {cap / 1e9:.3g} GB this run may use ({why}); {ask} "
@@ -1076,6 +1076,23 @@ def _samples(steps: float, cap: int) -> int:
     """``ceil(steps)``, at most ``cap`` (also for an infinite or overflowing count, e.g. a torque limit or a
     closing speed near zero)."""
     return cap if not steps < cap else math.ceil(steps)
+
+
+def _horizon_holds(cross_steps: float, n: int) -> bool:
+    """Whether a horizon of ``n`` samples holds a crossing of ``cross_steps`` samples: it lands within
+    :data:`_CROSS_HORIZON_SHARE` of the horizon, and its ``ceil(cross_steps)`` samples end before the horizon does,
+    so that the plan sees at least one sample on the new flank. (Without the second rule, horizons under 10 could
+    end with the crossing's landing: a crossing then never lowered the plan's cost, the plan never crossed, and on
+    ``shing1993_servo`` with ``horizon = 5``, a crossing of 4.32 samples, the load ran off to 5.7 rad RMS on the
+    sine, every step "ok".)"""
+    return cross_steps <= _CROSS_HORIZON_SHARE * n and _samples(cross_steps, n + 1) < n
+
+
+def _horizon_needed(cross_steps: float) -> int:
+    """The shortest horizon that holds a crossing of ``cross_steps`` samples (:func:`_horizon_holds`)."""
+    if not math.isfinite(cross_steps) or cross_steps > 1e9:
+        return 2**62
+    return max(math.ceil(cross_steps / _CROSS_HORIZON_SHARE), math.ceil(cross_steps) + 1)
 
 
 @dataclasses.dataclass(slots=True)
@@ -1228,17 +1245,18 @@ class MPC(Controller):
         # a load encoder too coarse for the gap, under a rigid plan: the centre of inertia from the motor encoder alone
         # (see *Coarse load encoders*)
         self._centre_motor = self._rigid and self._sigma_load > st.measurement_noise
-        if not self._rigid and t_cross > _CROSS_HORIZON_SHARE * n * Ts:
+        if not self._rigid and not _horizon_holds(t_cross / Ts, n):
             # a plan that cannot see a crossing through to its landing stays on the near flank and pushes: on a train
             # whose gap takes 21 samples at this torque limit the load ran away (13.5 rad RMS, every step "ok")
-            need = math.ceil(t_cross / Ts / _CROSS_HORIZON_SHARE)
+            need = _horizon_needed(t_cross / Ts)
             ask = (f"expected horizon >= {need} (a controller file with a longer horizon, or a larger torque_limit; "
                    f"the deadzone_inverse needs none)" if need <= _HORIZON_MAX else
                    f"it needs {need}, beyond the longest horizon ({_HORIZON_MAX}): a larger torque_limit, or the "
                    f"deadzone_inverse, which needs none")
             raise InputError(f"horizon = {n} samples is too short for this plant: a crossing of the lost motion takes "
                              f"{t_cross / Ts:.3g} samples at {_CROSS_SHARE:g} x the torque limit, and the plan must "
-                             f"see it land within {_CROSS_HORIZON_SHARE:g} of the horizon; {ask}", field="horizon")
+                             f"see it land within {_CROSS_HORIZON_SHARE:g} of the horizon and before its last sample; "
+                             f"{ask}", field="horizon")
         # a flank is taken where the gap turns back only that far short of b: below the contact tolerance, and
         # on a train also below what the floating intermediate shafts alone leave it short by (the tolerance's
         # share beyond a pair's)
