@@ -322,6 +322,26 @@ def test_solver_failure_and_overrun_fall_back(servo, mpc_spec, monkeypatch: pyte
     assert sum(r.startswith("solve overran") for r in reasons) > 0.5 * len(reasons)
 
 
+def test_a_failed_solve_that_overran_counts_as_an_overrun(servo, mpc_spec, monkeypatch: pytest.MonkeyPatch) -> None:
+    # a reviewer's (h4) realtime run with max_solve_time = 1e-9: every step's solves took longer, yet overruns said
+    # 817 of 1000 steps, the 183 whose (late) landing QP was infeasible left out. overruns counts the steps over the
+    # budget in solve_times, failed or not (as the exported controller's SIL wrapper counts them)
+    model, plant = servo
+    ctrl = _mpc(plant, mpc_spec, max_solve_time=1e-9)
+    calls = {"n": 0}
+    orig = ctrl._qp.solve
+
+    def flaky() -> str:
+        calls["n"] += 1
+        return "gearctl QP: infeasible" if calls["n"] % 7 == 0 else orig()
+
+    monkeypatch.setattr(ctrl._qp, "solve", flaky)
+    res = simulate_closed_loop(plant, ctrl, reference("sine"), 0.1, sensors=model.sensors)
+    failed = sum(f["reason"].startswith("solve failed") for f in res.fallbacks)
+    assert failed > 0 and len(res.fallbacks) == failed  # realtime off: an overrun alone does not fall back
+    assert res.overruns == int(np.sum(res.solve_times > 1e-9)) == res.solve_times.size
+
+
 # --- bad input -----------------------------------------------------------------------------------------------
 
 

@@ -2014,10 +2014,12 @@ class MPC(Controller):
             status = "injected failure"
         self.statuses.append(status)
         reason = None
+        overran = solve_time > self.settings.max_solve_time
+        if overran:  # counted whatever the solve's status (a failed solve that overran overran too: before, it was
+            self.overruns += 1  # left out, and overruns fell short of the steps over the budget in solve_times)
         if status != "ok":
             reason = f"solve failed: {status}"
-        elif solve_time > self.settings.max_solve_time:
-            self.overruns += 1
+        elif overran:
             if self.realtime:  # as on the target; off by default so simulations are deterministic
                 reason = (f"solve overran: {solve_time * 1e6:.3g} us > max_solve_time "
                           f"{self.settings.max_solve_time * 1e6:.3g} us")
