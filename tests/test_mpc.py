@@ -23,6 +23,7 @@ default settings' solve times are recorded and checked in ``test_default_solve_t
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import json
 import math
@@ -340,6 +341,30 @@ def test_a_failed_solve_that_overran_counts_as_an_overrun(servo, mpc_spec, monke
     failed = sum(f["reason"].startswith("solve failed") for f in res.fallbacks)
     assert failed > 0 and len(res.fallbacks) == failed  # realtime off: an overrun alone does not fall back
     assert res.overruns == int(np.sum(res.solve_times > 1e-9)) == res.solve_times.size
+
+
+def test_osqp_prints_nothing_to_standard_output(servo, mpc_spec, tmp_path: Path, capfd: pytest.CaptureFixture) -> None:
+    # a reviewer's (h4) solver = "osqp": OSQP's C code printed "Polishing not needed - no active set detected at
+    # optimal point" on stdout at every solve without an active bound (verbose = False does not reach it), which broke
+    # `gearctl track ... --json` (not JSON any more). Its solves now run with standard output muted; what gearctl
+    # itself prints is kept, in order
+    if "osqp" not in mpc_module.installed_solvers():
+        pytest.skip("osqp not in this CasADi")
+    model, plant = servo
+    ctrl = _mpc(plant, mpc_spec, solver="osqp", max_solve_time=1.0)
+    print("before", flush=True)
+    res = simulate_closed_loop(plant, ctrl, reference("sine"), 0.3, sensors=model.sensors)
+    ctypes.CDLL(None).fflush(None)  # C's stdout buffer, which would otherwise reach the descriptor only at exit
+    print("after", flush=True)
+    assert res.success and not res.fallbacks
+    assert capfd.readouterr().out == "before\nafter\n"
+    path = tmp_path / "mpc_osqp.toml"
+    path.write_text(resolve("mpc", "controllers").read_text().replace('solver = "gearctl"', 'solver = "osqp"'))
+    assert 'solver = "osqp"' in path.read_text()
+    assert main(["track", "shing1993_servo", str(path), "--duration", "0.3", "--json"]) == 0
+    ctypes.CDLL(None).fflush(None)
+    out = capfd.readouterr().out
+    assert json.loads(out)["controller"]["solver"] == "osqp"
 
 
 # --- bad input -----------------------------------------------------------------------------------------------

@@ -366,6 +366,11 @@ _PLUGIN_OPTIONS: dict[str, dict[str, Any]] = {
     "proxqp": {"proxqp": {"eps_abs": 1e-9}, "warm_start_primal": True, "warm_start_dual": True},
 }
 _KKT_TOL = {"daqp": 1e-4, "qrqp": 1e-4, "osqp": 1e-3, "proxqp": 1e-3}
+#: CasADi plugins whose C code prints to the process's standard output whatever their options say: OSQP's polish step
+#: prints "Polishing not needed - no active set detected at optimal point" on every solve without an active bound
+#: (``verbose = False`` does not reach it). Their solves run with file descriptor 1 on the null device: before, the
+#: lines went into ``gearctl track --json`` and ``--csv -`` output and broke it (a reviewer's ``solver = "osqp"``).
+_MUTED_PLUGINS = ("osqp",)
 SOFT_LANDING = ("penalty", "bound", "off")
 FEEDBACK = ("load", "motor")
 
@@ -752,6 +757,58 @@ def _riccati_iteration(A: NDArray, Q: NDArray, C: NDArray, R: NDArray, steps: in
 # --- the QP solver ---------------------------------------------------------------------------------------
 
 
+class _MutedStdout:
+    """Runs calls with the process's standard output (file descriptor 1) on the null device, for C code that
+    prints (:data:`_MUTED_PLUGINS`). Python's and C's buffers are flushed before and after, so that nothing else
+    written to standard output is lost or reordered. Where descriptors cannot be juggled the call runs as it is."""
+
+    def __init__(self) -> None:
+        try:
+            self._fflush: Any = ctypes.CDLL(None).fflush  # C's stdio buffer: flushed to the descriptor it was meant for
+            self._fflush.argtypes = [ctypes.c_void_p]
+        except (OSError, TypeError, AttributeError):
+            self._fflush = None
+        try:
+            self._null: int | None = os.open(os.devnull, os.O_WRONLY)
+        except OSError:
+            self._null = None
+
+    def __del__(self) -> None:
+        if getattr(self, "_null", None) is not None:
+            try:
+                os.close(self._null)
+            except OSError:
+                pass
+
+    def _flush(self) -> None:
+        import sys
+
+        try:
+            sys.stdout.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
+        if self._fflush is not None:
+            self._fflush(None)
+
+    def call(self, fn: Any, **kwargs: Any) -> Any:
+        """``fn(**kwargs)`` with standard output muted."""
+        if self._null is None:
+            return fn(**kwargs)
+        self._flush()
+        try:
+            saved = os.dup(1)
+        except OSError:
+            return fn(**kwargs)
+        try:
+            os.dup2(self._null, 1)
+            return fn(**kwargs)
+        finally:
+            if self._fflush is not None:
+                self._fflush(None)
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
 class _QP:
     """One dense QP ``min 1/2 x'Hx + g'x, lbx <= x <= ubx, lba <= A x <= uba`` per call, built once.
 
@@ -793,6 +850,7 @@ class _QP:
         self.cost, self.kkt = np.zeros(1), np.zeros(1)
         self.tol = _KKT_TOL[plugin]
         self._dm: dict[tuple[int, int], Any] = {}  # CasADi path: H and A as DM, per pattern
+        self._muted = _MutedStdout() if plugin in _MUTED_PLUGINS else None
         self.compiled = False
         self.note = ""
         want = compiled if compiled is not None else not compile_disabled()
@@ -881,8 +939,9 @@ class _QP:
             if flag:
                 return f"{self.plugin} returned flag {flag}"
         else:  # through CasADi: the conic itself (its stats carry the solver's status), the check in numpy
-            sol = self._conic(h=self._h_dm, g=self.g, a=self._a_dm, lba=self.lba, uba=self.uba, lbx=self.lbx,
-                              ubx=self.ubx, x0=self.x0, lam_x0=self.lam_x0)
+            args = dict(h=self._h_dm, g=self.g, a=self._a_dm, lba=self.lba, uba=self.uba, lbx=self.lbx, ubx=self.ubx,
+                        x0=self.x0, lam_x0=self.lam_x0)
+            sol = self._conic(**args) if self._muted is None else self._muted.call(self._conic, **args)
             stats = self._conic.stats()
             for buf, name in ((self.x, "x"), (self.lam_x, "lam_x"), (self.lam_a, "lam_a"), (self.cost, "cost")):
                 buf[:] = np.asarray(sol[name]).ravel()
