@@ -602,6 +602,13 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
             f"gap model off: {mpc.rigid_reason}, so the MPC plans on the rigid train, as with backlash = 0 "
             f"(gap_model = 'rigid'): it does not plan the gap crossings; compare it with the deadzone_inverse "
             f"(gearctl bench MODEL)"))
+    if settings.max_solve_time > Ts:
+        # a budget over the sample period (a copy of the catalog file, 1e-3 s, at a shorter sample_time): the solve
+        # times report a step as on time that a target running this period would miss; say so where notes go
+        mpc.design_notes = (*mpc.design_notes, (
+            f"max_solve_time = {settings.max_solve_time:g} s is over the sample period ({Ts:g} s): a step whose "
+            f"solves take longer than the period would be late on a target, but counts as an overrun (and falls back "
+            f"with --realtime) only beyond max_solve_time; set it to at most the sample_time"))
     share = intermediate_share(info.nominal)
     if share > INTERMEDIATE_SHARE and not mpc.rigid_reason:
         mpc.design_notes = (*mpc.design_notes, (
