@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -35,8 +35,18 @@ __all__ = ["BenchSpec", "run_bench", "bench_table", "DEFAULT_DURATION", "FREE", 
 #: Label of the backlash-free plant (the physical limit).
 FREE = "backlash-free"
 
+
+class IsoSettings(TypedDict):
+    """The keyword arguments of :func:`gearctl.precision.precision_test` that the bench fixes."""
+
+    targets: int
+    cycles: int
+    travel: float
+    dwell: float
+
+
 #: The ISO 230-2 cycle of the benchmark's positioning row (as ``gearctl precision`` runs it).
-ISO_SETTINGS = {"targets": 5, "cycles": 5, "travel": 0.5, "dwell": 0.3}
+ISO_SETTINGS: IsoSettings = {"targets": 5, "cycles": 5, "travel": 0.5, "dwell": 0.3}
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)

@@ -212,7 +212,7 @@ def build_dataclass(path: Path, cls: type, values: Mapping[str, tuple[Binding, A
         return cls(**{f: v for f, (_, v) in values.items()})
     except InputError as exc:
         b = values.get(exc.field or "", (None, None))[0]
-        if b is not None and exc.rule:
+        if b is not None and exc.field is not None and exc.rule:  # b is found by exc.field
             rule = exc.rule
             meta = _field_meta(cls, exc.field)
             if b.key.endswith("_deg") and meta.get("unit") == "rad":

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextvars
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
 from .errors import InputError, short_repr
@@ -257,7 +258,8 @@ def _shift_limit(pair: GearPair, field: str) -> float | None:
     def passes(v: float) -> bool:
         token = _SEARCHING.set(True)  # the trial pairs' own errors do not search again
         try:
-            dataclasses.replace(pair, **{field: v})
+            changes: dict[str, Any] = {field: v}  # a field named at run time
+            dataclasses.replace(pair, **changes)
         except InputError:
             return False
         finally:
@@ -566,13 +568,16 @@ def pair_geometry(pair: GearPair) -> Geometry:
     def both(key: str) -> tuple[float, float]:
         return (gears[0][key], gears[1][key])
 
+    def per_gear(value: Callable[[int], float]) -> tuple[float, float]:
+        return (value(0), value(1))
+
     rp, rb, ra, rd, s = both("r"), both("rb"), both("ra"), both("rd"), both("s")
     pb, ab, AC, AD = g["pb"], g["l"], g["AC"], g["AD"]
-    tb = tuple(rb[j] * (s[j] / rp[j] + 2 * involute(phi)) for j in range(2))  # eq 27
+    tb = per_gear(lambda j: rb[j] * (s[j] / rp[j] + 2 * involute(phi)))  # eq 27
     ta = both("sa")  # eq 28
     heights = [_beam_heights(ra[j], rb[j], rd[j]) for j in range(2)]
     h_a, h_b = (heights[0][0], heights[1][0]), (heights[0][1], heights[1][1])
-    w = tuple((h_a[j] * tb[j] - h_b[j] * ta[j]) / (tb[j] - ta[j]) for j in range(2))  # eq 19
+    w = per_gear(lambda j: (h_a[j] * tb[j] - h_b[j] * ta[j]) / (tb[j] - ta[j]))  # eq 19
     disk = tuple(pair.density * math.pi * f * r**4 / 2 for r in rp)
     inertia = (
         pair.inertia1 if pair.inertia1 is not None else disk[0],

@@ -153,7 +153,7 @@ def _check_stage_geometry(sm: StageModel, geo: Geometry, multi: bool, i: int) ->
     p = sm.pair
     m = p.module
     for j, (teeth, rb) in enumerate(((p.teeth1, geo.base_radius[0]), (p.teeth2, geo.base_radius[1])), start=1):
-        if rb > BASE_RADIUS.high:
+        if rb > BASE_RADIUS.upper:
             raise InputError(
                 f"{_label(multi, i, f'teeth{j}')} = {teeth} with {_label(multi, i, 'module')} = {m!r} gives gear {j} a "
                 f"base radius of {rb:.4g} m (pitch radius {geo.pitch_radius[j - 1]:.4g} m): expected teeth x module "
@@ -252,16 +252,16 @@ def check_model(model: GearModel) -> None:
         ("intermediate_inertia", j + 1, v) for j, v in enumerate(servo.intermediate_inertia)]
     total = list(gear)
     for key, j, v in added:
-        cap = min(MAX_INERTIA_RATIO * gear[j], INERTIA.high - gear[j])
-        if v > cap and gear[j] < INERTIA.high:
-            why = (f"{MAX_INERTIA_RATIO:g}x the {gear[j]:.4g} kg m^2 of the gears on that shaft" if cap < INERTIA.high
+        cap = min(MAX_INERTIA_RATIO * gear[j], INERTIA.upper - gear[j])
+        if v > cap and gear[j] < INERTIA.upper:
+            why = (f"{MAX_INERTIA_RATIO:g}x the {gear[j]:.4g} kg m^2 of the gears on that shaft" if cap < INERTIA.upper
                    - gear[j] else f"the shaft's inertia, with the {gear[j]:.4g} kg m^2 of its gears, at most "
                    f"{INERTIA.high:g} kg m^2")
             raise InputError(f"[servo] {key} = {v!r} is out of range: expected 0 <= value <= {cap:.4g} [kg m^2] "
                              f"({why})", field=key)
         total[j] += v
     for j, J in enumerate(total):
-        if not J <= INERTIA.high:
+        if not J <= INERTIA.upper:
             raise InputError(f"{_gear_culprit(model, geos, j)} gives shaft {j + 1} an inertia of {J:.4g} kg m^2: "
                              f"expected at most {INERTIA.high:g} kg m^2 on a shaft; use a smaller gear",
                              field="inertia")
@@ -309,13 +309,13 @@ def _check_mesh_damping(sm: StageModel, geo: Geometry, J1: float, J2: float, k: 
     m_eq = equivalent_mass(J1, J2, *geo.base_radius)
     # cheap bound first: a mean mesh stiffness is well below E f (0.07 E f for the report's pair)
     k_bound = dyn.mesh_stiffness or sm.pair.young_modulus * sm.pair.face_width
-    if 2.0 * dyn.damping_ratio * math.sqrt(k_bound * m_eq) <= MESH_DAMPING.high:
+    if 2.0 * dyn.damping_ratio * math.sqrt(k_bound * m_eq) <= MESH_DAMPING.upper:
         return
     if k is None:
         k = dyn.mesh_stiffness or mesh_stiffness(sm.pair, points=16).mean
     c = 2.0 * dyn.damping_ratio * math.sqrt(k * m_eq)
-    if c > MESH_DAMPING.high:
-        zmax = MESH_DAMPING.high / (2.0 * math.sqrt(k * m_eq))
+    if c > MESH_DAMPING.upper:
+        zmax = MESH_DAMPING.upper / (2.0 * math.sqrt(k * m_eq))
         raise InputError(f"{_label(multi, i, 'damping_ratio')} = {dyn.damping_ratio!r} is out of range: expected "
                          f"0 <= value <= {zmax:.4g} for this {'stage' if multi else 'pair'} (its mesh damping "
                          f"c = 2 zeta sqrt(k m_eq) = "

@@ -196,7 +196,7 @@ def mpc_timing(*, duration: float = 3.0, controller: str = "mpc") -> dict[str, A
         step_times.append(time.perf_counter() - t0)
         return u
 
-    ctrl.step = timed_step  # type: ignore[method-assign]
+    ctrl.step = timed_step
     res = simulate_closed_loop(plant, ctrl, reference("sine"), duration, sensors=model.sensors)
     st = np.asarray(res.solve_times)
     steps = np.asarray(step_times)

@@ -255,16 +255,16 @@ def precision_test(
             rule = "is out of range" if is_int else "is not a whole number"
             raise InputError(f"{name} = {v!r} {rule}: expected a whole number in [{low}, 50]", field=name)
     SEED.check("seed", seed)
-    for name, v in (("travel", travel), ("dwell", dwell), ("velocity", velocity), ("accel", accel),
+    for name, length in (("travel", travel), ("dwell", dwell), ("velocity", velocity), ("accel", accel),
                     ("overshoot", overshoot)):
-        if not (v > 0 and math.isfinite(v)):
-            raise InputError(f"{name} = {v!r} is out of range: expected a number > 0", field=name)
-    if (travel + 2 * overshoot) / velocity > DURATION.high:  # before the program's sums overflow (travel = 1e308)
+        if not (length > 0 and math.isfinite(length)):
+            raise InputError(f"{name} = {length!r} is out of range: expected a number > 0", field=name)
+    if (travel + 2 * overshoot) / velocity > DURATION.upper:  # before the program's sums overflow (travel = 1e308)
         raise InputError(f"travel = {travel:g} rad at velocity = {velocity:g} rad/s: the test program would last more "
                          f"than {DURATION.high:g} s; lower travel", field="travel")
     rng = np.random.default_rng(seed)
     spacing = travel / (targets - 1)
-    P = np.arange(targets) * spacing
+    P = np.arange(targets, dtype=np.float64) * spacing
     P[1:-1] += rng.uniform(-0.1, 0.1, targets - 2) * spacing
     seq: list[tuple[float, int, int]] = []  # (position, target index or -1, direction +1 / -1)
     for _ in range(cycles):
@@ -285,7 +285,7 @@ def precision_test(
             measure.append((t - 0.5 * controller.Ts, idx, direction))
         pos = target
     program = MotionProgram(tuple(starts), tuple(origins), tuple(ends), velocity, accel)
-    if t > DURATION.high:
+    if t > DURATION.upper:
         raise InputError(f"the test program lasts {t:.6g} s ({targets} targets, {cycles} cycles over travel = "
                          f"{travel:g} rad at velocity = {velocity:g} rad/s, dwell = {dwell:g} s): expected at most "
                          f"{DURATION.high:g} s; lower travel, dwell, cycles or targets", field="travel")

@@ -222,9 +222,9 @@ class DenseQP:
         for name, v, lo in (("n", n, 1), ("m", m, 0), ("max_iter", max_iter, 1)):
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo:
                 raise InputError(f"{name} = {v!r} is out of range: expected an integer >= {lo}", field=name)
-        for name, v in (("primal_tol", primal_tol), ("dependence_tol", dependence_tol)):
-            if not (np.isfinite(v) and v >= 0.0):
-                raise InputError(f"{name} = {v!r} is out of range: expected a finite number >= 0", field=name)
+        for name, tol in (("primal_tol", primal_tol), ("dependence_tol", dependence_tol)):
+            if not (np.isfinite(tol) and tol >= 0.0):
+                raise InputError(f"{name} = {tol!r} is out of range: expected a finite number >= 0", field=name)
         if not infinity > 0.0:
             raise InputError(f"infinity = {infinity!r} is out of range: expected a number > 0", field="infinity")
         lib = _lib()

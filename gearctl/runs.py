@@ -14,7 +14,7 @@ import pickle
 import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 
@@ -241,6 +241,14 @@ def _trace(res: ClosedLoopResult) -> tuple[np.ndarray, np.ndarray]:
     return res.t[::step].copy(), res.error[::step].copy()
 
 
+@overload
+def execute(run: Run, *, keep: Literal[False] = ...) -> RunResult: ...
+@overload
+def execute(run: Run, *, keep: Literal[True]) -> tuple[RunResult, ClosedLoopResult | None]: ...
+@overload
+def execute(run: Run, *, keep: bool) -> RunResult | tuple[RunResult, ClosedLoopResult | None]: ...
+
+
 def execute(run: Run, *, keep: bool = False) -> RunResult | tuple[RunResult, ClosedLoopResult | None]:
     """Run one closed loop; a failure is a result too, never an exception.
 
@@ -261,6 +269,17 @@ def execute(run: Run, *, keep: bool = False) -> RunResult | tuple[RunResult, Clo
                         trace_error=np.zeros(0))
         return (out, None) if keep else out
     return execute_controller(run, ctrl, keep=keep)
+
+
+@overload
+def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,
+                       keep: Literal[False] = ...) -> RunResult: ...
+@overload
+def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,
+                       keep: Literal[True]) -> tuple[RunResult, ClosedLoopResult | None]: ...
+@overload
+def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,
+                       keep: bool) -> RunResult | tuple[RunResult, ClosedLoopResult | None]: ...
 
 
 def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,

@@ -292,7 +292,7 @@ def simulate(
     dt = OUTPUT_INTERVAL.check("dt", dt)  # a string or a bool is named as such, not 'out of range'
     if not callable(torque):
         try:
-            pair = [float(v) for v in torque]  # type: ignore[union-attr]
+            pair = [float(v) for v in torque]
         except (TypeError, ValueError):
             pair = []
         if len(pair) != 2 or not all(math.isfinite(v) for v in pair):

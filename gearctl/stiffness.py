@@ -388,7 +388,8 @@ def _mesh_stiffness(pair: GearPair, points: int, harmonics: int, order: int) -> 
     th = np.linspace(0.0, period, points, endpoint=False)
     K = mesh_stiffness_at(pair, th, geo)
     z0 = geo.AC + rb1 * th
-    count = sum((z0 + i * geo.base_pitch <= geo.AD).astype(int) for i in range(int(math.ceil(geo.contact_ratio)) + 1))
+    count = sum(((z0 + i * geo.base_pitch <= geo.AD).astype(np.int_)
+                 for i in range(int(math.ceil(geo.contact_ratio)) + 1)), start=np.zeros(th.shape, dtype=np.int_))
     cn = np.abs(cn)
     for arr in (th, K, count, cn):  # shared by every caller of the cache
         arr.flags.writeable = False

@@ -648,7 +648,7 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     if "estimate" in keys and "estimate_error" in keys:
         raise InputError("--vary estimate and estimate_error set the same thing: give one", field="estimate")
     n = _count(varies, points, grid)
-    if n > SWEEP_RUNS.high:
+    if n > SWEEP_RUNS.upper:
         raise InputError(f"the grid has {n} runs: expected at most {SWEEP_RUNS.high:.0f}; use fewer points per key "
                          f"(--runs) or fewer keys", field="runs")
     check_memory(n, grid=grid, keys=len(varies), precision=precision)
@@ -803,7 +803,7 @@ def run_batch(runs: Sequence[Run], *, precision: bool = False) -> list[tuple[Run
         finally:
             if shared:
                 ctrl.set_backlash(old)  # type: ignore[union-attr]
-        out.append((res, iso))  # type: ignore[arg-type]
+        out.append((res, iso))
     return out
 
 

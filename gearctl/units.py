@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+from collections.abc import Mapping
 from typing import Any
 
 from .errors import InputError
@@ -76,6 +77,13 @@ class Spec:
         """Return ``value`` as a float if it is allowed, else raise :class:`InputError` naming ``name``."""
         return check_number(name, value, self.meta())
 
+    @property
+    def upper(self) -> float:
+        """``high``, for a spec that has one (code that computes with the bound); TypeError for an unbounded one."""
+        if self.high is None:
+            raise TypeError(f"the spec of {self.doc} has no upper bound")
+        return self.high
+
     def rule(self) -> str:
         """The allowed range in words with the unit, e.g. ``"0 <= value <= 0.01 [m], either 0 or at least 1e-09"``."""
         return describe_rule(self.meta())
@@ -123,7 +131,7 @@ def quantity(
     return spec.field(default=default, optional=optional)
 
 
-def describe_range(meta: dict[str, Any]) -> str:
+def describe_range(meta: Mapping[str, Any]) -> str:
     """Say the allowed range of a field in words, e.g. ``"a number with 0 < value < 0.5"``."""
     lo, hi = meta.get("low"), meta.get("high")
     kind = "a whole number" if meta.get("integer") else "a number"
@@ -140,7 +148,7 @@ def describe_range(meta: dict[str, Any]) -> str:
     return f"{prefix}{''.join(parts)}{inf}"
 
 
-def describe_rule(meta: dict[str, Any]) -> str:
+def describe_rule(meta: Mapping[str, Any]) -> str:
     """The allowed range in words with the unit and any floor, e.g. ``"0 <= value < 0.01 [m], either 0 or at
     least 1e-09 [m]"`` (the text after "expected" in an error message)."""
     unit = "" if meta["unit"] == "1" else f" [{meta['unit']}]"
@@ -156,7 +164,7 @@ def field_unit(cls: type, name: str) -> str:
     raise KeyError(name)
 
 
-def check_number(name: str, value: Any, meta: dict[str, Any]) -> float:
+def check_number(name: str, value: Any, meta: Mapping[str, Any]) -> float:
     """Check one value against field metadata; return it as a float.
 
     Raises

@@ -234,10 +234,10 @@ def run_compiled(run: Run) -> RunResult:
     try:
         ctrl = design_controller(run.design)
     except GearctlError:
-        return execute(run)  # type: ignore[return-value]
+        return execute(run)
     if type(run.reference) is not Reference or not _runs_in_c(ctrl):
-        return execute(run)  # type: ignore[return-value]
-    return execute_controller(run, ctrl, simulate=simulate_compiled)  # type: ignore[return-value]
+        return execute(run)
+    return execute_controller(run, ctrl, simulate=simulate_compiled)
 
 
 def _runs_in_c(ctrl: Controller) -> bool:

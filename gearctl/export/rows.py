@@ -122,7 +122,7 @@ class _Recorder(Controller):
         self.us: list[float] = []
 
     @property
-    def solve_times(self) -> list[float]:  # type: ignore[override]
+    def solve_times(self) -> list[float]:
         return self.inner.solve_times
 
     @solve_times.setter
@@ -130,7 +130,7 @@ class _Recorder(Controller):
         pass
 
     @property
-    def fallbacks(self) -> list[dict[str, Any]]:  # type: ignore[override]
+    def fallbacks(self) -> list[dict[str, Any]]:
         return self.inner.fallbacks
 
     @fallbacks.setter
@@ -138,7 +138,7 @@ class _Recorder(Controller):
         pass
 
     @property
-    def overruns(self) -> int:  # type: ignore[override]
+    def overruns(self) -> int:
         return getattr(self.inner, "overruns", 0)
 
     @overruns.setter
