@@ -165,8 +165,16 @@ def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float =
     try:
         gains = PIDGains(kp=kp, ki=ki, kd=max(kd, 0.0), derivative_filter_hz=fd)
     except InputError as exc:  # a designed gain out of range: name the design keys and the model's inertia
+        designed = {"kp": kp, "ki": ki, "kd": kd, "derivative_filter_hz": fd}
+        if exc.field is None or exc.field not in designed or exc.rule is None:
+            raise
+        if exc.field == "derivative_filter_hz":  # the lead's pole, sqrt(alpha) x the crossover: no train changes it
+            raise InputError(f"bandwidth_hz = {bandwidth_hz:g} (phase_margin_deg = {phase_margin_deg:g}) needs "
+                             f"derivative_filter_hz = {fd:.4g}, {exc.rule.removeprefix('is ')} (the lead's pole "
+                             f"above the crossover): expected a lower bandwidth_hz or phase_margin_deg",
+                             field="bandwidth_hz") from None
         raise InputError(f"bandwidth_hz = {bandwidth_hz:g} (phase_margin_deg = {phase_margin_deg:g}) needs "
-                         f"{exc.field} = {dict(kp=kp, ki=ki, kd=kd)[exc.field]:.4g}, {exc.rule.removeprefix('is ')}, "
+                         f"{exc.field} = {designed[exc.field]:.4g}, {exc.rule.removeprefix('is ')}, "
                          f"on the model's rigid train (J_eq = {info.J_eq:.4g} kg m^2 at the motor from the gears and "
                          f"[servo] motor_inertia, load_inertia; gear ratio {info.N:.4g}): expected a lower "
                          f"bandwidth_hz or a lighter train", field="bandwidth_hz") from None
