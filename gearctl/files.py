@@ -186,7 +186,7 @@ def unknown_key(path: Path, table: str, key: str, known: Iterable[str], *, conte
     return InputError(f"{path}: unknown key {where}{context}: expected one of {', '.join(known)}{hint}", field=key)
 
 
-def build_dataclass(path: Path, cls: type, values: Mapping[str, tuple[Binding, Any]]) -> Any:
+def build_dataclass(path: Path, cls: type, values: Mapping[str, tuple[Binding | None, Any]]) -> Any:
     """Build ``cls(**values)``, restating a validation error with the file, table and key the user typed.
 
     Parameters

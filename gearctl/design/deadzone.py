@@ -734,7 +734,7 @@ class DeadzoneInverse(Controller):
         every few tens of ms, a 0.15 rad limit cycle where the PID held the step.)"""
         y1, y2 = self._y_hist
         self._y_hist = (y_motor, y1)
-        if y2 is None:
+        if y1 is None or y2 is None:  # y1 is given whenever y2 is (a shift register): the first two samples
             return
         dv = (y_motor - 2.0 * y1 + y2) / self.Ts  # motor speed change [rad/s]
         u_mean = 0.5 * (self._u_hist[0] + self._u_hist[1])

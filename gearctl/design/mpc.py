@@ -331,7 +331,7 @@ from numpy.typing import NDArray
 from ..build import CompileError, c_compiler, compile_disabled, shared_library
 from ..controller import ReferenceLike
 from ..errors import InputError, SolverError
-from ..files import Layout, build_dataclass, spec_values
+from ..files import Binding, Layout, build_dataclass, spec_values
 from ..limits import MAX_OUTPUT_BYTES, available_memory
 from ..params import FrictionLaw, Sensors
 from ..plant import Plant, input_matrix, mode_matrices
@@ -551,7 +551,8 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         ``[design]`` table is rejected by the registry: the MPC is tuned by its ``[weights]``.)
     """
     values = spec_values(path, spec, MPC_LAYOUT, kind="mpc")
-    vals = values.get(MPCSettings, {})
+    # the file's keys, and the values the design supplies (no binding: no key of the file)
+    vals: dict[str, tuple[Binding | None, Any]] = dict(values.get(MPCSettings, {}))
     vals.pop("_sample_time", None)  # the sample time is Ts (checked by the registry)
     if "solver" in vals:
         try:
@@ -579,11 +580,13 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
     else:
         scaled_smoothing = False
     settings = build_dataclass(path, MPCSettings, vals)
-    reading_error = None
+    reading_error: tuple[float, float] | None = None
     if sensors is not None:  # a count and the noise of each encoder (the gap the readings may show: gap_limit)
-        reading_error = tuple(2.0 * math.pi / cpr + _NOISE_SIGMAS * noise if cpr else _NOISE_SIGMAS * noise
-                              for cpr, noise in ((sensors.motor_encoder_cpr, sensors.motor_noise),
-                                                 (sensors.load_encoder_cpr, sensors.load_noise)))
+        def error(cpr: int | None, noise: float) -> float:
+            return 2.0 * math.pi / cpr + _NOISE_SIGMAS * noise if cpr else _NOISE_SIGMAS * noise
+
+        reading_error = (error(sensors.motor_encoder_cpr, sensors.motor_noise),
+                         error(sensors.load_encoder_cpr, sensors.load_noise))
     load_noise = load_std = None
     if sensors is not None and not file_noise:
         load_std = sensors.reading_std("load")
@@ -861,7 +864,9 @@ class _QP:
         self.x, self.lam_x, self.lam_a = np.zeros(n), np.zeros(n), np.zeros(m)
         self.cost, self.kkt = np.zeros(1), np.zeros(1)
         self.tol = _KKT_TOL[plugin]
-        self._dm: dict[tuple[int, int], Any] = {}  # CasADi path: H and A as DM, per pattern
+        self._dm: dict[tuple[int, int], tuple[Any, Any]] = {}  # CasADi path: H and A as DM, per pattern
+        self._h_dm: Any  # the pair of the pattern in use (set by set_matrices)
+        self._a_dm: Any
         self._muted = _MutedStdout() if plugin in _MUTED_PLUGINS else None
         self.compiled = False
         self.note = ""
@@ -1483,7 +1488,8 @@ class MPC(Controller):
             M = np.zeros((2 * n + 2, self.n_p))
             M[:n] = G
             M[n:2 * n, :6] = -sgn[:, None] * Fxi[:, :6] - Sxi[:, :6] / gb  # gap rows: minus s_free / b
-            if land_s is not None:  # rows scaled to O(1): the gap in units of b, the speed in b / Ts
+            # rows scaled to O(1): the gap in units of b, the speed in b / Ts
+            if land_s is not None and land_v is not None:
                 Af[n], Af[n + 1] = land_s[0] / self._b, land_v[0] * self.Ts / self._b
                 M[2 * n] = -land_s[1] / self._b
                 M[2 * n, 5] += 1.0 / self._b  # s at landing = p_new
@@ -1559,7 +1565,7 @@ class MPC(Controller):
         Lg_small = _kalman_gain(Ag, Gg, np.array([[v_small**2]]), Cg, np.array([[r_s**2]]))
         Gv = np.array([[0.0], [1.0]])
         Lg_big = _kalman_gain(Ag, Gv, np.array([[v_big**2]]), Cg, np.array([[r_s**2]]))
-        self._Lg = (tuple(float(v) for v in Lg_small[:, 0]), tuple(float(v) for v in Lg_big[:, 0]))
+        self._Lg = ((float(Lg_small[0, 0]), float(Lg_small[1, 0])), (float(Lg_big[0, 0]), float(Lg_big[1, 0])))
         self._impact_innovation = 5.0 * r_s + 1e-3 * self._b
         self._flicker_innovation = _FLICKER_STD * r_s  # about 7 counts of quantised encoders (a count: 3.5 std)
         self._flicker_return = 2.0 * r_s  # a flickering reading comes back to within this of where it was [m]
@@ -1570,7 +1576,7 @@ class MPC(Controller):
         n = self.N
         self.solve_times, self.fallbacks, self.statuses, self.step_times = [], [], [], []
         self.overruns = 0
-        self._z = None  # observer state [phi, omega, s, v, d]
+        self._z: NDArray[np.float64] | None = None  # observer state [phi, omega, s, v, d]
         self._flanks = [self._b, self._b]  # where the back (index 0) and front (1) flanks are, |s| [m]
         self._stall = [0.0, 0.0]  # where a landing stalled on each side, |s| [m] (0: none; see *Stalled landings*)
         self._overdue = 0  # samples in a row a landing has been due and the gap still floats
@@ -1640,7 +1646,8 @@ class MPC(Controller):
         m, b, tol = self.model, self._b, self._tol
         load = y_load is not None and self.uses_load_encoder
         note = None
-        if load and not abs(y_load) <= INPUT_LIMIT:  # a missing load reading (also NaN): the motor encoder alone
+        # a missing load reading (also NaN): the motor encoder alone
+        if load and y_load is not None and not abs(y_load) <= INPUT_LIMIT:
             load, note = False, "load reading missing (not finite or beyond 1e12 rad): motor encoder alone"
         s_m = float(self._rb1 * y_motor - self._rb2 * y_load) if load else 0.0
         if load and not abs(s_m) <= self.gap_limit:  # the encoders disagree beyond any gap: the load reading is wrong
@@ -1964,6 +1971,7 @@ class MPC(Controller):
             self.step_times.append(time.perf_counter() - t_step)
             return u
         z = self._z
+        assert z is not None  # _observe set it (a latched fault returned above)
         tau = self._tau_load + float(z[4]) + self._planned_load_friction(i)
         # the QP sees angles from an origin, the reference at t: its data do not grow with the absolute angle
         # (at 1e4 rad a double's spacing is 1.8e-12 rad; the QP's gradient would otherwise sum terms of the size of

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -530,21 +531,23 @@ class LoopSettings:
 
 
 #: top-level keys every PID-based file has, and the PID's tables
-LOOP_KEYS = {"sample_time": (LoopSettings, "sample_time"), "feedback": (LoopSettings, "feedback"),
-             "feedforward": (LoopSettings, "feedforward"),
-             "friction_feedforward": (LoopSettings, "friction_feedforward")}
-PID_TABLES = {"design": {f.name: (PIDDesign, f.name) for f in dataclasses.fields(PIDDesign)},
-              "gains": {f.name: (PIDGains, f.name) for f in dataclasses.fields(PIDGains)}}
+LOOP_KEYS: dict[str, tuple[type, str]] = {
+    "sample_time": (LoopSettings, "sample_time"), "feedback": (LoopSettings, "feedback"),
+    "feedforward": (LoopSettings, "feedforward"), "friction_feedforward": (LoopSettings, "friction_feedforward")}
+PID_TABLES: dict[str, Mapping[str, tuple[type, str]]] = {
+    "design": {f.name: (PIDDesign, f.name) for f in dataclasses.fields(PIDDesign)},
+    "gains": {f.name: (PIDGains, f.name) for f in dataclasses.fields(PIDGains)}}
 #: The keys of a ``pid`` controller file and the settings fields they feed.
 LAYOUT: Layout = {"": LOOP_KEYS, **PID_TABLES}
 
-Values = dict[str, tuple[Binding | None, Any]]
+#: ``field -> (binding, value)`` of one settings dataclass, as :func:`~gearctl.files.spec_values` sorts a file.
+Values = Mapping[str, tuple[Binding, Any]]
 
 
-def restate(path: Path, exc: InputError, values: dict[type, Values]) -> InputError:
+def restate(path: Path, exc: InputError, values: Mapping[type, Values]) -> InputError:
     """An error raised by a design step, restated with the file and the key it came from."""
     for vals in values.values():
-        if exc.field in vals:
+        if exc.field is not None and exc.field in vals:
             b = vals[exc.field][0]
             msg = str(exc)
             if msg.startswith(f"{exc.field} = "):  # the message names the key already: name it as the file does
@@ -553,7 +556,7 @@ def restate(path: Path, exc: InputError, values: dict[type, Values]) -> InputErr
     return InputError(f"{path}: {exc}", field=exc.field, rule=exc.rule)
 
 
-def pid_from_values(path: Path, values: dict[type, Values], info: LoopInfo, loop: LoopSettings,
+def pid_from_values(path: Path, values: Mapping[type, Values], info: LoopInfo, loop: LoopSettings,
                     name: str) -> PID:
     """The PID of a file's ``[design]`` or ``[gains]`` (shared by every PID-based kind)."""
     Ts = loop.sample_time
