@@ -328,7 +328,8 @@ def loop_result(plant: Plant, controller: Controller, ref: ReferenceLike, kn: Ke
         **samples, event_log=kn.event_log, counts=kn.counts,
         solve_times=np.asarray(controller.solve_times, dtype=float),
         fallbacks=list(controller.fallbacks), plant=plant, controller=controller.describe(),
-        success=message == "ok", message=message, wall_time=wall, settle=ref.settle,
+        success=message == "ok", message=message, wall_time=wall,
+        settle=getattr(ref, "settle", 0.0),  # a reference of one's own (at, load_disturbance) need not have one
         overruns=getattr(controller, "overruns", 0),
     )
     if not res.success:
