@@ -50,11 +50,13 @@ import ctypes
 import dataclasses
 import functools
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
 
 from .build import c_compiler, cache_dir, compile_disabled, shared_library
 from .errors import InputError
@@ -146,9 +148,10 @@ STATE_FIELDS: tuple[tuple[str, str], ...] = (
     ("org", "double*"),  # the origin of the call under way (zeros between calls)
 )
 _EVENT_FIELDS = (("t", "double"), ("v", "double"), ("kind", "gc_int"), ("side", "gc_int"), ("where", "gc_int"))
-_CTYPES = {"double": ctypes.c_double, "gc_int": ctypes.c_int64, "int": ctypes.c_int,
-           "double*": ctypes.POINTER(ctypes.c_double), "gc_int*": ctypes.POINTER(ctypes.c_int64),
-           "int*": ctypes.POINTER(ctypes.c_int), "gc_event*": ctypes.c_void_p}
+_CTYPES: dict[str, type[ctypes._SimpleCData[Any]] | type[ctypes._Pointer[Any]]] = {
+    "double": ctypes.c_double, "gc_int": ctypes.c_int64, "int": ctypes.c_int,
+    "double*": ctypes.POINTER(ctypes.c_double), "gc_int*": ctypes.POINTER(ctypes.c_int64),
+    "int*": ctypes.POINTER(ctypes.c_int), "gc_event*": ctypes.c_void_p}
 
 
 def c_structs() -> str:
@@ -440,7 +443,7 @@ class Kernel:
     """
 
     plant: Plant
-    x0: np.ndarray
+    x0: ArrayLike
     dt: float
     rtol: float = 1e-9
     compiled: bool | None = None
@@ -514,6 +517,26 @@ class Kernel:
         self._slot = np.full(1 << (n + len(fshafts)), -1, np.int64)
         self._pool_cap = 0
         self._n_slots = 0
+        # the pattern pool (allocated and grown by _ensure_pattern; the C struct points at them)
+        self._A: NDArray[np.float64]
+        self._Phi: NDArray[np.float64]
+        self._Gam: NDArray[np.float64]
+        self._h: NDArray[np.float64]
+        self._rho: NDArray[np.float64]
+        self._lv_n: NDArray[np.int64]
+        self._lv_mult: NDArray[np.int64]
+        self._lv_Phi: NDArray[np.float64]
+        self._lv_Gam: NDArray[np.float64]
+        self._lv_E: NDArray[np.float64]
+        self._lv_e4: NDArray[np.float64]
+        self._fm_n: NDArray[np.int64]
+        self._fm_lam: NDArray[np.float64]
+        self._fm_wt: NDArray[np.float64]
+        self._fm_W: NDArray[np.float64]
+        self._fm_V: NDArray[np.float64]
+        self._M3: NDArray[np.float64]
+        self._lv_dec: NDArray[np.float64]
+        self._rig: NDArray[np.float64]
         self._long = bool(self.exact and n >= 2 and (LONG_STEPS if self.long_steps is None else self.long_steps))
         self._long_info: dict[int, _LongData | None] = {}
         # -- tolerances of the nonlinear solver: 1e-9 of the backlash (or of 1 um) in s, carried to the
@@ -572,7 +595,7 @@ class Kernel:
         self._chunks: list[np.ndarray] = []
         self._n_recorded = 0
         self.dropped_events = 0
-        self._fn = None
+        self._fn: Callable[[Any, Any], int] | None = None  # gc_step, where the library is loaded
         if lib is not None:
             self._fn = lib.gc_step
             self._pp, self._sp = ctypes.byref(prm), ctypes.byref(st)
@@ -750,11 +773,11 @@ class Kernel:
         """Contact mode of every stage for state ``x`` (``no_pull`` unloaded overlap as ±2 for the exact solver)."""
         p = self.plant
         w = self.nsh
-        x = self._relative(x)
+        xr = self._relative(x)
         out = []
         for i, st in enumerate(p.stages):
-            s = st.rb1 * x[i] - st.rb2 * x[i + 1]
-            v = st.rb1 * x[w + i] - st.rb2 * x[w + i + 1]
+            s = st.rb1 * xr[i] - st.rb2 * xr[i + 1]
+            v = st.rb1 * xr[w + i] - st.rb2 * xr[w + i + 1]
             b = st.backlash
             side = 1 if (s > b or (b == 0.0 and s == 0.0 and v >= 0.0)) else (
                 -1 if (s < -b or (b == 0 and s == 0)) else 0)
@@ -772,15 +795,15 @@ class Kernel:
     def _hold_torque(self, j: int, x: np.ndarray, u1: float, u2: float) -> float:
         """Torque shaft ``j`` needs from friction to stay at rest (everything but Coulomb's) [N m]."""
         p, w = self.plant, self.nsh
-        x = self._relative(x)
-        T = -p.shafts[j].d * x[w + j] + (u1 if j == 0 else 0.0) + (u2 if j == self.ns else 0.0)
+        xr = self._relative(x)
+        T = -p.shafts[j].d * xr[w + j] + (u1 if j == 0 else 0.0) + (u2 if j == self.ns else 0.0)
         modes = self._mode
         if j >= 1 and modes[j - 1] in (1, -1):
             fc, f0 = force_coefficients(p, j - 1, int(modes[j - 1]))
-            T += p.stages[j - 1].rb2 * (float(fc @ x) + f0)
+            T += p.stages[j - 1].rb2 * (float(fc @ xr) + f0)
         if j < self.ns and modes[j] in (1, -1):
             fc, f0 = force_coefficients(p, j, int(modes[j]))
-            T -= p.stages[j].rb1 * (float(fc @ x) + f0)
+            T -= p.stages[j].rb1 * (float(fc @ xr) + f0)
         return T
 
     def _classify_slip(self, u1: float, u2: float) -> None:
@@ -836,6 +859,7 @@ class Kernel:
         from C) both end their calls here, so the event budget and the patterns are handled in one place.
         """
         st = self._st
+        fn = cast("Callable[[Any, Any], int]", self._fn)  # a compiled call ended here: gc_step is loaded
         budget = self._budget(st.t_end, st.n_events)  # what this call could locate when it started
         used = 0
         while True:
@@ -849,7 +873,7 @@ class Kernel:
             elif status != _BUFFER_FULL:
                 return status
             self._prm.max_events = max(min(budget - used, self.max_events), 0)
-            status = self._fn(self._pp, self._sp)
+            status = fn(self._pp, self._sp)
             self._prm.max_events = self.max_events
 
     def _drain(self, n: int) -> None:
@@ -875,6 +899,7 @@ class Kernel:
         st.u1, st.u2 = u1, u2
         m, status = 0, 0
         done = ctypes.c_int64(0)
+        lib = cast(ctypes.CDLL, self._lib)  # called only where gc_step, and so the library, is loaded
         while m < n:
             if self._fn is None:
                 status = self.advance(u1, u2, dt)
@@ -886,7 +911,7 @@ class Kernel:
             budget = self._budget(st.t + dt * (n - m))
             self._prm.max_events = budget
             before = self._dys.copy()
-            status = self._lib.gc_run(self._pp, self._sp, dt, n - m, xs[m:].ctypes.data, modes[m:].ctypes.data,
+            status = lib.gc_run(self._pp, self._sp, dt, n - m, xs[m:].ctypes.data, modes[m:].ctypes.data,
                                       ctypes.byref(done))
             k = int(done.value)
             if k:  # d_ys changes only at a contact onset, and only the last interval of a call has events
@@ -1482,7 +1507,11 @@ class _Mirror:
         kn, nx = self.kn, self.nx
         guard = 0
         cached, have_dx = False, False
-        a = gam_a = dx0 = dx1 = None
+        # set on the first pass (cached and have_dx start False)
+        a: list[float]
+        gam_a: list[float]
+        dx0: list[float]
+        dx1: list[float]
         fns: list[_EvFun] = []
         L: dict[str, Any] | None = None  # long steps: per pattern and affine term (see long_try in _kernel.c)
         lcur, wait, backoff = _LMAX, 0, 0
