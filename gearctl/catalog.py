@@ -181,11 +181,11 @@ def _train_model(path: Path, data: dict[str, Any], overrides: Mapping[str, Any])
         for key, value in content.items():
             if key not in STAGE_KEYS:
                 raise unknown_key(path, label, key, STAGE_KEYS)
-            cls, fname = STAGE_KEYS[key]
+            owner, fname = STAGE_KEYS[key]
             v = value
             if key.endswith("_deg"):
                 v = degrees_to_radians(path, label, key, value)
-            per[cls][fname] = (Binding(label, key, value), v)
+            per[owner][fname] = (Binding(label, key, value), v)
         _apply_overrides(path, per, {k: v for k, v in overrides.items() if k not in _servo_sensor_fields()}, label)
         where = {f: f"[{label}] {k}" for k, (_, f) in STAGE_KEYS.items()}
         _missing(path, GearPair, per[GearPair], where)

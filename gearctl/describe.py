@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .catalog import GearModel, load_controller, load_model
 from .closedloop import ClosedLoopResult, simulate_closed_loop
+from .controller import ReferenceLike
 from .design.base import Controller
 from .design.pid import PID, PIDGains, gap_loop_pole
 from .errors import InputError
@@ -258,7 +259,7 @@ def _controller_response(gains: PIDGains, Ts: float, omega: NDArray[np.float64])
     s = 1j * omega
     if Ts == 0.0:
         wf = 2 * math.pi * gains.derivative_filter_hz
-        return gains.kp + gains.ki / s + gains.kd * s / (1 + s / wf)
+        return np.asarray(gains.kp + gains.ki / s + gains.kd * s / (1 + s / wf), dtype=np.complex128)
     kp, kiT, kdT, a = gains.discrete(Ts)
     z = np.exp(s * Ts)
     C = kp + kiT / (z - 1) + kdT * (z - 1) / (z - a)
@@ -544,7 +545,7 @@ def _dominant_pole(plant: Plant, gains: PIDGains, Ts: float, feedback: str, kapp
                    c_eff: float) -> tuple[float, float]:
     """Growth rate [1/s] and frequency [Hz] of the least damped pole of the linear loop with the element
     replaced by a spring ``kappa`` and damper ``c_eff`` (exact ZOH discretisation for ``Ts > 0``)."""
-    sys = contact_mode_model(dataclasses.replace(plant, k=kappa, c=c_eff))
+    sys = contact_mode_model(dataclasses.replace(plant, k=kappa, c=c_eff))  # type: ignore[call-arg]  # Plant(**pair)
     G = sys[1, 0] if feedback == "load" else sys[0, 0] * (1.0 / plant.gear_ratio)
     G = ct.ss(G.A, G.B, G.C, G.D)
     if Ts > 0:
@@ -737,7 +738,7 @@ class _Oversampled(Controller):
         self._i, self._u = 0, 0.0
         self.solve_times, self.fallbacks = [], []
 
-    def step(self, t: float, y_motor: float, y_load: float | None, ref: Reference) -> float:
+    def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
         if self._i % self.factor == 0:
             self._u = self.inner.step(t, y_motor, y_load, ref)
         self._i += 1
@@ -1020,11 +1021,12 @@ def describe(model: str | Path | GearModel, controller: str | Path, *, duration:
     stable = next((c for c in pred if c["stable"]), None)
     have = stable is not None and sim["limit_cycle"]
     b = plant.backlash
+    cyc: dict[str, Any] = stable if stable is not None else {}  # (have is False without a stable cycle)
     agreement = {
-        "amplitude_ratio": _ratio(stable["amplitude"], sim["amplitude"]) if have else None,
-        "frequency_ratio": _ratio(stable["frequency_hz"], sim["frequency_hz"]) if have else None,
-        "load_amplitude_ratio": _ratio(stable["load_amplitude"], sim["load_amplitude"]) if have else None,
-        "penetration_ratio": _ratio(stable["penetration"], sim["amplitude"] / b - 1) if have else None,
+        "amplitude_ratio": _ratio(cyc["amplitude"], sim["amplitude"]) if have else None,
+        "frequency_ratio": _ratio(cyc["frequency_hz"], sim["frequency_hz"]) if have else None,
+        "load_amplitude_ratio": _ratio(cyc["load_amplitude"], sim["load_amplitude"]) if have else None,
+        "penetration_ratio": _ratio(cyc["penetration"], sim["amplitude"] / b - 1) if have else None,
         "impact_amplitude_ratio": _ratio(imp[0]["amplitude"], sim["amplitude"]) if have and imp else None,
         "impact_frequency_ratio": _ratio(imp[0]["frequency_hz"], sim["frequency_hz"]) if have and imp else None,
     }

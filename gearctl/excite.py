@@ -281,7 +281,7 @@ def write_reference(path: str | Path, program: ExcitationProgram, *, sample_time
     T = program.duration if duration is None else duration
     n = int(round(T / sample_time)) + 1
     check_output_size(n, 4, field="duration", fix="a shorter --duration")
-    t = np.arange(n) * sample_time
+    t = np.arange(n, dtype=np.float64) * sample_time
     r, v, a = program.at(t)
     cols: list[NDArray[np.float64]] = [t, r, v, a]
     path = Path(path)

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
 from .errors import InputError
@@ -64,7 +64,7 @@ def _rhs_factory(p: Plant) -> Callable[..., Callable[[float, NDArray[np.float64]
 
 def reference_solution(
     plant: Plant,
-    x0: Sequence[float],
+    x0: ArrayLike,
     t_eval: NDArray[np.float64],
     *,
     torque: tuple[float, float] | Callable[[int, NDArray[np.float64]], tuple[float, float]] = (0.0, 0.0),

@@ -326,9 +326,9 @@ class Engine:
             broken = {w: v for w, v in ids.items() if isinstance(v, BaseException)}
             if broken:
                 self.close()
-                w, exc = sorted(broken.items())[0]
+                w, err = sorted(broken.items())[0]
                 raise InputError(f"the worker{'s' if len(broken) > 1 else ''} {', '.join(sorted(broken))} of "
-                                 f"{self.where} cannot run gearctl ({w}: {type(exc).__name__}: {exc})",
+                                 f"{self.where} cannot run gearctl ({w}: {type(err).__name__}: {err})",
                                  field="scheduler")
             other = {w: v for w, v in ids.items() if v != code_id()}
             if other:

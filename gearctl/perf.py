@@ -14,10 +14,11 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .catalog import load_model
 from .kernel import Kernel
@@ -28,6 +29,11 @@ from .simulate import simulate
 __all__ = ["sim_speed", "pd_gains", "mpc_timing", "bench_wall_time", "loop_speed", "standstill_cost", "train_speed"]
 
 
+#: A sampled control law ``f(i, x) -> (xi_motor, xi_load)``; ``x`` is the state, a list (the kernel's loop) or an
+#: array (the reference solutions).
+SampledLaw = Callable[[int, Sequence[float] | NDArray[np.float64]], tuple[float, float]]
+
+
 def pd_gains(plant: Plant, bandwidth_hz: float = 20.0) -> tuple[float, float]:
     """Motor-side PD gains ``(Kp, Kd)`` [N m/rad, N m s/rad] for a rigid-body loop of the given bandwidth."""
     N = plant.gear_ratio
@@ -36,12 +42,12 @@ def pd_gains(plant: Plant, bandwidth_hz: float = 20.0) -> tuple[float, float]:
     return J * wc**2, 2 * 0.7 * J * wc
 
 
-def _pd_controller(plant: Plant, Ts: float) -> Callable[[int, np.ndarray], tuple[float, float]]:
+def _pd_controller(plant: Plant, Ts: float) -> SampledLaw:
     Kp, Kd = pd_gains(plant)
     N = plant.gear_ratio
     lim = plant.torque_limit
 
-    def ctrl(i: int, x: np.ndarray) -> tuple[float, float]:
+    def ctrl(i: int, x: Sequence[float] | NDArray[np.float64]) -> tuple[float, float]:
         r = 0.1 * math.sin(2 * math.pi * 1.0 * i * Ts) * N  # motor-side reference of a 0.1 rad, 1 Hz load sine
         u = Kp * (r - x[0]) - Kd * x[2]
         return (min(max(u, -lim), lim), 0.0)
@@ -50,7 +56,7 @@ def _pd_controller(plant: Plant, Ts: float) -> Callable[[int, np.ndarray], tuple
 
 
 def _run_gearctl(plant: Plant, x0: np.ndarray, n: int, dt: float,
-                 ctrl: Callable[[int, np.ndarray], tuple[float, float]] | None) -> np.ndarray:
+                 ctrl: SampledLaw | None) -> np.ndarray:
     if ctrl is None:  # open loop: the user's path, one kernel call for the whole run
         return simulate(plant, x0, n * dt, dt=dt).x
     kn = Kernel(plant, x0, dt=dt)
@@ -66,7 +72,7 @@ def _run_gearctl(plant: Plant, x0: np.ndarray, n: int, dt: float,
 
 
 def _run_python_control(plant: Plant, x0: np.ndarray, n: int, dt: float,
-                        ctrl: Callable[[int, np.ndarray], tuple[float, float]] | None,
+                        ctrl: SampledLaw | None,
                         solve_ivp_kwargs: dict[str, Any]) -> np.ndarray:
     import control as ct
 
@@ -128,7 +134,7 @@ def sim_speed(scenario: str = "free", *, duration: float | None = None,
     # reference (independent: solve_ivp + events, tight) over the first half second at most: errors are
     # compared there, speed over the whole run
     n_ref = min(max(npc, 1), n, round(0.5 / dt)) if ctrl is not None else n
-    ref, _ = reference_solution(plant, x0, np.arange(max(n_ref, npc) + 1) * dt,
+    ref, _ = reference_solution(plant, x0, np.arange(max(n_ref, npc) + 1, dtype=np.float64) * dt,
                                 torque=ctrl if ctrl is not None else (0.0, 0.0), rtol=1e-12)
     s_ref = plant.rb1 * ref[0] - plant.rb2 * ref[1]
 

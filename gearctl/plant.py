@@ -28,7 +28,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputError, short_repr
 from .geometry import pair_geometry
@@ -630,7 +630,7 @@ def event_table(plant: Plant) -> dict[str, NDArray[Any]]:
 
 
 def mesh_force(plant: Plant, x: NDArray[np.float64], modes: NDArray[np.int_],
-               d_ys: NDArray[np.float64] | float = 0.0) -> NDArray[np.float64]:
+               d_ys: ArrayLike = 0.0) -> NDArray[np.float64]:
     """Contact force of every stage along its line of action [N], signed as the front flank's.
 
     Parameters

@@ -478,7 +478,8 @@ def plot_sweep_compare(comparison: dict[str, Any]) -> Figure:
     ax.set(xlabel=xlabel, ylabel="RMS error [urad]", yscale="log", title="error against the shared key")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    ratios = np.concatenate([d["ratio"][np.isfinite(d["ratio"])].ravel() for d in maps.values()]) if maps else []
+    ratios = (np.concatenate([d["ratio"][np.isfinite(d["ratio"])].ravel() for d in maps.values()]) if maps
+              else np.zeros(0))
     span = float(np.max(np.abs(np.log10(ratios)))) if len(ratios) else 1.0
     span = max(span, 0.05)
     for ax, (c, d) in zip(axs[1:], maps.items(), strict=True):

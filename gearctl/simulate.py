@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputError, SimulationError
 from .kernel import EVENT_DTYPE, EventKind, Kernel
@@ -240,7 +240,7 @@ def _torque_pair(value: Any, t: float) -> tuple[float, float]:
 
 def simulate(
     plant: Plant,
-    x0: Sequence[float],
+    x0: ArrayLike,
     duration: float,
     *,
     torque: tuple[float, float] | Callable[[float, NDArray[np.float64]], tuple[float, float]] = (0.0, 0.0),

@@ -117,7 +117,7 @@ _ESTIMATE = Spec(unit="m", doc="backlash estimate of the controller", low=BACKLA
                  high_open=BACKLASH.high_open, floor=BACKLASH.floor)  # the floor too: 1e-12 failed every run
 _ESTIMATE_ERROR = Spec(unit="1", doc="relative error of the backlash estimate against the true backlash",
                        low=-1.0, high=10.0)
-_DISTS = {"uniform": 2, "loguniform": 2, "normal": (2, 4), "lognormal": (2, 4)}
+_DISTS: dict[str, int | tuple[int, ...]] = {"uniform": 2, "loguniform": 2, "normal": (2, 4), "lognormal": (2, 4)}
 _NUM = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?inf)\s*(x?)\s*$")
 
 
@@ -280,9 +280,9 @@ def _parse_vary_on(text: str, model: GearModel, spec: Mapping[str, Any]) -> Vary
         if _KEYS[key]["integer"]:
             raise InputError(f"--vary {text}: {exc}; a whole-number key is not scaled: give its values", field=key,
                              rule=exc.rule) from None
-        spec = text.partition("=")[2].strip()
-        dist = re.fullmatch(r"([a-z]+)\s*\((.*)\)", spec)
-        tokens = [t.strip() for t in re.split(r"[,:]", dist.group(2) if dist else spec)]
+        values = text.partition("=")[2].strip()
+        dist = re.fullmatch(r"([a-z]+)\s*\((.*)\)", values)
+        tokens = [t.strip() for t in re.split(r"[,:]", dist.group(2) if dist else values)]
         for j, tok in enumerate(tokens):
             if dist and dist.group(1) == "lognormal" and j == 1:  # the log-std is no value of the key
                 continue
@@ -439,9 +439,10 @@ def parse_vary(text: str, nominal: Callable[[str], float | None] | Mapping[str, 
         return lazy["v"]
 
     def num(tok: str, *, relative: bool = True, allow_inf: bool = False) -> float:
-        needs = bool(_NUM.match(tok) and _NUM.match(tok).group(2))  # type: ignore[union-attr]
+        needs = bool((match := _NUM.match(tok)) and match.group(2))
         return _number(tok, where, nom() if needs else None, key, relative=relative, allow_inf=allow_inf)
 
+    args: tuple[float, ...]  # (a, b), (m, s, lo, hi) or the list's values
     dist = re.fullmatch(r"([a-z]+)\s*\((.*)\)", spec)
     if dist:
         name, body = dist.group(1), dist.group(2).split(",")
@@ -452,7 +453,8 @@ def parse_vary(text: str, nominal: Callable[[str], float | None] | Mapping[str, 
             hint = f"; did you mean {close[0]}(...)?" if close else ""
             raise InputError(f"{where}: unknown distribution {name!r}: expected uniform(a,b), loguniform(a,b), "
                              f"normal(mean,std[,low,high]) or lognormal(median,log_std[,low,high]){hint}", field=key)
-        counts = _DISTS[name] if isinstance(_DISTS[name], tuple) else (_DISTS[name],)
+        arity = _DISTS[name]
+        counts = arity if isinstance(arity, tuple) else (arity,)
         if len(body) not in counts:
             want = " or ".join(str(c) for c in counts)
             raise InputError(f"{where}: {name} takes {want} numbers, got {len(body)}", field=key)
@@ -670,7 +672,7 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     b_nominal = nominal_model.stages[0].pair.backlash if nominal_model.n_stages == 1 else None
     err_text = next((v.text for v in varies if v.key == "estimate_error"), "")
     for i in range(n):
-        params = {}
+        params: dict[str, float] = {}  # a Scale where the key scales each stage's value
         for v in varies:
             x = columns[v.key][i]
             if v.scale:  # a factor of each stage's value: checked on the stages, by perturb_model below

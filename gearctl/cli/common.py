@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..errors import InputError
 from ..files import write_whole
@@ -109,7 +110,11 @@ def dump_json(obj: Any) -> str:
 CSV_STDOUT: Any = None
 
 
-def _write_rows(fh: Any, header: Sequence[str], columns: Callable[[int, int], Iterable[Sequence[Any]]], n: int,
+#: ``columns(i0, i1)``: the columns of rows ``i0..i1``, each a list of cells (written as they are) or numbers.
+Columns = Callable[[int, int], Iterable[Sequence[Any] | NDArray[Any]]]
+
+
+def _write_rows(fh: Any, header: Sequence[str], columns: Columns, n: int,
                 chunk: int) -> None:
     w = csv.writer(fh, lineterminator="\n")  # Unix lines: `cut` and `awk` see no \r
     w.writerow(header)
@@ -120,7 +125,7 @@ def _write_rows(fh: Any, header: Sequence[str], columns: Callable[[int, int], It
         w.writerows(zip(*text, strict=True))
 
 
-def write_csv_stream(path: str, header: Sequence[str], columns: Callable[[int, int], Iterable[Sequence[Any]]],
+def write_csv_stream(path: str, header: Sequence[str], columns: Columns,
                      n: int, *, chunk: int = 20_000) -> None:
     """Write a CSV in chunks of rows: ``columns(i0, i1)`` gives the columns of rows ``i0..i1``.
 

@@ -18,7 +18,8 @@ from __future__ import annotations
 import ctypes
 import math
 import time
-from typing import Any
+import typing
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -50,12 +51,12 @@ _I64 = ("n", "i", "phase", "pending", "last", "status", "diverged", "use_load", 
 
 
 class _Loop(ctypes.Structure):
-    _fields_ = ([(f, ctypes.c_int64) for f in _I64]
-                + [(f, ctypes.c_double) for f in ("Ts", "lim", "load_torque", "div_limit", "q_m", "q_l", "noise_m",
-                                                  "noise_l")]
-                + [("z", ctypes.c_void_p), ("k_per", ctypes.c_int64), ("zi_l", ctypes.c_int64),
-                   ("ref", ctypes.c_void_p), ("rows", ctypes.c_void_p)]
-                + [(f, ctypes.c_void_p) for f in ("xs", "modes", "u", "cmd", "ym", "yl")])
+    _fields_: ClassVar[list[tuple[str, type[ctypes._SimpleCData[Any]]]]] = [
+        *[(f, ctypes.c_int64) for f in _I64],
+        *[(f, ctypes.c_double) for f in ("Ts", "lim", "load_torque", "div_limit", "q_m", "q_l", "noise_m", "noise_l")],
+        ("z", ctypes.c_void_p), ("k_per", ctypes.c_int64), ("zi_l", ctypes.c_int64), ("ref", ctypes.c_void_p),
+        ("rows", ctypes.c_void_p),
+        *[(f, ctypes.c_void_p) for f in ("xs", "modes", "u", "cmd", "ym", "yl")]]
 
 
 _LIB: Any = False
@@ -177,7 +178,8 @@ def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: fl
     L.rows = rows.ctypes.data
     L.xs, L.modes = xs.ctypes.data, modes.ctypes.data
     L.u, L.cmd, L.ym, L.yl = u.ctypes.data, cmd.ctypes.data, ym.ctypes.data, yl.ctypes.data
-    kstep = ctypes.cast(kn._lib.gc_step, ctypes.c_void_p).value
+    klib = typing.cast(ctypes.CDLL, kn._lib)  # compiled=True: the kernel's library is loaded
+    kstep = ctypes.cast(klib.gc_step, ctypes.c_void_p).value
     args = (kstep, ctypes.addressof(kn._prm), ctypes.addressof(kn._st), ctypes.addressof(L),
             ctypes.addressof(params), state.ctypes.data)
     wall0 = time.perf_counter()
