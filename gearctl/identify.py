@@ -197,14 +197,14 @@ def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
         raise _fail(path, f"line {header_line}", f"is not a CSV header ({exc})", "log") from None
     optional = OPTIONAL_COLUMNS if load_encoder else ()
     wanted = [c for c in REQUIRED_COLUMNS + optional if c in names]
-    for c in wanted:
-        if names.count(c) > 1:
-            raise _fail(path, f"line {header_line}", f"column {c!r} appears twice in the header", c)
-    for c in REQUIRED_COLUMNS:
-        if c not in names:
+    for name in wanted:
+        if names.count(name) > 1:
+            raise _fail(path, f"line {header_line}", f"column {name!r} appears twice in the header", name)
+    for name in REQUIRED_COLUMNS:
+        if name not in names:
             got = ", ".join(repr(x) for x in names[:8])
-            raise _fail(path, f"line {header_line}", f"missing column {c!r} (the header has {got}): expected t [s], "
-                        f"torque [N m], theta1 [rad] and optionally theta2 [rad]", c)
+            raise _fail(path, f"line {header_line}", f"missing column {name!r} (the header has {got}): expected t [s], "
+                        f"torque [N m], theta1 [rad] and optionally theta2 [rad]", name)
     # '#' comment lines are skipped anywhere (a logger's note in the middle of the data); line numbers stay the file's
     numbered = [(j, r) for j, r in enumerate(lines[i + 1:], start=header_line + 1)
                 if r.strip() and not r.lstrip().startswith("#")]
@@ -735,7 +735,7 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
         definite."""
         for f in (1.0, 0.5, 0.25, 0.125, 0.0):
             try:
-                return np.linalg.cholesky(G - f * E)
+                return np.asarray(np.linalg.cholesky(G - f * E), dtype=np.float64)
             except np.linalg.LinAlgError:
                 continue
         # G = I + sum w A^T A has every eigenvalue >= 1, but rounding can lose that where a block's rows weigh 1e20
@@ -790,7 +790,7 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
         cov[np.diag_indices_from(cov)] = sd_f**2
         w, V = np.linalg.eigh(0.5 * (cov + cov.T))  # positive semi-definite whatever the rounding
         cov = (V * np.maximum(w, 0.0)) @ V.T
-    return theta, cov
+    return theta, np.asarray(cov, dtype=np.float64)  # (numpy's stubs: inv, @ of floating)
 
 
 #: The prior's spread is widened by this factor to see how far the prior pulls the estimate (:func:`_with_prior_pull`)
@@ -933,7 +933,8 @@ class _Problem:
         self.uf = _smooth(self.ubar, _hann(self.W))
         self.ug = _smooth(self.ubar, _hann(self.Wg))
         self.m = _Encoder(log.theta1, Ts, self.W, self.Wg)
-        self.l = _Encoder(log.theta2, Ts, self.W, self.Wg) if encoders == "motor+load" else None
+        theta2 = log.theta2 if encoders == "motor+load" else None  # (identify refuses motor+load without the column)
+        self.l = _Encoder(theta2, Ts, self.W, self.Wg) if theta2 is not None else None
         self.before = max(1, int(round(WINDOW_BEFORE / Ts)))
         self.after = max(2, int(round(WINDOW_AFTER / Ts)))
         self.settle = max(1, int(round(SETTLE_TIME / Ts)))
@@ -1050,13 +1051,13 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
     J_model = pl.J1 + pl.J2 / p.N**2
     lost = pl.lost_motion  # the model's [rad at the load]
     # the load's travel, as either encoder reads it (swapped columns must not hide the check)
-    travel = max(float(np.ptp(lg.theta1)) / p.N, float(np.ptp(lg.theta2)) if p.l is not None else 0.0)
+    travel = max(float(np.ptp(lg.theta1)) / p.N, float(np.ptp(p.l.raw)) if p.l is not None else 0.0)
     if p.l is not None and travel >= RATIO_TRAVEL * lost:
         # over a travel of many lost motions the load follows the motor at 1 / N whatever the gap does: the
         # least-squares slope of N theta2 on theta1 (a median of N theta2' / theta1' over the samples where the motor
         # moves read 0 on a PRBS log whose motor dithers in the gap while friction holds the load)
         x = lg.theta1 - float(np.mean(lg.theta1))
-        ratio = p.N * float(np.dot(x, lg.theta2 - float(np.mean(lg.theta2)))) / float(np.dot(x, x))
+        ratio = p.N * float(np.dot(x, p.l.raw - float(np.mean(p.l.raw)))) / float(np.dot(x, x))
         if not 1 / RATIO_FACTOR <= ratio <= RATIO_FACTOR:
             hint = (" (theta1 and theta2 swapped?)" if abs(math.log(max(ratio, 1e-300) / p.N**2)) < math.log(1.5) else
                     " (a dead load encoder?)" if abs(ratio) < 0.05 else _unit_hint(ratio, RATIO_HINTS))
@@ -1099,7 +1100,7 @@ def _episodes(p: _Problem) -> tuple[float, float, list[tuple[int, int, int]]]:
 
     pl = p.nominal
     assert p.l is not None
-    s = pl.rb1 * p.log.theta1 - pl.rb2 * p.log.theta2  # type: ignore[operator]
+    s = pl.rb1 * p.log.theta1 - pl.rb2 * p.log.theta2
     # a 5-sample median removes an impact's spike at 1 kHz and faster; at slower sampling a loop's contacts may last
     # 3-4 samples (500 Hz, a loop that floats in the gap between brief contacts): 3 samples there
     sm = median_filter(s, size=5 if p.Ts <= 1.001e-3 else 3, mode="nearest")
@@ -1193,7 +1194,7 @@ def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[i
     pl = p.nominal
     ld = p.l
     assert ld is not None
-    s = pl.rb1 * p.log.theta1 - pl.rb2 * p.log.theta2  # type: ignore[operator]
+    s = pl.rb1 * p.log.theta1 - pl.rb2 * p.log.theta2
     tau = p.transmitted(theta)
     force = tau / pl.rb1
     h = max(0.15 * float(np.percentile(np.abs(tau), 75)), 1e-12)
@@ -1373,7 +1374,7 @@ class _WindowModel:
         self.names = ["dtheta", "domega", *free]
         self.seg = p.log.torque[w.k0:w.k1]
         self.y1 = p.log.theta1[w.k0:w.k1 + 1]
-        self.y2 = None if p.l is None else p.log.theta2[w.k0:w.k1 + 1] + offset / p.nominal.rb2  # type: ignore[index]
+        self.y2 = None if p.l is None else p.l.raw[w.k0:w.k1 + 1] + offset / p.nominal.rb2
         self.sw = max(m.v_thr, 1e-3 * abs(float(m.w[w.k0])), 1e-9)
         self.cache: dict[tuple[float, float], tuple[Any, Any]] = {}
         wlim = max(50.0, 0.3 * abs(float(m.w[w.k0])) / self.sw)
@@ -1528,7 +1529,7 @@ def _windows_out(p: _Problem, wins: list[_Window], fits: list[_Fit], offset: flo
     out = []
     for w, f in _spread_evenly(list(zip(wins, fits, strict=True)), MAX_PLOT_WINDOWS):
         sl = slice(w.k0, w.k1 + 1)
-        th2 = None if p.l is None else p.log.theta2[sl] + offset / p.nominal.rb2  # type: ignore[index]
+        th2 = None if p.l is None else p.l.raw[sl] + offset / p.nominal.rb2
         r = [(f.sim[0] - p.log.theta1[sl]) / p.N]
         if th2 is not None:
             r.append(f.sim[1] - th2)
@@ -1605,7 +1606,7 @@ def torque_lag(lg: EncoderLog) -> tuple[int, dict[int, float]]:
 def _as_arrays(lg: EncoderLog) -> EncoderLog:
     """A log made in Python with its columns as 1-D float arrays (lists, integer arrays): one that holds something
     else (text, nested rows) is refused naming the column."""
-    cols = {}
+    cols: dict[str, Any] = {}  # the log's array fields by name (for dataclasses.replace)
     for name in ("t", "torque", "theta1", "theta2"):
         v = getattr(lg, name)
         if v is None and name == "theta2":
@@ -1894,7 +1895,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         # in contact the shafts move as one: the motor's (finer) signals for both, so that contact data say
         # nothing about the split between the shafts (the gap's free flights and the prior do)
         A_c = np.column_stack([m.a, m.a / N**2, m.w, m.w / N**2, sg1, sg1 / N])[both]
-        s = nominal.rb1 * lg.theta1 - nominal.rb2 * lg.theta2  # type: ignore[operator]
+        s = nominal.rb1 * lg.theta1 - nominal.rb2 * lg.theta2
         inside = minimum_filter1d((np.abs(s - c0) < 0.6 * b0).astype(np.int8), p.Wg + 2, mode="nearest") > 0
         g1 = inside & _Encoder.moving(m.wg, m.vg_thr, p.Wg)
         g2 = inside & _Encoder.moving(ld.wg, ld.vg_thr, p.Wg)

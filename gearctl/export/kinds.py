@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict, cast
 
 from ..controller import Controller
 from ..design import deadzone
@@ -199,6 +199,18 @@ def _inv_values(inv: DeadzoneInverse) -> dict[str, Any]:
             "carried": [v for row in inv._carried for v in row] + [0.0] * (4 * (MAX_STAGES - len(inv._carried)))}
 
 
+class _Common(TypedDict, total=False):
+    """The :class:`KindSpec` fields every kind fills alike (``ratio`` and ``torque_limit`` from its PID, if any)."""
+
+    Ts: float
+    preview: int
+    uses_load_encoder: bool
+    describe: dict[str, Any]
+    name: str
+    ratio: float
+    torque_limit: float
+
+
 def kind_spec(controller: Controller) -> KindSpec:
     """The export description of a controller object.
 
@@ -210,13 +222,13 @@ def kind_spec(controller: Controller) -> KindSpec:
     c = controller
     if type(c) not in (PID, ReversalOffset, DeadzoneInverse, AdaptiveInverse, MPC):  # before reading its attributes
         raise _not_exportable(c)
-    common = {"Ts": float(c.Ts), "preview": int(c.preview), "uses_load_encoder": bool(c.uses_load_encoder),
-              "describe": c.describe(), "name": str(c.name)}
+    common: _Common = {"Ts": float(c.Ts), "preview": int(c.preview), "uses_load_encoder": bool(c.uses_load_encoder),
+                       "describe": c.describe(), "name": str(c.name)}
     # exact types: a subclass may change what a method does, which the C would not know
-    pid = {PID: c, ReversalOffset: getattr(c, "pid", None), DeadzoneInverse: getattr(c, "pid", None),
-           AdaptiveInverse: getattr(getattr(c, "inner", None), "pid", None)}.get(type(c))
+    pid = cast("PID | None", {PID: c, ReversalOffset: getattr(c, "pid", None), DeadzoneInverse: getattr(c, "pid", None),
+                              AdaptiveInverse: getattr(getattr(c, "inner", None), "pid", None)}.get(type(c)))
     if pid is not None:
-        common.update(ratio=float(pid.N), torque_limit=float(pid.limit))
+        common.update({"ratio": float(pid.N), "torque_limit": float(pid.limit)})
     if type(c) is PID:
         return KindSpec(kind="pid", prefix="pid", values=_pid_values(c), dims={}, **common)
     if type(c) is ReversalOffset:
@@ -245,8 +257,8 @@ def kind_spec(controller: Controller) -> KindSpec:
         from .mpc_tables import mpc_values
 
         vals, dims = mpc_values(c)
-        return KindSpec(kind="mpc", prefix="mpc", values=vals, dims=dims, ratio=float(vals["ratio"]),
-                        torque_limit=float(vals["umax"]), **common)
+        common.update({"ratio": float(vals["ratio"]), "torque_limit": float(vals["umax"])})  # (no PID: its tables')
+        return KindSpec(kind="mpc", prefix="mpc", values=vals, dims=dims, **common)
     raise _not_exportable(c)
 
 
