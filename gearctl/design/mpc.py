@@ -789,9 +789,10 @@ class _MutedStdout:
             self._null = None
 
     def __del__(self) -> None:
-        if getattr(self, "_null", None) is not None:
+        null = getattr(self, "_null", None)
+        if null is not None:
             try:
-                os.close(self._null)
+                os.close(null)
             except OSError:
                 pass
 
@@ -1268,8 +1269,9 @@ class MPC(Controller):
                  load_std: float | None = None, scaled_smoothing: bool = False) -> None:
         super().__init__()
         st = settings if settings is not None else MPCSettings()
-        if st.backlash is None:  # the design plant's (see MPCSettings.backlash)
-            st = dataclasses.replace(st, backlash=info.plant.backlash)
+        # None: the design plant's (see MPCSettings.backlash)
+        backlash: float = info.plant.backlash if st.backlash is None else st.backlash
+        st = dataclasses.replace(st, backlash=backlash)
         if not (Ts > 0 and math.isfinite(Ts)):
             raise InputError(f"Ts = {Ts!r} is out of range: expected a number > 0 [s]", field="sample_time")
         self.info, self.settings, self.Ts, self.name = info, st, Ts, name
@@ -1278,7 +1280,7 @@ class MPC(Controller):
         p = info.plant
         self.N = n = st.horizon
         self.preview = n + 1  # reference samples a step reads: r(t) .. r(t + N Ts)
-        self._b = st.backlash
+        self._b = backlash
         self._sigma_load = max(st.measurement_noise, load_noise or 0.0)
         self._load_std = load_std
         self._umax = min(info.torque_limit, 1e6)
@@ -1304,7 +1306,7 @@ class MPC(Controller):
         t_cross = 2.0 * math.sqrt(2 * self._b / (_CROSS_SHARE * self._a_max))
         # contact when |s| >= b - tol; with the load encoder, tol is at least three times the noise of the measured
         # gap (else, with a small b, the reading's noise alone makes contact come and go)
-        share_tol = contact_tolerance(info) * st.backlash
+        share_tol = contact_tolerance(info) * backlash
         noise_tol = _GAP_NOISE_TOL * self._gap_reading_std() if st.feedback == "load" else 0.0
         self._tol = max(share_tol, noise_tol)
         # backlash-free (the rigid train, the mesh pushes and pulls): b = 0, or a gap the plan cannot resolve in time
@@ -1313,12 +1315,12 @@ class MPC(Controller):
         self.rigid_reason = ("backlash estimate 0" if st.backlash == 0.0 else
                              f"the lost motion is crossed in {t_cross / Ts:.2g} samples at {_CROSS_SHARE:g} x the "
                              f"torque limit (at most {_RIGID_SAMPLES})" if t_cross <= _RIGID_SAMPLES * Ts else
-                             "" if self._tol <= 0.5 * st.backlash else
+                             "" if self._tol <= 0.5 * backlash else
                              f"the measured gap's noise ({noise_tol / _GAP_NOISE_TOL:.2g} m std, from "
                              f"measurement_noise) is over b / {2 * _GAP_NOISE_TOL:g}" if noise_tol >= share_tol else
                              f"the stages before the last hold {upstream_gap_share(info.nominal):.0%} of the lost "
                              f"motion, which the one-gap plan leaves to its contact tolerance "
-                             f"({share_tol / st.backlash:.2g} b): over half the gap")
+                             f"({share_tol / backlash:.2g} b): over half the gap")
         self._rigid = bool(self.rigid_reason)
         # a load encoder too coarse for the gap, under a rigid plan: the centre of inertia from the motor encoder alone
         # (see *Coarse load encoders*)
@@ -1338,7 +1340,7 @@ class MPC(Controller):
         # a flank is taken where the gap turns back only that far short of b: below the contact tolerance, and
         # on a train also below what the floating intermediate shafts alone leave it short by (the tolerance's
         # share beyond a pair's)
-        self._learn_below = st.backlash - self._tol - (self._tol - 0.02 * st.backlash)
+        self._learn_below = backlash - self._tol - (self._tol - 0.02 * backlash)
         held = p.tc2 + abs(p.load_torque)
         if not self._rigid and scaled_smoothing and st.smoothing < held:
             # a load this light for its friction: the landings' push could not move it (fuzzed trains with a
@@ -1385,7 +1387,7 @@ class MPC(Controller):
         self._bound_landing = st.soft_landing == "bound"
         self._f_land = st.smoothing
         # in the velocity row's units, b / Ts (no landing rows without backlash)
-        self._v_land = 0.0 if self._rigid else st.landing_velocity * Ts / st.backlash
+        self._v_land = 0.0 if self._rigid else st.landing_velocity * Ts / backlash
         self._v_land_now = self._v_land  # the bound of the step being solved (smaller at standstill)
         self.statuses: list[str] = []
         self.step_times: list[float] = []
@@ -1466,7 +1468,7 @@ class MPC(Controller):
         land_s = land_v = None
         if land is not None:
             if st.soft_landing != "off":  # closing at landing_velocity: sigma_new v = v_L, sigma_new = p_new / b
-                add(land[3], st.relative_velocity, {5: -st.landing_velocity / st.backlash})
+                add(land[3], st.relative_velocity, {5: -st.landing_velocity / self._b})
             land_s, land_v = split(land[2]), split(land[3])
         Au, Ap, W = np.array(rows_u), np.array(rows_p), np.array(w) * self._cost_scale
         H = 2.0 * (Au.T * W) @ Au
