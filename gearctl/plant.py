@@ -210,7 +210,11 @@ class Plant:
     Raises
     ------
     InputError
-        For a value out of its range (named), or pair names given for a train.
+        For a value out of its range (named), a count of stages and shafts other than ``n`` and ``n + 1`` (or more
+        stages than allowed), a ``kind``, ``contact_law`` or ``friction_law`` not among its choices, or pair names
+        given for a train.
+    TypeError
+        For a keyword that is neither a parameter above nor one of the pair names.
     """
 
     kind: PlantKind
@@ -317,7 +321,13 @@ class Plant:
         return math.prod(s.ratio for s in self.stages)
 
     def ratio_after(self, i: int) -> float:
-        """Ratio of the stages after stage ``i`` (1 for the last): a gear-shaft angle over the load's."""
+        """Ratio of the stages after stage ``i`` (1 for the last): a gear-shaft angle over the load's.
+
+        Parameters
+        ----------
+        i : int
+            Stage index, 0 for the motor's stage (from 0 to ``n - 1``).
+        """
         return math.prod(s.ratio for s in self.stages[i + 1:])
 
     @property
@@ -331,7 +341,13 @@ class Plant:
         return sum(self.stage_lost_motions)
 
     def stage_m_eq(self, i: int) -> float:
-        """Equivalent mass of stage ``i``'s mesh mode between its two shafts [kg]."""
+        """Equivalent mass of stage ``i``'s mesh mode between its two shafts [kg].
+
+        Parameters
+        ----------
+        i : int
+            Stage index, 0 for the motor's stage; the stage couples shafts ``i`` and ``i + 1``.
+        """
         s = self.stages[i]
         return equivalent_mass(self.shafts[i].J, self.shafts[i + 1].J, s.rb1, s.rb2)
 
@@ -362,7 +378,18 @@ class Plant:
         return self.kind is PlantKind.IMPROVED and not (self.has_coulomb and self.friction_law is FrictionLaw.SMOOTH)
 
     def with_backlash(self, backlash: float | Sequence[float]) -> Plant:
-        """Copy with another backlash [m]: one value for every stage, or one per stage."""
+        """Copy with another backlash [m]: one value for every stage, or one per stage.
+
+        Parameters
+        ----------
+        backlash : float or sequence of float
+            Half-gap ``b`` along each stage's line of action [m]: one value for every stage, or one per stage.
+
+        Raises
+        ------
+        InputError
+            Naming ``backlash``: a count other than 1 or one per stage, or a value out of its range.
+        """
         bs = per_stage_backlash(backlash, self.n_stages)
         return dataclasses.replace(self, stages=tuple(dataclasses.replace(s, backlash=b)
                                                       for s, b in zip(self.stages, bs, strict=True)))
@@ -370,8 +397,18 @@ class Plant:
     def stiffness_at(self, theta: Any, stage: int = 0, flank: Any = 1) -> Any:
         """Mesh stiffness of ``stage`` at pinion angle ``theta`` [N/m]: ``k`` except for ``tvms``.
 
-        ``flank`` is the contact's side (1 front, -1 back; array-like with ``theta``). Symmetric teeth make the back
-        flank the mirror image of the front: it sees at ``theta`` what the front sees at ``-theta``.
+        Symmetric teeth make the back flank the mirror image of the front: it sees at ``theta`` what the front
+        sees at ``-theta``.
+
+        Parameters
+        ----------
+        theta : float or array_like
+            Angle of the stage's pinion shaft [rad] (the state ``x[stage]``).
+        stage : int
+            Stage index, 0 for the motor's stage.
+        flank : int or array_like
+            The contact's side, broadcast with ``theta``: negative for the back flank, anything else (1, or 0 in
+            the gap) for the front.
         """
         s = self.stages[stage]
         if s.kv_table is None:
@@ -384,23 +421,48 @@ class Plant:
         return s.kv_table[i] * (1 - frac) + s.kv_table[(i + 1) % n] * frac
 
     def gaps(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``s_i`` of every stage [m], shape ``(n, ...)`` for states ``x`` of shape ``(nx, ...)``."""
+        """``s_i`` of every stage [m], shape ``(n, ...)`` for states ``x`` of shape ``(nx, ...)``.
+
+        Parameters
+        ----------
+        x : array_like
+            States, shape ``(nx, ...)``: the ``n + 1`` shaft angles [rad], then their velocities [rad/s].
+        """
         x = np.asarray(x)
         return np.stack([s.rb1 * x[i] - s.rb2 * x[i + 1] for i, s in enumerate(self.stages)])
 
     def gap_rates(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``s_i'`` of every stage [m/s], shape ``(n, ...)``."""
+        """``s_i'`` of every stage [m/s], shape ``(n, ...)``.
+
+        Parameters
+        ----------
+        x : array_like
+            States, shape ``(nx, ...)``: the ``n + 1`` shaft angles [rad], then their velocities [rad/s].
+        """
         x = np.asarray(x)
         w = len(self.shafts)
         return np.stack([s.rb1 * x[w + i] - s.rb2 * x[w + i + 1] for i, s in enumerate(self.stages)])
 
     def relative_displacement(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``s = r_b1 theta1 - r_b2 theta2`` [m]; for a train, every stage's (shape ``(n, ...)``)."""
+        """``s = r_b1 theta1 - r_b2 theta2`` [m]; for a train, every stage's (shape ``(n, ...)``).
+
+        Parameters
+        ----------
+        x : array_like
+            States, shape ``(nx, ...)``: the ``n + 1`` shaft angles [rad], then their velocities [rad/s].
+        """
         g = self.gaps(x)
         return g[0] if self.n_stages == 1 else g
 
     def mode_of(self, s: Any) -> Any:
-        """Contact mode(s) for relative displacement(s) ``s`` (as :class:`Mode` values; one row per stage)."""
+        """Contact mode(s) for relative displacement(s) ``s`` (as :class:`Mode` values; one row per stage).
+
+        Parameters
+        ----------
+        s : float or array_like
+            Relative displacement(s) along the line of action [m]: for a train, one row per stage
+            (:meth:`relative_displacement`).
+        """
         s = np.asarray(s)
         b = np.array(self.backlashes).reshape((-1,) + (1,) * (s.ndim - 1)) if self.n_stages > 1 else self.backlash
         return np.where(s > b, 1, np.where(s < -b, -1, 0))
@@ -413,6 +475,11 @@ class Plant:
         The ``tvms`` plant's force ``K(theta) delta`` has no potential (the mesh's elastic torque on the pinion,
         ``-K'(theta) delta^2 / 2``, is left out, as in the parametric mesh models of the literature): its energy
         changes by the work of the stiffness variation, ``integral of delta^2 dK / 2`` (:meth:`stiffness_work`).
+
+        Parameters
+        ----------
+        x : array_like
+            States, shape ``(nx, ...)``: the ``n + 1`` shaft angles [rad], then their velocities [rad/s].
         """
         x = np.asarray(x)
         w = len(self.shafts)
@@ -429,6 +496,12 @@ class Plant:
         ``W(t) = sum_i integral of delta_i^2 dK_i / 2`` (trapezoids between the states ``x[:, j]``, so as exact as
         they are dense): without damping and friction ``energy(x) - energy(x[:, 0]) = W``. Zeros on a plant whose
         stiffness does not vary.
+
+        Parameters
+        ----------
+        x : array_like
+            A trajectory, shape ``(nx, m)``: states in time order, one per column (angles [rad], then
+            velocities [rad/s]).
         """
         x = np.asarray(x, dtype=float)
         W = np.zeros(x.shape[1])
