@@ -162,7 +162,35 @@ class GearPair:
     """A spur-gear pair, possibly profile-shifted, at its zero-backlash operating centre distance.
 
     Gear 1 is the driving pinion, gear 2 the driven gear (report Figure 1). With ``x1 = x2 = 0`` this
-    is the report's standard pair at standard centre distance.
+    is the report's standard pair at standard centre distance. Each field's unit and allowed range are declared
+    once, in its metadata (:func:`gearctl.units.quantity`), which validation and error messages read.
+
+    Parameters
+    ----------
+    teeth1, teeth2 : int
+        Numbers of teeth of gear 1 (pinion) and gear 2 [1].
+    module : float
+        Module, pitch diameter / teeth [m].
+    pressure_angle : float
+        Pressure angle of the generating rack [rad].
+    face_width : float
+        Face width [m].
+    backlash : float
+        Backlash ``b`` along the line of action [m].
+    addendum_coefficient : float
+        Addendum / module [1] (default 1).
+    dedendum_coefficient : float
+        Dedendum / module [1] (default 1.25); must exceed ``addendum_coefficient``.
+    x1, x2 : float
+        Profile-shift coefficients of gear 1 and gear 2, ISO 21771 [1] (default 0).
+    young_modulus : float
+        Young's modulus ``E`` [Pa].
+    poisson_ratio : float
+        Poisson's ratio [1].
+    density : float
+        Density [kg/m^3].
+    inertia1, inertia2 : float or None
+        Inertias of gear 1 and gear 2 [kg m^2] (default ``None``: a solid disk of pitch radius).
 
     Raises
     ------

@@ -75,6 +75,22 @@ def _enum_field(obj: object, name: str, cls: type[enum.Enum]) -> None:
 class MeshDynamics:
     """Mesh stiffness and damping of a stage (the ``[dynamics]`` table, or a stage's own keys).
 
+    Parameters
+    ----------
+    damping_ratio : float
+        Damping ratio of the mesh mode [1].
+    mesh_stiffness : float or None
+        Mesh stiffness ``k`` replacing the computed mean [N/m] (default ``None``: computed).
+    damping_coefficient : float or None
+        Mesh damping ``c`` replacing eq 38 [N s/m] (default ``None``: from ``damping_ratio``).
+    contact_law : ContactLaw or str
+        Contact force law, ``"linear"`` (default, the report's) or ``"no_pull"`` (:class:`ContactLaw`).
+
+    Raises
+    ------
+    InputError
+        Naming the field: a value out of its range, or a ``contact_law`` that is not one of the two.
+
     Notes
     -----
     The default contact law is the report's ``"linear"`` law: it is the plant the report simulates,
@@ -104,6 +120,36 @@ class Servo:
     (shaft 1 clockwise, shaft 2 counter-clockwise for a pair), so a load torque that resists a forward
     motion is negative. ``1`` is the motor shaft, ``2`` the load shaft; a train's intermediate shafts
     take the ``intermediate_*`` lists (one value per intermediate shaft, motor side first).
+
+    Parameters
+    ----------
+    motor_inertia : float
+        Motor rotor inertia on the motor shaft [kg m^2].
+    load_inertia : float
+        Load inertia on the load shaft [kg m^2].
+    viscous_friction1, viscous_friction2 : float
+        Viscous friction on the motor and the load shaft [N m s/rad].
+    coulomb_friction1, coulomb_friction2 : float
+        Coulomb friction on the motor and the load shaft [N m].
+    coulomb_velocity : float
+        Velocity scale ``omega_s`` of the smooth Coulomb law [rad/s] (default 1e-3).
+    friction_law : FrictionLaw or str
+        ``"stick_slip"`` (default) or ``"smooth"`` Coulomb friction (:class:`FrictionLaw`).
+    torque_limit : float
+        Motor torque limit [N m] (default ``inf``: none).
+    load_torque : float
+        Constant load torque on the load shaft [N m] (negative resists a forward motion).
+    intermediate_inertia : tuple of float
+        Inertia added to each intermediate shaft of a train [kg m^2] (a list is taken as a tuple).
+    intermediate_viscous_friction : tuple of float
+        Viscous friction on each intermediate shaft of a train [N m s/rad].
+    intermediate_coulomb_friction : tuple of float
+        Coulomb friction on each intermediate shaft of a train [N m].
+
+    Raises
+    ------
+    InputError
+        Naming the field: a value out of its range, or a ``friction_law`` that is not one of the two.
 
     Notes
     -----
@@ -152,6 +198,21 @@ class Sensors:
     standard deviation, drawn from the simulation's seeded generator. ``load_encoder = False`` says the servo
     has no load encoder at all (a motor-encoder-only drive): a controller that reads one is refused
     (:meth:`check_controller`), and a log records ``theta1`` alone.
+
+    Parameters
+    ----------
+    motor_encoder_cpr, load_encoder_cpr : int or None
+        Resolution of the motor and the load encoder [counts/rev] (default ``None``: ideal).
+    motor_noise, load_noise : float
+        Standard deviation of the motor and the load encoder's noise [rad] (default 0).
+    load_encoder : bool
+        Whether the servo has a load encoder (default ``True``).
+
+    Raises
+    ------
+    InputError
+        Naming the field: a value out of its range, a ``load_encoder`` that is not a bool, or a
+        ``load_encoder_cpr`` or ``load_noise`` given with ``load_encoder = False``.
     """
 
     motor_encoder_cpr: int | None = ENCODER_CPR.field(default=None, optional=True, doc="motor encoder resolution")
@@ -174,7 +235,12 @@ class Sensors:
     def check_controller(self, controller: Any, where: str = "") -> None:
         """Refuse a controller that reads the load encoder when the servo has none.
 
-        ``where`` names the controller's file in the message.
+        Parameters
+        ----------
+        controller : object
+            The controller; it reads the load encoder when its ``uses_load_encoder`` attribute is true.
+        where : str
+            The controller's file, named in the message (default ``""``: none).
 
         Raises
         ------
@@ -190,8 +256,15 @@ class Sensors:
             raise InputError(f"[sensors] load_encoder = false {rule}", field="load_encoder", rule=rule)
 
     def reading_std(self, shaft: str) -> float:
-        """Standard deviation of one reading of the ``"motor"`` or ``"load"`` encoder [rad]: its quantisation
-        (a count of ``2 pi / cpr``, uniform: ``/ sqrt(12)``) and its noise, independent."""
+        """Standard deviation of one reading of the ``"motor"`` or ``"load"`` encoder [rad].
+
+        Its quantisation (a count of ``2 pi / cpr``, uniform: ``/ sqrt(12)``) and its noise, independent.
+
+        Parameters
+        ----------
+        shaft : str
+            ``"motor"`` for the motor encoder; any other value reads the load encoder's figures.
+        """
         cpr = self.motor_encoder_cpr if shaft == "motor" else self.load_encoder_cpr
         q = 2.0 * math.pi / cpr if cpr else 0.0
         noise = self.motor_noise if shaft == "motor" else self.load_noise
