@@ -396,11 +396,54 @@ class Geometry:
     rolls on ``operating_pitch_radius`` at ``centre_distance`` with pressure angle
     ``operating_pressure_angle`` (all equal to the reference ones when ``x1 + x2 = 0``).
 
-    New with profile shift (ISO 21771): ``profile_shift`` ``(x1, x2)`` [1]; ``operating_pressure_angle``
-    ``alpha_w`` [rad]; ``reference_centre_distance`` ``a = m (z1 + z2) / 2`` [m]; ``centre_distance``
-    ``a_w = a cos(alpha) / cos(alpha_w)`` [m]; ``operating_pitch_radius`` ``r_w = r cos(alpha) / cos(alpha_w)``
-    [m]; ``tooth_thickness_reference`` ``s_j = m (pi/2 + 2 x_j tan(alpha))`` [m], the reference-circle
-    thickness eqs 27, 28 and 30 start from (``tooth_thickness_pitch`` stays ``pi m / 2``).
+    Attributes
+    ----------
+    pitch_radius : tuple of float
+        Reference radii ``r_j = m z_j / 2`` [m].
+    operating_pitch_radius : tuple of float
+        Operating pitch radii ``r_w = r cos(alpha) / cos(alpha_w)`` [m].
+    base_radius : tuple of float
+        Base radii ``r_b = r cos(alpha)`` [m].
+    addendum_radius : tuple of float
+        Tip radii ``r_j + (h_a* + x_j + k*) m``, with ISO 21771's tip alteration ``k*`` [m].
+    dedendum_radius : tuple of float
+        Root radii ``r_j - (h_f* - x_j) m`` [m].
+    profile_shift : tuple of float
+        Profile-shift coefficients ``(x1, x2)`` [1].
+    operating_pressure_angle : float
+        Operating pressure angle ``alpha_w`` [rad].
+    reference_centre_distance : float
+        ``a = m (z1 + z2) / 2`` [m].
+    centre_distance : float
+        Operating centre distance ``a_w = a cos(alpha) / cos(alpha_w)`` [m].
+    base_pitch : float
+        Base pitch ``p_b = pi m cos(alpha)`` [m].
+    AB : float
+        Length ``l`` of the line of action between the base-circle tangent points A and B [m].
+    AC, AD : float
+        Start of contact C (gear 2's tip circle) and end of contact D (gear 1's tip circle), from A [m].
+    AE, AF : float
+        ``AE = AD - p_b`` and ``AF = AC + p_b``: the ends of the single-contact stretch, from A [m].
+    AP : float
+        Pitch point P, ``r_b1 tan(alpha_w)``, from A [m].
+    contact_ratio : float
+        ``(AD - AC) / p_b`` [1].
+    tooth_thickness_pitch : float
+        Unshifted tooth thickness at the reference circle, ``pi m / 2`` [m].
+    tooth_thickness_reference : tuple of float
+        Reference-circle thicknesses ``s_j = m (pi/2 + 2 x_j tan(alpha))`` [m], where eqs 27, 28 and 30 start.
+    tooth_thickness_base : tuple of float
+        Tooth thicknesses at the base circle (eq 27) [m].
+    tooth_thickness_addendum : tuple of float
+        Tooth thicknesses at the tip circle (eq 28) [m].
+    h_a, h_b : tuple of float
+        Heights of the tooth beam (eqs 22–25) [m].
+    w : tuple of float
+        Height of the trapezoid of the tooth model (eq 19) [m].
+    inertia : tuple of float
+        Gear inertias: the pair's ``inertia1``, ``inertia2``, else solid disks of pitch radius [kg m^2].
+    gear_ratio : float
+        ``N2 / N1`` [1].
     """
 
     pitch_radius: tuple[float, float]

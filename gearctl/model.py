@@ -89,7 +89,19 @@ class GearModel:
 
     @classmethod
     def from_pair(cls, name: str, pair: GearPair, dynamics: MeshDynamics, **kw: object) -> GearModel:
-        """A one-stage model from a gear pair and its dynamics."""
+        """A one-stage model from a gear pair and its dynamics.
+
+        Parameters
+        ----------
+        name : str
+            Catalog name of the model.
+        pair : GearPair
+            The gear pair of the one stage.
+        dynamics : MeshDynamics
+            Its mesh stiffness and damping.
+        **kw
+            The other fields of :class:`GearModel`: ``servo``, ``sensors``, ``source``, ``path``.
+        """
         return cls(name=name, stages=(StageModel(pair=pair, dynamics=dynamics),), **kw)  # type: ignore[arg-type]
 
     @property
@@ -111,7 +123,18 @@ class GearModel:
         return self.stages[0].dynamics
 
     def with_backlash(self, backlash: float | Sequence[float]) -> GearModel:
-        """Copy with another backlash [m]: one value for every stage or one per stage (0: backlash-free)."""
+        """Copy with another backlash [m]: one value for every stage or one per stage (0: backlash-free).
+
+        Parameters
+        ----------
+        backlash : float or sequence of float
+            Backlash ``b`` along the line of action [m]: one value for every stage, or one per stage.
+
+        Raises
+        ------
+        InputError
+            Naming ``backlash``: a count other than 1 or one per stage, or a value out of its range.
+        """
         vals = per_stage_backlash(backlash, len(self.stages))
         stages = tuple(dataclasses.replace(s, pair=dataclasses.replace(s.pair, backlash=b))
                        for s, b in zip(self.stages, vals, strict=True))

@@ -123,6 +123,23 @@ def contact_mode_model(plant: Plant, *, name: str = "contact") -> ct.StateSpace:
     """Linear model of the plant with every stage in contact (front or back: the same dynamics), eqs 1–5 and 8–12.
 
     See :func:`mode_model`.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant; motor/load inertias and viscous friction of a ``[servo]`` are included.
+    name : str
+        System name (default ``"contact"``).
+
+    Returns
+    -------
+    control.StateSpace
+        Named states, inputs and outputs, as :func:`mode_model` gives them.
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a :class:`~gearctl.plant.Plant`.
     """
     plant = check_plant(plant)
     return mode_model(plant, [True] * plant.n_stages, name=name)
@@ -134,6 +151,23 @@ def separation_model(plant: Plant, *, name: str = "separation") -> ct.StateSpace
     Same signals as :func:`contact_mode_model`; the ``force`` outputs of the separated stages are identically
     zero. A stage without backlash (``b = 0``) cannot separate: its contact law is one spring through ``s = 0``,
     so it stays in contact here (a backlash-free pair's separation model is its contact model).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant; motor/load inertias and viscous friction of a ``[servo]`` are included.
+    name : str
+        System name (default ``"separation"``).
+
+    Returns
+    -------
+    control.StateSpace
+        Named states, inputs and outputs, as :func:`mode_model` gives them.
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a :class:`~gearctl.plant.Plant`.
     """
     plant = check_plant(plant)
     return mode_model(plant, [b == 0.0 for b in plant.backlashes], name=name)
@@ -146,6 +180,23 @@ def rigid_model(plant: Plant, *, name: str = "rigid") -> ct.StateSpace:
     ``d_eq = sum_j d_j / N_j^2`` (``N_j``: ratio from the motor to shaft j); every shaft follows the motor,
     ``s = 0``. States ``theta1, omega1`` (``theta0, omega0`` for a train); the force outputs are the forces the
     stiff meshes transmit.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant; motor/load inertias and viscous friction of a ``[servo]`` are included.
+    name : str
+        System name (default ``"rigid"``).
+
+    Returns
+    -------
+    control.StateSpace
+        Two states; the inputs and outputs of :func:`contact_mode_model`.
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a :class:`~gearctl.plant.Plant`.
     """
     p = check_plant(plant)
     n, w = p.n_stages, len(p.shafts)

@@ -232,6 +232,9 @@ def precision_test(
         Encoders (noise makes the repeatability non-zero).
     seed : int
         Seed of the sensor noise and of the target offsets.
+    progress : callable, optional
+        Called with the fraction of the closed-loop run done (given to
+        :func:`~gearctl.closedloop.simulate_closed_loop`).
 
     Returns
     -------
@@ -246,7 +249,11 @@ def precision_test(
     Raises
     ------
     InputError
-        If ``plant`` is not a Plant, or a count, the seed or a length of the test is out of range.
+        If ``plant`` is not a Plant; a count, the seed or a length of the test is out of range; the test program
+        would last longer than the longest simulated duration or its run would not fit in memory (both naming
+        ``travel``); or, from :func:`~gearctl.closedloop.simulate_closed_loop`, ``controller`` reads a load
+        encoder ``sensors`` say is missing. (A ``controller`` without a sample time ``Ts``, e.g. ``None``, fails
+        with AttributeError before that check.)
     """
     plant = check_plant(plant)
     for name, v, low in (("targets", targets, 2), ("cycles", cycles, 1)):

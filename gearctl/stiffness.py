@@ -422,6 +422,13 @@ def _segment_extreme(pair: GearPair, geo: Geometry, a: float, b: float, sign: fl
 def equivalent_mass(inertia1: float, inertia2: float, rb1: float, rb2: float) -> float:
     """Mass of the mesh mode along the line of action: ``I1 I2 / (I2 r_b1^2 + I1 r_b2^2)`` [kg].
 
+    Parameters
+    ----------
+    inertia1, inertia2 : float
+        Inertias ``I1``, ``I2`` of the pinion's and the gear's shafts [kg m^2].
+    rb1, rb2 : float
+        Base radii of the pinion and the gear [m].
+
     Examples
     --------
     >>> round(equivalent_mass(1.0, 1.0, 1.0, 1.0), 3)
@@ -525,6 +532,11 @@ def stiffness_note(pair: GearPair, mean: float) -> str | None:
 
 def yang_sun_stiffness(pair: GearPair) -> float:
     """Yang & Sun's Hertz-only mesh stiffness ``pi E f / (4 (1 - nu^2))`` [N/m] (eq 39).
+
+    Parameters
+    ----------
+    pair : GearPair
+        The gear data; only its ``young_modulus``, ``poisson_ratio`` and ``face_width`` enter.
 
     Examples
     --------
