@@ -45,6 +45,15 @@ def output_steps(duration: float, dt: float, *, field: str = "dt") -> int:
     """The output intervals of a run of ``duration`` at ``dt`` [s]: at least one, so that an interval longer than
     the run still gives its end (one of 1e308 s gave the initial state alone, and a summary that failed on it).
 
+    Parameters
+    ----------
+    duration : float
+        Simulated time [s].
+    dt : float
+        Output interval [s].
+    field : str
+        Name of the interval in the error message (default ``"dt"``).
+
     Raises
     ------
     InputError
@@ -64,6 +73,11 @@ def default_output_interval(duration: float) -> float:
     1 µs up to 20 ms (the report's figures), then the next 1, 2 or 5 x 10^k that keeps about
     :data:`DEFAULT_ROWS` rows: the output follows the question, not the other way round. Events between
     outputs are located exactly either way.
+
+    Parameters
+    ----------
+    duration : float
+        Simulated time [s].
     """
     d = duration / DEFAULT_ROWS
     if d <= 1e-6:
@@ -103,7 +117,16 @@ class Event:
 
 
 def located_events(log: np.ndarray, *, mesh_only: bool = True) -> list[Event]:
-    """The events of a kernel's :attr:`~gearctl.kernel.Kernel.event_log` as :class:`Event` objects."""
+    """The events of a kernel's :attr:`~gearctl.kernel.Kernel.event_log` as :class:`Event` objects.
+
+    Parameters
+    ----------
+    log : ndarray
+        Event log, a structured array of :data:`~gearctl.kernel.EVENT_DTYPE` (fields ``t``, ``v``, ``kind``,
+        ``side``, ``where``).
+    mesh_only : bool
+        Keep the contact events alone (default); ``False`` adds the friction events, ``stick`` and ``slip``.
+    """
     if mesh_only:
         log = log[log["kind"] <= EventKind.PLASTIC]
     sides = {1: "front", -1: "back", 0: "-"}
@@ -218,6 +241,17 @@ def contact_force(plant: Plant, x: NDArray[np.float64], mode: NDArray[np.int_],
 
     For a pair, ``mode`` and ``d_ys`` may be one-dimensional and the result is; for a train they have one
     row per stage.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    x : ndarray, shape (nx, ...)
+        States: shaft angles [rad], then shaft speeds [rad/s].
+    mode : ndarray of int
+        Contact mode per stage (its sign counts: 0 in the gap), e.g. :attr:`SimulationResult.mode`.
+    d_ys : float or ndarray
+        Yang–Sun damping factor of each stage's current contact [N s/m^2] (0 for the other plants).
     """
     mode = np.asarray(mode)
     if plant.n_stages == 1 and (mode.ndim == 0 or mode.shape[0] != 1 or mode.ndim == np.asarray(x).ndim - 1):
@@ -378,6 +412,37 @@ def report_case(
     For a train, ``omega1`` is the motor shaft's speed, ``omega2`` the load shaft's, and every intermediate
     shaft starts at the speed that keeps its stages' gaps closing neither way (the motor's over the ratio
     up to it).
+
+    Parameters
+    ----------
+    plant : Plant
+        From :func:`~gearctl.plant.build_plant`.
+    case : str
+        ``"free"`` or ``"load"`` (:data:`CASES`).
+    duration : float
+        Simulated time [s] (default 0.02, the report's figures).
+    omega1, omega2 : float, optional
+        Initial speeds of the motor and the load shaft [rad/s], replacing the case's.
+    torque1, torque2 : float, optional
+        Constant torques ``xi_motor``, ``xi_load`` [N m], replacing the case's.
+    dt : float, optional
+        Output interval [s]; default :func:`default_output_interval` of the duration.
+    compiled : bool, optional
+        Force the compiled or the Python kernel (default: compiled where available).
+    progress : callable, optional
+        Called with the fraction done, about a hundred times per run.
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a Plant, ``case`` is not a case, a given speed or torque is not finite, or as
+        :func:`simulate` raises it (duration, output interval).
+    SimulationError
+        As :func:`simulate`: the state becomes NaN or diverges, or events cascade without end.
 
     Notes
     -----
