@@ -101,10 +101,12 @@ class Event:
         ``impact``, ``separation``, ``lift``, ``reload`` or ``plastic`` (an impact below the Zeno
         velocity, made perfectly plastic); ``stick`` or ``slip`` for a shaft with stick-slip friction.
     side : str
-        ``front`` or ``back`` (``-`` for friction events).
+        ``front`` or ``back``; for friction events, the way a ``slip`` starts (``forward`` or ``backward``) and
+        ``-`` for a ``stick``.
     velocity : float
-        Relative velocity along the line of action ``s'`` at the event [m/s] (for ``stick``: the torque
-        friction holds [N m]).
+        Relative velocity along the line of action ``s'`` at the event [m/s]; for ``stick``, the torque friction
+        holds [N m], for a ``slip`` the torque that carried the shaft on through zero speed [N m] (0 for a
+        break-away from standstill).
     stage : int
         The stage (0 for a pair), or the shaft of a friction event.
     """
