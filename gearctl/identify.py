@@ -330,6 +330,16 @@ def sample_period(t: NDArray[np.float64]) -> float:
     every sample, so neither the origin nor the rounding of the printed times moves the period (the median of
     the differences of rounded times is off by the rounding: 72 ppm at 1.7e9 s printed to 10 digits). The
     period is given to 9 significant digits.
+
+    Parameters
+    ----------
+    t : array_like
+        Sample times [s], in order.
+
+    Returns
+    -------
+    float
+        The period [s]; NaN for fewer than two samples.
     """
     tt = np.asarray(t, dtype=float) - float(t[0])
     n = tt.size
@@ -344,6 +354,15 @@ def sample_period(t: NDArray[np.float64]) -> float:
 def write_log(path: str | Path, log: EncoderLog, *, comments: Sequence[str] = ()) -> None:
     """Write a log in the format :func:`read_log` reads (``#`` comments, header, 10 significant digits; the
     time 15, so that a clock far from zero keeps its resolution).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; its folder is created if missing.
+    log : EncoderLog
+        The log; its own ``comments`` are written first.
+    comments : sequence of str
+        More comment lines, each written as ``# line`` (a multi-line string gives one comment per line).
 
     Raises
     ------
@@ -501,6 +520,9 @@ class Identification:
         Quantities (``backlash``, ``J1``, ``J2``, ``viscous1`` ...) the log does not identify, with the reason.
         Their value is the fit's or the model's, and their interval is wide on purpose: the model's 95 % range, every
         split between the shafts, or for ``backlash`` anything a model allows (0 to 0.5 module).
+    inertia_sum : float
+        ``J1 + J2 / N^2`` as the fit found it [kg m^2, at the motor], before an inertia at the fit's bound is
+        reported at the model's value: what the log sees of the inertias (NaN: not given).
     """
 
     backlash: float
@@ -2285,11 +2307,26 @@ def write_identified_model(path: str | Path, result: Identification, model: Any)
     written through; a device or a FIFO (``/dev/null``) is written into, never replaced (as root the rename replaced
     ``/dev/full`` itself with a regular file).
 
+    Parameters
+    ----------
+    path : str or Path
+        The model file to write (``.toml``); a link is written through.
+    result : Identification
+        What :func:`identify` found.
+    model : GearModel, str or Path
+        The model the identification started from (a pair; a name or file is loaded); its other values are kept
+        (:func:`identified_model`).
+
+    Returns
+    -------
+    Path
+        The file written (a link's target).
+
     Raises
     ------
     InputError
-        If the folder does not exist or the file cannot be written; if the backlash is not identified
-        (:attr:`Identification.not_identified`); or if an identified value lies outside what a model file
+        If ``path`` is a folder, its folder does not exist or the file cannot be written; if the backlash is not
+        identified (:attr:`Identification.not_identified`); or if an identified value lies outside what a model file
         allows (the message names the log the value came from and the key).
     """
     import os
