@@ -204,10 +204,21 @@ def parse_set(text: str) -> tuple[str, float | int]:
     whole-number keys become ``int``, every other value ``float``. ``VALUE`` with a trailing ``x`` is a factor
     of the nominal value (:class:`Scale`; on a train, of each stage's own value), checked once applied.
 
+    Parameters
+    ----------
+    text : str
+        ``KEY=VALUE``, e.g. ``backlash=6e-5`` or ``backlash=2x``.
+
+    Returns
+    -------
+    key : str
+    value : int, float or Scale
+
     Raises
     ------
     InputError
-        Unknown key, a value that is not a number, or out of the key's range.
+        Not ``KEY=VALUE``, an unknown key or a controller's key (the estimate), a value that is not a number,
+        a factor below 0, or a value out of the key's range.
     """
     key, sep, value = text.partition("=")
     key = key.strip()
@@ -234,7 +245,21 @@ def parse_set(text: str) -> tuple[str, float | int]:
 
 
 def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel:
-    """:func:`gearctl.overrides.perturb_model`, an unknown key named as the sweep's keys are (with a hint)."""
+    """:func:`gearctl.overrides.perturb_model`, an unknown key named as the sweep's keys are (with a hint).
+
+    Parameters
+    ----------
+    model : GearModel
+        The nominal model.
+    overrides : mapping
+        ``{key: value}`` of model keys (``stageN.key`` for one stage of a train); a :class:`Scale` value is a
+        factor of each stage's own value.
+
+    Raises
+    ------
+    InputError
+        An unknown key (with a suggestion), a value out of its range, or a model the changed value makes invalid.
+    """
     for key in overrides:
         field = split_stage_key(key)[1]
         if not any(field in OWNER_FIELDS[cls] for cls in MODEL_CLASSES):
@@ -332,7 +357,13 @@ class Vary:
         return self.kind in ("range", "loguniform")
 
     def quantile(self, u: np.ndarray) -> np.ndarray:
-        """Values at probabilities ``u`` in (0, 1) (the spec's inverse CDF; for a list, the ``floor(u n)``-th)."""
+        """Values at probabilities ``u`` in (0, 1) (the spec's inverse CDF; for a list, the ``floor(u n)``-th).
+
+        Parameters
+        ----------
+        u : array_like
+            Probabilities in (0, 1).
+        """
         from scipy.special import ndtr, ndtri
 
         u = np.asarray(u, dtype=float)
@@ -354,7 +385,13 @@ class Vary:
         return m + s * z if self.kind == "normal" else m * np.exp(s * z)
 
     def grid(self, n: int) -> np.ndarray:
-        """The grid points: every value of a list; n points, ends included, of a range; else n quantiles."""
+        """The grid points: every value of a list; n points, ends included, of a range; else n quantiles.
+
+        Parameters
+        ----------
+        n : int
+            Points of a range or a distribution (a range with ``n = 1`` gives its middle); a list ignores it.
+        """
         if self.kind == "list":
             return np.asarray(self.args)
         if self.bounded:
@@ -520,7 +557,15 @@ def _uniforms(seed: int, index: int, key: str) -> float:
 
 
 def noise_seed(seed: int, index: int) -> int:
-    """Run ``index``'s sensor-noise seed: 53 bits of SeedSequence([seed, index]) (a CLI number keeps them exactly)."""
+    """Run ``index``'s sensor-noise seed: 53 bits of SeedSequence([seed, index]) (a CLI number keeps them exactly).
+
+    Parameters
+    ----------
+    seed : int
+        The sweep's seed.
+    index : int
+        The run's index in the sweep.
+    """
     return int(np.random.SeedSequence([seed, index]).generate_state(1, np.uint64)[0]) >> 11
 
 
@@ -566,7 +611,25 @@ Job = tuple[int, dict[str, float], int]
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class SweepPlan:
-    """A sweep, planned and checked: the shared context and one job per run."""
+    """A sweep, planned and checked: the shared context and one job per run (:func:`plan_sweep`).
+
+    Attributes
+    ----------
+    context : SweepContext
+        What every run shares.
+    jobs : list of tuple
+        One :data:`Job` per run: ``(index, {key: value}, sensor-noise seed)``.
+    vary : tuple of Vary
+        The varied keys, in the order given.
+    grid : bool
+        A full grid rather than Monte Carlo draws.
+    points : int
+        Monte Carlo runs, or with ``grid`` the points per key.
+    seed : int
+        Seed of the draws and of each run's sensor noise.
+    settings : dict
+        The settings as :attr:`SweepResult.settings` reports them.
+    """
 
     context: SweepContext
     jobs: list[Job]
@@ -587,6 +650,17 @@ def check_memory(n: int, *, grid: bool, keys: int = 3, precision: bool = False) 
     """Refuse a sweep whose results would not fit in half of the free memory (:data:`ROW_BYTES` a run, more with over
     three varied ``keys`` or ``precision``: :data:`KEY_BYTES`, :data:`PRECISION_BYTES`; with 12 keys and the ISO
     figures a row took 5.8 kB, over the 4 kB that were assumed for every sweep).
+
+    Parameters
+    ----------
+    n : int
+        Runs of the sweep.
+    grid : bool
+        Whether it is a grid (the message's advice differs).
+    keys : int
+        Varied keys.
+    precision : bool
+        Whether each run also carries the ISO 230-2 figures.
 
     Raises
     ------
@@ -621,7 +695,8 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     ------
     InputError
         A bad spec, a draw out of its key's range, a perturbed model that is invalid (naming the run and
-        its values), a controller that cannot be designed on the nominal model, or too many runs.
+        its values), a controller that cannot be designed on the nominal model, too many runs, or a run or a
+        table of results that would not fit in memory.
     """
     if reference_kind not in REFERENCES:
         raise InputError(f"reference = {reference_kind!r} is not a reference: expected one of "
@@ -855,7 +930,15 @@ def _row(ctx: SweepContext, job: Job, res: RunResult | None, iso: dict[str, Any]
 
 
 def sweep_task(ctx: SweepContext, jobs: Sequence[Job]) -> list[dict[str, Any]]:
-    """One Dask task: build a batch of runs, run them (:func:`run_batch`), return a small dict per run."""
+    """One Dask task: build a batch of runs, run them (:func:`run_batch`), return a small dict per run.
+
+    Parameters
+    ----------
+    ctx : SweepContext
+        What every run shares.
+    jobs : sequence of tuple
+        The batch's :data:`Job` s; a job whose run cannot be built gives a failed row with the message.
+    """
     built: list[tuple[int, Run, float | None]] = []
     rows: list[dict[str, Any] | None] = [None] * len(jobs)
     for k, job in enumerate(jobs):
@@ -881,6 +964,17 @@ def batch_size(n: int, workers: int, duration: float, cost_per_s: float = 0.015)
     time of one simulated second of a run (:func:`run_cost`): half a second of work per task keeps Dask's
     share near 1 %, four tasks per worker keep the workers evenly loaded to the end and make a lost worker
     cost little.
+
+    Parameters
+    ----------
+    n : int
+        Runs of the sweep.
+    workers : int
+        Worker processes.
+    duration : float
+        Simulated time of each run [s].
+    cost_per_s : float
+        CPU time of one simulated second of a run [s/s].
     """
     work = math.ceil(0.5 / (max(cost_per_s, 1e-6) * max(duration, 1e-3)))
     return max(1, min(256, work, math.ceil(n / (4 * max(workers, 1)))))
@@ -888,7 +982,13 @@ def batch_size(n: int, workers: int, duration: float, cost_per_s: float = 0.015)
 
 def run_cost(ctx: SweepContext) -> float:
     """CPU seconds per simulated second of one run, roughly (for :func:`batch_size`), measured on the two-core
-    machine: 4 ms for the compiled batch loop's controllers (PID family), 100 ms for the MPC, 15 ms else."""
+    machine: 4 ms for the compiled batch loop's controllers (PID family), 100 ms for the MPC, 15 ms else.
+
+    Parameters
+    ----------
+    ctx : SweepContext
+        The sweep's context; its design's controller kind sets the cost.
+    """
     kind = (ctx.design.spec or {}).get("kind")
     if kind in BATCH_KINDS:
         return 0.004
@@ -994,7 +1094,13 @@ class SweepResult:
         return [v.key for v in self.vary]
 
     def column(self, name: str) -> np.ndarray:
-        """A column over the runs as floats (a parameter or a figure; None -> nan)."""
+        """A column over the runs as floats (a parameter or a figure; None -> nan).
+
+        Parameters
+        ----------
+        name : str
+            A varied key, or a figure of the runs (:data:`METRICS`, :data:`FLAGS`, ``estimate`` ...).
+        """
         vals = [r["params"].get(name) if name in r["params"] else r.get(name) for r in self.runs]
         return np.array([np.nan if v is None else float(v) for v in vals])
 
@@ -1028,6 +1134,13 @@ def _quantiles(x: np.ndarray) -> dict[str, float] | None:
 
 def summarize(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[str, Any]:
     """Summary of a sweep's runs.
+
+    Parameters
+    ----------
+    runs : sequence of dict
+        The runs' rows (:attr:`SweepResult.runs`).
+    keys : sequence of str
+        The varied keys (for ``sensitivity``).
 
     Returns
     -------
@@ -1084,6 +1197,13 @@ def summarize(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[st
 
 def grid_axes(result: SweepResult, metric: str = "rms_error") -> tuple[list[str], list[np.ndarray], np.ndarray]:
     """A grid sweep's figure as an array over its axes.
+
+    Parameters
+    ----------
+    result : SweepResult
+        A grid sweep's result.
+    metric : str
+        The figure (:meth:`SweepResult.column`), default ``"rms_error"``.
 
     Returns
     -------
@@ -1239,6 +1359,27 @@ def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), 
     through the plain loop, then the same through Dask), ``repeats`` times over: a drift of the machine's speed
     falls on both alike. ``dask_overhead`` compares the totals; the times per path are the least total over the
     repeats. The cluster's start-up is reported apart.
+
+    Parameters
+    ----------
+    controllers : sequence of str
+        Controller names or files.
+    runs : int
+        Runs per controller in the compiled batch loop.
+    duration : float
+        Simulated time of each run [s].
+    model : str
+        The nominal model's name or file.
+    workers : int, optional
+        Processes of the local cluster (default: the cores available).
+    batch : int, optional
+        Runs per task (default :func:`batch_size`).
+    python_runs : int
+        Runs timed through :func:`gearctl.runs.execute` for ``python_per_run_s``.
+    slow_runs : int
+        At most this many runs for a controller outside the compiled batch loop.
+    repeats : int
+        How often the alternation of the two paths is repeated.
 
     Returns
     -------
