@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .controller import Controller, ReferenceLike
-from .errors import InputError, SimulationError
+from .errors import InputError, SimulationError, short_repr
 from .kernel import Kernel
 from .limits import check_output_size
 from .params import Sensors
@@ -25,7 +25,7 @@ from .plant import Plant, check_plant
 from .simulate import DIVERGENCE_LIMIT, Event, located_events
 from .units import DURATION, SEED
 
-__all__ = ["ClosedLoopResult", "simulate_closed_loop", "loop_samples", "loop_result", "Encoder"]
+__all__ = ["ClosedLoopResult", "simulate_closed_loop", "check_controller", "loop_samples", "loop_result", "Encoder"]
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -181,6 +181,19 @@ def check_loop_memory(plant: Plant, duration: float, Ts: float = DEFAULT_TS, *, 
 LOOP_SAMPLE_BYTES, LOOP_STATE_BYTES = 640, 24
 
 
+def check_controller(controller: Any) -> None:
+    """Refuse what is not a controller (``Ts``, ``reset`` and ``step``) with an InputError naming ``controller``.
+
+    Raises
+    ------
+    InputError
+        If ``controller`` lacks any of ``Ts``, ``reset``, ``step``.
+    """
+    if not all(hasattr(controller, a) for a in ("Ts", "reset", "step")):
+        raise InputError(f"controller = {short_repr(controller)} is not a controller: expected a "
+                         "gearctl.load_controller(...) or gearctl.load_exported(...)", field="controller")
+
+
 def simulate_closed_loop(
     plant: Plant,
     controller: Controller,
@@ -233,9 +246,7 @@ def simulate_closed_loop(
     if not all(hasattr(ref, a) for a in ("at", "load_disturbance")):
         raise InputError(f"ref = {ref!r} is not a reference: expected a gearctl.reference(...) "
                          "(sine, step, ramp or move)", field="ref")
-    if not all(hasattr(controller, a) for a in ("Ts", "reset", "step")):
-        raise InputError(f"controller = {controller!r} is not a controller: expected a "
-                         "gearctl.load_controller(...) or gearctl.load_exported(...)", field="controller")
+    check_controller(controller)
     if sensors is not None and not isinstance(sensors, Sensors):
         raise InputError(f"sensors = {sensors!r} is not a Sensors: expected the model's (model.sensors) or None "
                          "(ideal encoders)", field="sensors")

@@ -256,8 +256,8 @@ class Plant:
         try:
             kind = PlantKind(kind)
         except ValueError:
-            raise InputError(f"plant = {kind!r} is not a plant: expected one of "
-                             f"{', '.join(p.value for p in PlantKind)}", field="plant") from None
+            raise InputError(f"kind = {kind!r} is not a plant kind: expected one of "
+                             f"{', '.join(p.value for p in PlantKind)}", field="kind") from None
         for name, value, cls in (("contact_law", contact_law, ContactLaw), ("friction_law", friction_law,
                                                                             FrictionLaw)):
             try:
@@ -327,7 +327,15 @@ class Plant:
         ----------
         i : int
             Stage index, 0 for the motor's stage (from 0 to ``n - 1``).
+
+        Raises
+        ------
+        InputError
+            If ``i`` is not a stage index (a negative one read the stages from the end).
         """
+        if not (isinstance(i, int | np.integer) and not isinstance(i, bool) and 0 <= i < self.n_stages):
+            raise InputError(f"i = {i!r} is out of range: expected a stage index from 0 to {self.n_stages - 1}",
+                             field="i")
         return math.prod(s.ratio for s in self.stages[i + 1:])
 
     @property
@@ -789,8 +797,8 @@ def build_plant(
         kind = PlantKind(kind)
     except ValueError:
         raise InputError(
-            f"plant = {kind!r} is not a plant: expected one of {', '.join(p.value for p in PlantKind)}",
-            field="plant",
+            f"kind = {kind!r} is not a plant kind: expected one of {', '.join(p.value for p in PlantKind)}",
+            field="kind",
         ) from None
     if not (hasattr(model, "servo") and hasattr(model, "stages")):
         hint = f": load it first, gearctl.load_model({str(model)!r})" if isinstance(model, str | os.PathLike) else ""

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .closedloop import ClosedLoopResult, check_loop_memory, simulate_closed_loop
+from .closedloop import ClosedLoopResult, check_controller, check_loop_memory, simulate_closed_loop
 from .design.base import Controller
 from .errors import InputError
 from .params import Sensors
@@ -249,13 +249,13 @@ def precision_test(
     Raises
     ------
     InputError
-        If ``plant`` is not a Plant; a count, the seed or a length of the test is out of range; the test program
-        would last longer than the longest simulated duration or its run would not fit in memory (both naming
-        ``travel``); or, from :func:`~gearctl.closedloop.simulate_closed_loop`, ``controller`` reads a load
-        encoder ``sensors`` say is missing. (A ``controller`` without a sample time ``Ts``, e.g. ``None``, fails
-        with AttributeError before that check.)
+        If ``plant`` is not a Plant or ``controller`` not a controller; a count, the seed or a length of the test
+        is out of range; the test program would last longer than the longest simulated duration or its run would
+        not fit in memory (both naming ``travel``); or, from :func:`~gearctl.closedloop.simulate_closed_loop`,
+        ``controller`` reads a load encoder ``sensors`` say is missing.
     """
     plant = check_plant(plant)
+    check_controller(controller)
     for name, v, low in (("targets", targets, 2), ("cycles", cycles, 1)):
         is_int = isinstance(v, int | np.integer) and not isinstance(v, bool)
         if not (is_int and low <= v <= 50):

@@ -340,3 +340,33 @@ def test_a_refused_array_is_shown_on_one_line(call) -> None:  # noqa: ANN001
     with pytest.raises(InputError, match=rf"^\w+ = {shown} is not") as err:
         call(np.ones((3, 3)))
     assert "\n" not in str(err.value)
+
+
+def test_precision_test_names_a_controller_that_is_none() -> None:
+    # precision_test read controller.Ts before any check: AttributeError for None (a docstring review)
+    from gearctl import build_plant, load_model
+    from gearctl.errors import InputError
+    from gearctl.precision import precision_test
+
+    with pytest.raises(InputError, match=r"controller = None is not a controller"):
+        precision_test(build_plant(load_model("shing1993_servo")), None, cycles=1)  # type: ignore[arg-type]
+
+
+def test_ratio_after_refuses_an_index_outside_the_stages() -> None:
+    # Plant.ratio_after(-1) read the stages from the end and returned the whole train's ratio
+    from gearctl import build_plant, load_model
+    from gearctl.errors import InputError
+
+    train = build_plant(load_model("servo_3stage_quanser_srv02"))
+    assert train.ratio_after(2) == 1.0 and train.ratio_after(0) == pytest.approx(4.0 * 5.0)
+    for bad in (-1, 3, 1.0):
+        with pytest.raises(InputError, match=r"i = .* is out of range: expected a stage index from 0 to 2"):
+            train.ratio_after(bad)  # type: ignore[arg-type]
+
+
+def test_plant_names_its_kind_argument() -> None:
+    from gearctl import build_plant, load_model
+    from gearctl.errors import InputError
+
+    with pytest.raises(InputError, match=r"kind = 'rigid' is not a plant kind: expected one of improved"):
+        build_plant(load_model("shing1993_servo"), "rigid")
