@@ -1,0 +1,41 @@
+"""``identify`` on logs of h6's independent simulator (``tests/data/logs/h6_sim``: SciPy ``solve_ivp`` with contact
+events, a no-pull spring-damper mesh 0.9x the model's stiffness, tanh Coulomb friction, a PID of its own).
+
+``h6_big.toml`` is a coarse-pitch pair (module 4 mm, 18/54) whose logs have a backlash of up to 1 mm; the logs here
+are ``make_logs.py``'s cases of the same names (``python tests/data/logs/h6_sim/make_logs.py OUTDIR CASE``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gearctl import InputError
+from gearctl.identify import EncoderLog, identify, read_log
+
+DATA = Path(__file__).parent / "data" / "logs" / "h6_sim"
+BIG = DATA / "h6_big.toml"
+
+
+def test_a_wide_gap_crossed_open_loop_is_not_refused_as_units() -> None:
+    # open-loop torque bursts across a 1 mm gap: the motor spends much of its motion alone in the gap, so the lumped
+    # inertia of every moving sample is 0.25x the model's J1 + J2/N^2 (J1 alone is 0.19x). It was refused as a
+    # column in the wrong units; the log's real trouble is that the load never rests on its back flank
+    with pytest.raises(InputError) as exc:
+        identify(DATA / "B04_openloop_b1000.csv", BIG, encoders="motor+load")
+    assert "lumped inertia" not in str(exc.value)
+    assert exc.value.field == "theta2" and "no rest on the back flank" in str(exc.value)
+
+
+def test_angles_in_degrees_are_still_refused_on_a_wide_gap_model() -> None:
+    lg = read_log(DATA / "B01_tri_b1000.csv")
+    res = identify(lg, BIG, encoders="motor+load")
+    assert res.backlash_ci[0] <= 1e-3 <= res.backlash_ci[1]
+    assert lg.theta2 is not None
+    deg = EncoderLog(t=lg.t, torque=lg.torque, theta1=np.degrees(lg.theta1), theta2=np.degrees(lg.theta2),
+                     sample_time=lg.sample_time)
+    with pytest.raises(InputError, match="degrees") as exc:
+        identify(deg, BIG, encoders="motor+load")
+    assert exc.value.field == "theta1"
