@@ -978,10 +978,16 @@ def _no_switch(p: _Problem, found: int, what: str) -> InputError:
     m = p.m
     w = m.w[_Encoder.moving(m.w, m.v_thr, p.W)]
     reversals = int(np.count_nonzero(np.sign(w[1:]) != np.sign(w[:-1])))
-    advice = ("record a motion that reverses (moves back and forth, a sine)" if reversals < MIN_SWITCHES else
-              f"the motor reversed {reversals} times, but the load never rested on a flank long enough to be seen "
-              f"there (a loop that hunts or rattles, or a sample rate too low for the crossings): record slower "
-              f"reversals with a calmer loop, or at a higher rate")
+    if reversals < MIN_SWITCHES:
+        advice = "record a motion that reverses (moves back and forth, a sine)"
+    elif found >= 1 and reversals <= found + 1:  # nearly every reversal crossed: the log reverses too seldom (a
+        # reviewer's slow log, told that the load never rested on a flank, rested 1.5 s on each and crossed once)
+        advice = (f"the motor reversed {reversals} times, but only {found} of its reversals took the load from one "
+                  f"flank to the other: record more reversals, each travelling well over the lost motion")
+    else:
+        advice = (f"the motor reversed {reversals} times, but the load never rested on a flank long enough to be "
+                  f"seen there (a loop that hunts or rattles, or a sample rate too low for the crossings): record "
+                  f"slower reversals with a calmer loop, or at a higher rate")
     return InputError(f"{p.log.name}: column {col}: {found} gap crossing(s) found ({what}); identification needs at "
                       f"least {MIN_SWITCHES}: {advice}", field=col)
 

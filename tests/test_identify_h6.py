@@ -39,3 +39,23 @@ def test_angles_in_degrees_are_still_refused_on_a_wide_gap_model() -> None:
     with pytest.raises(InputError, match="degrees") as exc:
         identify(deg, BIG, encoders="motor+load")
     assert exc.value.field == "theta1"
+
+
+def test_a_log_that_crosses_the_gap_once_is_told_so(tmp_path: Path) -> None:
+    # a slow log that rests 1.5 s on each flank and crosses the gap once was told that the load never rested on a
+    # flank long enough (the advice for a loop that hunts); it is told that it crosses too seldom
+    import runpy
+    import sys
+
+    saved = list(sys.path)
+    try:  # the script puts its folder on the path for its simulator
+        ns = runpy.run_path(str(DATA / "make_logs.py"), run_name="h6_make_logs")
+        name = "A11_slow_b70_fewcross"
+        path, _ = ns["make"](name, str(tmp_path), seed=sorted(ns["CASES"]).index(name))  # the script's own seed
+    finally:
+        sys.path[:] = saved
+    with pytest.raises(InputError) as exc:
+        identify(path, "shing1993_servo_friction", encoders="motor")
+    msg = str(exc.value)
+    assert "1 gap crossing(s) found" in msg and "only 1 of its reversals took the load from one flank to the other" \
+        in msg and "never rested" not in msg
