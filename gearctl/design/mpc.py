@@ -320,6 +320,7 @@ import gc
 import math
 import os
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -772,10 +773,26 @@ def _riccati_iteration(A: NDArray, Q: NDArray, C: NDArray, R: NDArray, steps: in
 # --- the QP solver ---------------------------------------------------------------------------------------
 
 
+#: Process-wide state of the muting (file descriptor 1 is the process's, shared by every thread): how many calls are
+#: muted at once, the descriptor stdout had before the first of them, and the null device (opened once, kept open).
+_MUTE_LOCK = threading.Lock()
+_mute_depth = 0
+_mute_saved: int | None = None
+_mute_null: int | None = None
+
+
 class _MutedStdout:
     """Runs calls with the process's standard output (file descriptor 1) on the null device, for C code that
     prints (:data:`_MUTED_PLUGINS`). Python's and C's buffers are flushed before and after, so that nothing else
-    written to standard output is lost or reordered. Where descriptors cannot be juggled the call runs as it is."""
+    written to standard output before or after is lost or reordered. Where descriptors cannot be juggled the call
+    runs as it is.
+
+    Descriptor 1 belongs to the process, not to a thread: the muting is counted across threads (a Dask worker with
+    several threads runs several MPCs at once), the first call in saves the descriptor and the last one out
+    restores it, and one null device serves them all. (Each call saving and restoring its own let a call that
+    began while another was muted save the null device as standard output and restore it last: the process's
+    standard output stayed on /dev/null for good.) While any call is muted, whatever another thread writes to
+    standard output is lost too."""
 
     def __init__(self) -> None:
         try:
@@ -783,18 +800,6 @@ class _MutedStdout:
             self._fflush.argtypes = [ctypes.c_void_p]
         except (OSError, TypeError, AttributeError):
             self._fflush = None
-        try:
-            self._null: int | None = os.open(os.devnull, os.O_WRONLY)
-        except OSError:
-            self._null = None
-
-    def __del__(self) -> None:
-        null = getattr(self, "_null", None)
-        if null is not None:
-            try:
-                os.close(null)
-            except OSError:
-                pass
 
     def _flush(self) -> None:
         import sys
@@ -806,23 +811,47 @@ class _MutedStdout:
         if self._fflush is not None:
             self._fflush(None)
 
+    def _mute(self) -> bool:
+        """Point descriptor 1 at the null device (the first call in), count this call; False where it cannot."""
+        global _mute_depth, _mute_saved, _mute_null
+        with _MUTE_LOCK:
+            if _mute_depth == 0:
+                try:
+                    if _mute_null is None:
+                        _mute_null = os.open(os.devnull, os.O_WRONLY)
+                    self._flush()
+                    saved = os.dup(1)
+                except OSError:
+                    return False
+                try:
+                    os.dup2(_mute_null, 1)
+                except OSError:
+                    os.close(saved)
+                    return False
+                _mute_saved = saved
+            _mute_depth += 1
+            return True
+
+    def _unmute(self) -> None:
+        """Uncount this call; the last one out gives descriptor 1 back."""
+        global _mute_depth, _mute_saved
+        with _MUTE_LOCK:
+            _mute_depth -= 1
+            if _mute_depth == 0 and _mute_saved is not None:
+                if self._fflush is not None:
+                    self._fflush(None)  # what the C code buffered goes to the null device
+                saved, _mute_saved = _mute_saved, None
+                os.dup2(saved, 1)
+                os.close(saved)
+
     def call(self, fn: Any, **kwargs: Any) -> Any:
         """``fn(**kwargs)`` with standard output muted."""
-        if self._null is None:
-            return fn(**kwargs)
-        self._flush()
-        try:
-            saved = os.dup(1)
-        except OSError:
+        if not self._mute():
             return fn(**kwargs)
         try:
-            os.dup2(self._null, 1)
             return fn(**kwargs)
         finally:
-            if self._fflush is not None:
-                self._fflush(None)
-            os.dup2(saved, 1)
-            os.close(saved)
+            self._unmute()
 
 
 class _QP:
