@@ -176,9 +176,11 @@ def unreached_targets(res: PrecisionResult, lost_motion: float, travel: float) -
                    f"{limit:.3g} rad (3 x the lost motion + travel / 1000), the largest by {worst:.3g} rad")
     B = res.stats["reversal_value"]
     if B > REVERSAL_LIMIT * lost_motion + 1e-3 * travel:
-        out.append(f"reversal beyond the gap: B = {B:.3g} rad is {B / lost_motion:.3g} x the lost motion "
-                   f"{lost_motion:.3g} rad, which is about what an uncompensated gap reverses by: the loop itself "
-                   "lands the load on different sides of the targets in the two directions")
+        # (a train without lost motion: no ratio to give; B / 0 raised ZeroDivisionError out of the test's health)
+        size = (f"{B / lost_motion:.3g} x the lost motion {lost_motion:.3g} rad (an uncompensated gap reverses by "
+                f"about the lost motion)" if lost_motion > 0.0 else "on a train without lost motion")
+        out.append(f"reversal beyond the gap: B = {B:.3g} rad is {size}: the loop itself lands the load on "
+                   "different sides of the targets in the two directions")
     offset, A = res.stats["mean_deviation"], res.stats["accuracy"]
     if abs(offset) > max(A, 0.01 * lost_motion):
         out.append(f"constant offset: the load misses the targets by {offset:.3g} rad on average, more than the "

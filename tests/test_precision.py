@@ -224,6 +224,10 @@ def test_a_reversal_beyond_the_gap_is_warned(friction_runs: dict[str, PrecisionR
     wide = dataclasses.replace(res, deviations_up=up, deviations_down=down, stats=iso230_statistics(up, down))
     (w,) = unreached_targets(wide, lost, 0.5)  # each deviation is within the 'not reached' limit
     assert w.startswith("reversal beyond the gap: B = 0.00372 rad is 2.8 x the lost motion")
+    # a backlash-free train (lost motion 0): the warning divided B by it, ZeroDivisionError out of precision_health
+    (w,) = unreached_targets(dataclasses.replace(wide, deviations_up=up / 10, deviations_down=down / 10,
+                                                 stats=iso230_statistics(up / 10, down / 10)), 0.0, 0.25)
+    assert w.startswith("reversal beyond the gap: B = 0.000372 rad is on a train without lost motion: the loop")
 
 
 def test_deadzone_inverse_cuts_reversal(friction_runs: dict[str, PrecisionResult]) -> None:
