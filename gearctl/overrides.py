@@ -24,12 +24,23 @@ from .plant import build_plant
 from .units import check_number
 
 __all__ = ["Scale", "perturb_model", "stage_values", "split_stage_key", "check_keys_act", "MODEL_CLASSES",
-           "OWNER_FIELDS", "UNREAD_BY_PLANT"]
+           "OWNER_FIELDS", "UNREAD_BY_PLANT", "FILE_NAMES"]
 
 #: The dataclasses whose fields a model key names, in the order an override looks for it.
 MODEL_CLASSES: tuple[type, ...] = (GearPair, MeshDynamics, Servo, Sensors)
 #: Each class's field names.
 OWNER_FIELDS = {cls: {f.name for f in dataclasses.fields(cls)} for cls in MODEL_CLASSES}
+
+
+#: A model file's names of the keys that overrides spell as a stage's fields: (where the file has it, what to write;
+#: ``{pre}`` is the key's ``stageN.`` prefix, if any).
+FILE_NAMES = {
+    "teeth": ("[gear1] and [gear2] teeth", "{pre}teeth1 (gear 1's) or {pre}teeth2 (gear 2's)"),
+    "profile_shift": ("[gear1] and [gear2] profile_shift", "{pre}x1 (gear 1's) or {pre}x2 (gear 2's)"),
+    "inertia": ("[gear1] and [gear2] inertia", "{pre}inertia1 (gear 1's) or {pre}inertia2 (gear 2's) [kg m^2]"),
+    "pressure_angle_deg": ("[pair] or [[stage]] pressure_angle_deg, in degrees",
+                           "{pre}pressure_angle, in rad (20 deg = 0.349)"),
+}
 
 
 #: A key of one stage: ``stage2.backlash``.
@@ -45,6 +56,9 @@ def split_stage_key(key: str) -> tuple[int | None, str]:
     n, field = int(m.group(1)), m.group(2)
     if m.group(1) != str(n):
         raise InputError(f"{key}: write the stage number without leading zeros (stage{n}.{field})", field=key)
+    if field in FILE_NAMES:  # stage2.pressure_angle_deg: the file's name, not an override's (as without the prefix)
+        raise InputError(f"{key}: {field} is the model file's name ({FILE_NAMES[field][0]}); an override names it "
+                         + FILE_NAMES[field][1].format(pre=f"stage{n}."), field=key)
     if not (field in OWNER_FIELDS[GearPair] or field in OWNER_FIELDS[MeshDynamics]):
         import difflib
 

@@ -69,6 +69,7 @@ from .closedloop import check_loop_memory
 from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
 from .model import GearModel
+from .overrides import FILE_NAMES as _FILE_NAMES
 from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, check_keys_act, split_stage_key, stage_values
 from .overrides import perturb_model as _perturb
 from .parallel import (
@@ -159,15 +160,6 @@ class _Keys(dict):
 
 
 _KEYS = _Keys(sweep_keys())
-
-
-#: A pair file's names of the keys that overrides spell as a train's stage keys: (where the file has it, what to write).
-_FILE_NAMES = {
-    "teeth": ("[gear1] and [gear2] teeth", "{pre}teeth1 (gear 1's) or {pre}teeth2 (gear 2's)"),
-    "profile_shift": ("[gear1] and [gear2] profile_shift", "{pre}x1 (gear 1's) or {pre}x2 (gear 2's)"),
-    "inertia": ("[gear1] and [gear2] inertia", "{pre}inertia1 (gear 1's) or {pre}inertia2 (gear 2's) [kg m^2]"),
-    "pressure_angle_deg": ("[pair] pressure_angle_deg, in degrees", "{pre}pressure_angle, in rad (20 deg = 0.349)"),
-}
 
 
 def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:

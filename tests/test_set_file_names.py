@@ -42,3 +42,19 @@ def test_a_pairs_range_error_names_no_stage(tmp_path: Path, capsys: pytest.Captu
     err = capsys.readouterr().err
     assert "[pair] backlash = 0.0007 is out of range: expected at most 0.5 x module = 0.000625 [m]\n" in err
     assert "stage" not in err
+
+
+@pytest.mark.parametrize(("key", "says"), [
+    ("stage2.pressure_angle_deg=25", "stage2.pressure_angle_deg: pressure_angle_deg is the model file's name ([pair] "
+                                     "or [[stage]] pressure_angle_deg, in degrees); an override names it "
+                                     "stage2.pressure_angle, in rad"),
+    ("stage1.profile_shift=0.1", "an override names it stage1.x1 (gear 1's) or stage1.x2 (gear 2's)"),
+    ("stage3.teeth=20", "an override names it stage3.teeth1 (gear 1's) or stage3.teeth2 (gear 2's)"),
+])
+def test_a_stage_key_with_the_files_name_is_told_the_overrides(capsys: pytest.CaptureFixture[str], key: str,
+                                                                says: str) -> None:
+    # the {pre} of the hints was always "": stage2.pressure_angle_deg was "not a stage's key", stage1.profile_shift
+    # got no hint at all and stage3.teeth was offered stage3.teeth2 alone
+    assert main(["track", "servo_3stage_quanser_srv02", "pid", "--set", key]) == 2
+    err = capsys.readouterr().err
+    assert says in err and "not a stage's key" not in err, err

@@ -107,7 +107,8 @@ def test_an_estimate_below_the_floor_is_refused_before_any_run_and_a_trains_fail
 
 @pytest.mark.parametrize(("text", "hint"), [
     ("stage2.backlsh=1e-5", "did you mean 'stage2.backlash' [m]?"),
-    ("stage2.pressure_angle_deg=20", "did you mean 'stage2.pressure_angle' [rad]?"),  # the file's key: degrees
+    # the file's key, in degrees: named as the other file names are (tests/test_set_file_names.py)
+    ("stage2.pressure_angle_deg=20", "an override names it stage2.pressure_angle, in rad (20 deg = 0.349)"),
     ("stage1.face_widht=1e-3", "did you mean 'stage1.face_width' [m]?"),
     ("stage1.load_inertia=1", "load_inertia is not a stage's: give it without the prefix"),
 ])
