@@ -484,9 +484,11 @@ ISO_STIFFNESS_SHARE = 0.5
 def iso6336_mesh_stiffness(pair: GearPair) -> float:
     """ISO 6336-1 (method B) mean mesh stiffness ``c_gamma_alpha x face width`` of a spur pair [N/m].
 
-    ``c'_th = 1 / q'`` with ISO 6336-1's polynomial ``q'`` in the teeth and the profile shifts, times
-    ``C_M = 0.8`` (solid gears), ``C_B`` for the rack's dedendum and pressure angle and ``E / 206 GPa`` (the
-    formula is for steel on steel); ``c_gamma_alpha = c' (0.75 eps_alpha + 0.25)``. A cross-check of the
+    ``c'_th = 1 / q'`` with ISO 6336-1's polynomial ``q'`` in the teeth and the profile shifts, times the
+    correction factor ``C_M = 0.8``, the blank factor ``C_R = 1`` (solid gears), ``C_B`` for the rack's dedendum
+    and pressure angle and ``E / 206 GPa`` (the formula is for steel on steel); ``c_gamma_alpha = c' (0.75
+    eps_alpha + 0.25)``. (ISO fits ``q'`` for ``x1 >= x2`` and ``-0.5 <= x1 + x2 <= 2``; outside that it is
+    extrapolated.) A cross-check of the
     report's model, which is not used for the plant (:func:`stiffness_note`).
 
     Examples

@@ -413,7 +413,8 @@ class MPCSettings:
     landing_velocity : float
         Closing speed of a planned landing [m/s]: the bound, and the penalty's target.
     max_solve_time : float
-        A step whose QP solves take longer than this counts as an overrun and falls back [s].
+        A step whose QP solves take longer than this counts as an overrun [s]; it falls back only where
+        ``realtime`` is set (``--realtime``), as on the target.
     smoothing : float
         Mesh torque on the load the plan must leave on a flank at the first sample after a landing
         [N m]: the impacts then die out quickly instead of the motor floating off and landing again.
