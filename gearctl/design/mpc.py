@@ -1361,8 +1361,8 @@ class MPC(Controller):
             need = _horizon_needed(t_cross / Ts)
             ask = (f"expected horizon >= {need} (a controller file with a longer horizon, or a larger torque_limit; "
                    f"the deadzone_inverse needs none)" if need <= _HORIZON_MAX else
-                   f"it needs {need}, beyond the longest horizon ({_HORIZON_MAX}): a larger torque_limit, or the "
-                   f"deadzone_inverse, which needs none")
+                   f"it needs {need if need < 10**9 else 'more than a billion samples'}, beyond the longest horizon "
+                   f"({_HORIZON_MAX}): a larger torque_limit, or the deadzone_inverse, which needs none")
             raise InputError(f"horizon = {n} samples is too short for this plant: a crossing of the lost motion takes "
                              f"{t_cross / Ts:.3g} samples at {_CROSS_SHARE:g} x the torque limit, and the plan must "
                              f"see it land within {_CROSS_HORIZON_SHARE:g} of the horizon and before its last sample; "
