@@ -28,6 +28,7 @@ GCX_FN void gcx_pid_reset(gcx_pid_s *S) {
     S->rdd_prev = 0.0, S->rdd_set = 0;
     S->moving = 0;
     S->integral_moving = 0.0;
+    S->gap = 0.0, S->y_last = 0.0, S->v_last = 0.0;
 }
 
 /* PID.reference_update: the acceleration to feed forward (mid-sample); the integrator's release at a start */
@@ -55,6 +56,29 @@ GCX_FN double gcx_pid_feedforward_torque(const gcx_pid_p *P, double v, double a)
     return u;
 }
 
+/* Not in Python (it never misses a sample): the filters carried over the samples the C API missed (bad input)
+ * before this one, fed the readings and reference speeds interpolated linearly between the last ones they took
+ * and this sample's (y_p, v_avg), so that the derivative sees the gap's motion at its own pace. Taken at once
+ * (the filters as they were), the gap's whole displacement counted as one sample's: a derivative kick of 3x
+ * the torque after one missed reading, the torque limit for 5 samples after 50. Over a gap of more than
+ * 1000 samples the filters restart from the interpolation 1000 samples back. */
+GCX_FN void gcx_pid_gap(const gcx_pid_p *P, gcx_pid_s *S, double y_p, double v_avg) {
+    double n = S->gap + 1.0, j = S->gap > 1000.0 ? S->gap - 1000.0 : 0.0;
+    S->gap = 0.0;
+    if (!S->yf_set) return; /* nothing filtered yet: the first sample seeds the filters */
+    if (j > 0.0) {
+        S->y_filtered = S->y_last + (y_p - S->y_last) * (j / n);
+        S->v_filtered = S->v_last + (v_avg - S->v_last) * (j / n);
+    }
+    for (j += 1.0; j < n; j += 1.0) {
+        double yf_new = P->a * S->y_filtered + (1 - P->a) * (S->y_last + (y_p - S->y_last) * (j / n));
+        S->dy = (yf_new - S->y_filtered) / P->Ts;
+        S->y_filtered = yf_new;
+        if (S->vf_set)
+            S->v_filtered = P->a * S->v_filtered + (1 - P->a) * (S->v_last + (v_avg - S->v_last) * (j / n));
+    }
+}
+
 /* PID.torque (has_ff: the Python ff is not None) */
 GCX_FN double gcx_pid_torque(const gcx_pid_p *P, gcx_pid_s *S, double r, double v, double a, double e_p, double y_p,
                              double e_i, int has_ff, double ff, double scale) {
@@ -63,6 +87,8 @@ GCX_FN double gcx_pid_torque(const gcx_pid_p *P, gcx_pid_s *S, double r, double 
         S->y_filtered = y_p;
         S->yf_set = 1;
     }
+    if (S->gap > 0.0) gcx_pid_gap(P, S, y_p, v - 0.5 * P->Ts * a);
+    S->y_last = y_p;
     double yf_new = P->a * S->y_filtered + (1 - P->a) * y_p;
     S->dy = (yf_new - S->y_filtered) / P->Ts;
     S->y_filtered = yf_new;
@@ -73,6 +99,7 @@ GCX_FN double gcx_pid_torque(const gcx_pid_p *P, gcx_pid_s *S, double r, double 
             S->v_filtered = v_avg;
             S->vf_set = 1;
         }
+        S->v_last = v_avg;
         S->v_filtered = P->a * S->v_filtered + (1 - P->a) * v_avg;
         v_d = S->v_filtered;
     } else {

@@ -7,6 +7,9 @@ typedef struct {
     double integral, y_filtered, v_filtered, dy, rdd_prev, integral_moving;
     int yf_set, vf_set, rdd_set; /* 0 until the first sample (Python: None) */
     int moving;
+    /* not in Python, which misses no sample: samples the C API missed (bad input) before this one, and the last
+     * measurement and reference speed the filters took, to carry them over the gap (gcx_pid_gap) */
+    double gap, y_last, v_last;
 } gcx_pid_s;
 
 /* an offset moving between values along a ramp (deadzone.py: OffsetRamp) [rad, s] */
