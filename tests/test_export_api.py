@@ -149,6 +149,38 @@ def test_one_wild_reading_cannot_wind_up_the_integral() -> None:
     assert np.max(np.abs(hit.x[1][late] - clean.x[1][late])) < 1e-4
 
 
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc (-fcallgraph-info)")
+@pytest.mark.parametrize("ctrl", ["mpc", "adaptive_inverse"])
+def test_the_exported_c_has_no_recursion(tmp_path: Path, ctrl: str) -> None:
+    # a drive's stack analysis (and MISRA C:2012 rule 17.2) needs a call graph without cycles: the MPC's observer
+    # called itself on a restart of its estimate (once, but gcc -fcallgraph-info=su saw a cycle and no bound)
+    import re
+
+    d, _ = _export(tmp_path, SERVO, ctrl, vectors=False)
+    edges: dict[str, set[str]] = {}
+    for src in sorted(d.glob("*.c")):
+        if src.name in ("check.c", "bench.c"):
+            continue
+        subprocess.run(["gcc", "-std=c99", "-O2", "-fcallgraph-info=su", "-c", src.name, "-o", src.stem + ".o"],
+                       cwd=d, check=True, capture_output=True, timeout=600)
+        text = (d / f"{src.stem}.ci").read_text()
+        for a, b in re.findall(r'edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"', text):
+            edges.setdefault(a.split(":")[-1], set()).add(b.split(":")[-1])
+    assert edges
+
+    def cycle(node: str, path: tuple[str, ...]) -> tuple[str, ...] | None:
+        if node in path:
+            return (*path, node)
+        for nxt in edges.get(node, ()):
+            found = cycle(nxt, (*path, node))
+            if found:
+                return found
+        return None
+
+    for name in edges:
+        assert cycle(name, ()) is None, " > ".join(cycle(name, ()) or ())
+
+
 @needs_make
 def test_two_exports_link_into_one_program(tmp_path: Path) -> None:
     # two axes: an MPC (with its QP solver) and a train's inverse, under prefixes axis1 and axis2, both headers in

@@ -74,6 +74,18 @@ GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
     S->gate[1] = P->gate_load;
 }
 
+/* MPC._observe's first sample: at rest, the gap s_m from the encoders (0, mid-gap, without a load reading). Its
+ * own function (Python: _observe calls itself on a restart, once): the C has no recursion, which MISRA C:2012
+ * rule 17.2 forbids and which leaves a stack analyser (gcc -fcallgraph-info=su) with no bound. */
+GCX_FN void gcx_mpc_start(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, double s_m) {
+    S->inn[0] = S->inn[1] = 0.0;
+    S->gap_inn[0] = S->gap_inn[1] = 0.0;
+    S->gap_s_n = 0;
+    double phi_m = y_motor - P->kappa1 * s_m;
+    S->z[0] = phi_m, S->z[1] = 0.0, S->z[2] = P->rigid ? 0.0 : s_m, S->z[3] = 0.0, S->z[4] = 0.0;
+    S->z_set = 1;
+}
+
 /* MPC._observe: z = [phi, omega, s, v, d] from the encoders. A non-finite load reading, or one that puts the gap
  * beyond gap_limit, is a missing one (the motor encoder alone); a reading farther from its predicted shaft angle
  * than the gate is rejected (the prediction alone), and one rejected on more than GCX_GATE_PERSIST samples in a
@@ -87,13 +99,8 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
     if (load && !(fabs(s_m) <= P->gap_limit)) { /* the encoders disagree beyond any gap: the load reading is wrong */
         load = 0, note = 1, s_m = 0.0;
     }
-    if (!S->z_set) { /* first sample: at rest, the gap from the encoders (mid-gap without them) */
-        S->inn[0] = S->inn[1] = 0.0;
-        S->gap_inn[0] = S->gap_inn[1] = 0.0;
-        S->gap_s_n = 0;
-        double phi_m = y_motor - P->kappa1 * s_m;
-        S->z[0] = phi_m, S->z[1] = 0.0, S->z[2] = P->rigid ? 0.0 : s_m, S->z[3] = 0.0, S->z[4] = 0.0;
-        S->z_set = 1;
+    if (!S->z_set) { /* first sample */
+        gcx_mpc_start(P, S, y_motor, s_m);
         return note;
     }
     double u = S->u + S->f1; /* the torque that acted on the motor: the drive's and its friction */
@@ -124,7 +131,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         if (S->rejects > GCX_GATE_PERSIST) { /* a reading that persists is the truth: start again from it */
             S->rejects = 0;
             S->z_set = 0;
-            gcx_mpc_observe(P, S, y_motor, load ? y_load : (double)NAN);
+            gcx_mpc_start(P, S, y_motor, s_m); /* Python: self._observe(y_motor, y_load if load else None) */
             /* restarting again and again: the readings follow no motion the model allows: a latched fault */
             for (int i = 0; i < GCX_FAULT_RESTARTS - 1; i++) S->restarts[i] = S->restarts[i + 1];
             S->restarts[GCX_FAULT_RESTARTS - 1] = S->n_obs;
