@@ -58,6 +58,12 @@ def test_header_states_ratio_and_torque_limit(tmp_path: Path, model: str, ctrl: 
     assert {_macro(h, f"GEARCTL_STEP_{s}") for s in ("OK", "FALLBACK", "BAD_INPUT")} == {0.0, 1.0, 2.0}
     readme = (d / "README.md").read_text()
     assert "GEARCTL_RATIO" in readme and "GEARCTL_STEP_BAD_INPUT" in readme
+    # what a drive's integrator asked and the header did not say: saturation has no status, the angles are
+    # multi-turn (a wrap is motion), which instances may run at once, and the RAM and stack
+    flat = " ".join(w for w in h.split() if w != "*")
+    for said in ("the status does not report it", "The angles are multi-turn", "Reentrant: distinct instances",
+                 "sizeof(gearctl_ctrl_t) per instance", "No recursion"):
+        assert said in flat, said
 
 
 @needs_make
