@@ -296,20 +296,25 @@ def test_injected_failures_fall_back_and_are_reported(servo, mpc_spec) -> None:
     assert _rms_after_settle(res) < 1.45e-4
 
 
+def _fail_every(ctrl: MPC, every: int, status: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make every ``every``-th QP solve of ``ctrl`` fail with ``status``."""
+    calls = {"n": 0}
+    orig = ctrl._qp.solve
+
+    def flaky() -> str:
+        calls["n"] += 1
+        return status if calls["n"] % every == 0 else orig()
+
+    monkeypatch.setattr(ctrl._qp, "solve", flaky)
+
+
 def test_solver_failure_and_overrun_fall_back(servo, mpc_spec, monkeypatch: pytest.MonkeyPatch) -> None:
     # a solver that fails (the QP object reports a failed KKT check) and a limit no solve can meet: both
     # fall back every time they happen and say why
     model, plant = servo
     ref = reference("sine")
     ctrl = _mpc(plant, mpc_spec, max_solve_time=1.0)
-    calls = {"n": 0}
-    orig = ctrl._qp.solve
-
-    def flaky() -> str:
-        calls["n"] += 1
-        return "daqp solution fails the KKT check (1 > 0.0001)" if calls["n"] % 50 == 0 else orig()
-
-    monkeypatch.setattr(ctrl._qp, "solve", flaky)
+    _fail_every(ctrl, 50, "daqp solution fails the KKT check (1 > 0.0001)", monkeypatch)
     res = simulate_closed_loop(plant, ctrl, ref, 0.3, sensors=model.sensors)
     assert res.fallbacks and all("KKT check" in f["reason"] for f in res.fallbacks)
     # every solve overruns: every step falls back (the plans it follows are one sample late, so a landing
@@ -329,14 +334,7 @@ def test_a_failed_solve_that_overran_counts_as_an_overrun(servo, mpc_spec, monke
     # budget in solve_times, failed or not (as the exported controller's SIL wrapper counts them)
     model, plant = servo
     ctrl = _mpc(plant, mpc_spec, max_solve_time=1e-9)
-    calls = {"n": 0}
-    orig = ctrl._qp.solve
-
-    def flaky() -> str:
-        calls["n"] += 1
-        return "gearctl QP: infeasible" if calls["n"] % 7 == 0 else orig()
-
-    monkeypatch.setattr(ctrl._qp, "solve", flaky)
+    _fail_every(ctrl, 7, "gearctl QP: infeasible", monkeypatch)
     res = simulate_closed_loop(plant, ctrl, reference("sine"), 0.1, sensors=model.sensors)
     failed = sum(f["reason"].startswith("solve failed") for f in res.fallbacks)
     assert failed > 0 and len(res.fallbacks) == failed  # realtime off: an overrun alone does not fall back
