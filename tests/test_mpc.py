@@ -365,6 +365,53 @@ def test_osqp_prints_nothing_to_standard_output(servo, mpc_spec, tmp_path: Path,
     assert json.loads(out)["controller"]["solver"] == "osqp"
 
 
+def test_a_reused_osqp_mpc_runs_as_a_new_one(servo, mpc_spec) -> None:
+    # h9, a sweep with solver = "osqp" on a running cluster: every row differed from the same sweep with --workers 1
+    # (up to 25 % of the RMS error), and from itself when run again. A sweep builds its controllers once per worker
+    # thread and resets them before each run; OSQP kept its workspace (its adaptive rho among it) in the CasADi conic,
+    # so a reset MPC solved from the last run's state: a run's figures hung on which runs its thread had run before
+    if "osqp" not in mpc_module.installed_solvers():
+        pytest.skip("osqp not in this CasADi")
+    model, plant = servo
+    ref = reference("sine")
+
+    def error(ctrl: MPC) -> np.ndarray:
+        return simulate_closed_loop(plant, ctrl, ref, 0.3, sensors=model.sensors, seed=3).error
+
+    fresh = error(_mpc(plant, mpc_spec, solver="osqp", max_solve_time=1.0))
+    ctrl = _mpc(plant, mpc_spec, solver="osqp", max_solve_time=1.0)
+    simulate_closed_loop(plant, ctrl, reference("step"), 0.3, sensors=model.sensors, seed=1)  # another run first
+    np.testing.assert_array_equal(error(ctrl), fresh)
+    np.testing.assert_array_equal(error(ctrl), fresh)
+
+
+def test_a_sweep_with_osqp_gives_each_run_the_same_figures_whatever_ran_before(tmp_path: Path) -> None:
+    # the same through the sweep's own path (sweep_task: controllers kept per thread): run 1 alone in a fresh thread,
+    # after run 0, and again after both, gives the same row
+    import threading
+
+    from gearctl.sweep import plan_sweep, sweep_task
+
+    if "osqp" not in mpc_module.installed_solvers():
+        pytest.skip("osqp not in this CasADi")
+    path = tmp_path / "mpc_osqp.toml"
+    path.write_text(resolve("mpc", "controllers").read_text().replace('solver = "gearctl"', 'solver = "osqp"'))
+    plan = plan_sweep("shing1993_servo", path, vary=["backlash=0.5x:2x"], runs=2, duration=0.2)
+
+    def in_new_thread(jobs: list) -> list[dict]:
+        out: list = []
+        t = threading.Thread(target=lambda: out.append(sweep_task(plan.context, jobs)))
+        t.start()
+        t.join()
+        return out[0]
+
+    alone = in_new_thread(plan.jobs[1:])[0]
+    rows = in_new_thread(plan.jobs + plan.jobs)  # one thread: run 1 after run 0, then both again
+    after, again = rows[1], rows[3]
+    for k in ("rms_error", "max_error", "final_error", "torque_rms"):
+        assert after[k] == alone[k] and again[k] == alone[k], k
+
+
 def test_settings_without_a_backlash_take_the_plants() -> None:
     # a reviewer (h4) tuning through the API: MPC(info, MPCSettings(horizon=20)) took MPCSettings' default backlash,
     # the benchmark servo's 5e-5 m, whatever the plant (MPC(info) and a controller file take the plant's): on the
