@@ -24,7 +24,7 @@ from .plant import build_plant
 from .units import check_number
 
 __all__ = ["Scale", "perturb_model", "stage_values", "split_stage_key", "check_keys_act", "MODEL_CLASSES",
-           "OWNER_FIELDS", "UNREAD_BY_PLANT", "FILE_NAMES"]
+           "OWNER_FIELDS", "UNREAD_BY_PLANT", "FILE_NAMES", "file_name_error"]
 
 #: The dataclasses whose fields a model key names, in the order an override looks for it.
 MODEL_CLASSES: tuple[type, ...] = (GearPair, MeshDynamics, Servo, Sensors)
@@ -43,6 +43,15 @@ FILE_NAMES = {
 }
 
 
+def file_name_error(key: str, field: str, by: str, pre: str = "") -> InputError:
+    """The error for ``key``, whose field ``field`` is spelt with a model file's name (:data:`FILE_NAMES`): where the
+    file has it and how ``by`` (``--set``, ``--vary``, an override) names it, with the stage prefix ``pre``."""
+    where, spelling = FILE_NAMES[field]
+    lead = key if field == key else f"{key}: {field}"
+    return InputError(f"{lead} is the model file's name ({where}); {by} names it " + spelling.format(pre=pre),
+                      field=key)
+
+
 #: A key of one stage: ``stage2.backlash``.
 STAGE_KEY = re.compile(r"^stage(\d+)\.(\w+)$")
 
@@ -57,8 +66,7 @@ def split_stage_key(key: str) -> tuple[int | None, str]:
     if m.group(1) != str(n):
         raise InputError(f"{key}: write the stage number without leading zeros (stage{n}.{field})", field=key)
     if field in FILE_NAMES:  # stage2.pressure_angle_deg: the file's name, not an override's (as without the prefix)
-        raise InputError(f"{key}: {field} is the model file's name ({FILE_NAMES[field][0]}); an override names it "
-                         + FILE_NAMES[field][1].format(pre=f"stage{n}."), field=key)
+        raise file_name_error(key, field, "an override", pre=f"stage{n}.")
     if not (field in OWNER_FIELDS[GearPair] or field in OWNER_FIELDS[MeshDynamics]):
         import difflib
 

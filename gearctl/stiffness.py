@@ -518,12 +518,13 @@ def stiffness_note(pair: GearPair, mean: float) -> str | None:
     """
     geo = pair_geometry(check_pair(pair))
     iso = iso6336_mesh_stiffness(pair)
-    long = [j for j in range(2) if geo.dedendum_radius[j] > geo.base_radius[j]]
-    if not long or mean >= ISO_STIFFNESS_SHARE * iso:
+    # each gear whose beam starts below its root: the beam's length in tooth heights
+    beams = {j: geo.h_a[j] / (geo.addendum_radius[j] - geo.dedendum_radius[j])
+             for j in range(2) if geo.dedendum_radius[j] > geo.base_radius[j]}
+    if not beams or mean >= ISO_STIFFNESS_SHARE * iso:
         return None
-    j = max(long, key=lambda i: geo.h_a[i] / (geo.addendum_radius[i] - geo.dedendum_radius[i]))
-    teeth = (pair.teeth1, pair.teeth2)[j]
-    beam = geo.h_a[j] / (geo.addendum_radius[j] - geo.dedendum_radius[j])
+    j = max(beams, key=beams.__getitem__)
+    teeth, beam = (pair.teeth1, pair.teeth2)[j], beams[j]
     per_width = 1e-9 / pair.face_width
     return (f"the mesh stiffness {mean:.4g} N/m ({mean * per_width:.3g} N/(mm um)) is {mean / iso:.2f} of ISO "
             f"6336-1's {iso:.4g} N/m ({iso * per_width:.3g} N/(mm um)): the report's tooth model starts gear "

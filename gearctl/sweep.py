@@ -69,8 +69,16 @@ from .closedloop import check_loop_memory
 from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
 from .model import GearModel
-from .overrides import FILE_NAMES as _FILE_NAMES
-from .overrides import MODEL_CLASSES, OWNER_FIELDS, Scale, check_keys_act, split_stage_key, stage_values
+from .overrides import (
+    FILE_NAMES,
+    MODEL_CLASSES,
+    OWNER_FIELDS,
+    Scale,
+    check_keys_act,
+    file_name_error,
+    split_stage_key,
+    stage_values,
+)
 from .overrides import perturb_model as _perturb
 from .parallel import (
     CONNECT_TIMEOUT,
@@ -173,10 +181,9 @@ def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:
         doing = "a sweep can vary" if sweep else "--set can change"
         raise InputError(f"{key} is not a number {doing}: numeric keys only (e.g. backlash, mesh_stiffness, "
                          f"coulomb_friction2, load_inertia, load_noise{', estimate' if sweep else ''})", field=key)
-    if key in _FILE_NAMES:  # a pair file's name of a key the overrides spell as the train's (a review's
+    if key in FILE_NAMES:  # a pair file's name of a key the overrides spell as the train's (a review's
         # `--set profile_shift=0.3` was told of an unknown model key, `pressure_angle_deg` pointed to the rad key)
-        raise InputError(f"{key} is the model file's name ({_FILE_NAMES[key][0]}); {'--vary' if sweep else '--set'} "
-                         "names it " + _FILE_NAMES[key][1].format(pre=""), field=key)
+        raise file_name_error(key, key, "--vary" if sweep else "--set")
     import difflib
 
     # a --set key is the model's: the controller's estimate has an option of its own, so it is no suggestion there

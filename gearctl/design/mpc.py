@@ -1125,7 +1125,8 @@ _FLIP_MARGIN = 0.1  # after an unplanned float, the other flank must be this muc
 _FREE_ACCELERATION = 1000.0  # rad/s^2 at the motor: without a torque limit, torques are weighed in shares of J_eq x
 # this (the catalog servos' torque limits give their trains 1.2e3 to 1.5e4 rad/s^2)
 _HORIZON_MAX = 200  # the horizon key's upper bound (MPCSettings.horizon)
-_CROSS_HORIZON_SHARE = 0.9  # a crossing must land within this share of the horizon (else the design is refused) ...
+_CROSS_HORIZON_SHARE = 0.9  # a crossing must land within this share of the horizon, and before its last sample
+# (_horizon_holds; else the design is refused)
 _CROSS_SHARE = 0.25  # a planned crossing accelerates and decelerates the motor with this share of the torque limit
 _STANDSTILL_LANDING = 0.05  # at standstill, landings close at most this fraction of landing_velocity
 _STANDSTILL_RELEASE = 3.0  # a hold lasts while a slow load stays within this many standstill deadbands
