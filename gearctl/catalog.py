@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -265,7 +265,7 @@ def load_model(name_or_path: str | Path, **overrides: Any) -> GearModel:
 
 
 def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | None = None,
-                    sensors: Sensors | None = None) -> Any:
+                    sensors: Sensors | None = None, progress: Callable[[float], Any] | None = None) -> Any:
     """Load a controller by catalog name (``pid``, ``deadzone_inverse``, ``mpc``, ...) or TOML path.
 
     Parameters
@@ -279,6 +279,9 @@ def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | N
         equivalent half-gap on the last stage's line of action, see :meth:`Plant.equivalent_pair`).
     sensors : Sensors, optional
         The model's encoders (``model.sensors``): the MPC's default observer noise follows them.
+    progress : callable, optional
+        Called with the fraction of the design done (an MPC's, which takes seconds to minutes at long horizons;
+        see :func:`~gearctl.design.registry.build_controller`).
 
     Returns
     -------
@@ -293,4 +296,5 @@ def load_controller(name_or_path: str | Path, plant: Any, *, backlash: float | N
 
     plant = check_plant(plant)
     path = resolve(name_or_path, "controllers")
-    return build_controller(read_toml(path), plant, path=path, backlash=backlash, sensors=sensors)
+    return build_controller(read_toml(path), plant, path=path, backlash=backlash, sensors=sensors,
+                            progress=progress)

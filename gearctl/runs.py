@@ -143,8 +143,9 @@ class RunResult:
 _LOCAL = threading.local()
 
 
-def design_controller(design: Design) -> Controller:
-    """The controller of ``design``, built once per process and thread (then reset before each run)."""
+def design_controller(design: Design, progress: Callable[[float], Any] | None = None) -> Controller:
+    """The controller of ``design``, built once per process and thread (then reset before each run); ``progress`` is
+    called with the fraction of the design done where it is built here (see :func:`build_controller`)."""
     designs: dict[str, Controller] | None = getattr(_LOCAL, "designs", None)
     if designs is None:
         designs = _LOCAL.designs = {}
@@ -154,7 +155,7 @@ def design_controller(design: Design) -> Controller:
         if len(designs) > 64:  # a sweep over estimates builds many: keep the cache bounded
             designs.clear()
         ctrl = build_controller(dict(design.spec), design.nominal, path=design.label, backlash=design.backlash,
-                                sensors=design.sensors)
+                                sensors=design.sensors, progress=progress)
         designs[key] = ctrl
     return ctrl
 

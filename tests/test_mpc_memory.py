@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import io
 import time
 from pathlib import Path
 
@@ -61,3 +62,37 @@ def test_available_memory_counts_what_the_kernel_can_reclaim() -> None:
     assert got is not None and abs(got - want) < 256 * 1024**2, (got, want)
     free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     assert got >= free - 256 * 1024**2
+
+
+def test_the_design_reports_its_progress(tmp_path: Path) -> None:
+    # a long horizon's design takes minutes (80 s at 150 samples on a 1:1 pair): it reports the share of its condensed
+    # QPs built, one call each, rising to 1; a PID is designed at once and never calls it
+    model = gearctl.load_model("shing1993_servo")
+    plant = gearctl.build_plant(model)
+    seen: list[float] = []
+    ctrl = gearctl.load_controller(_mpc_file(tmp_path, 20, 1e-3), plant, sensors=model.sensors, progress=seen.append)
+    assert len(seen) == len(ctrl._patterns)
+    assert seen == sorted(seen) and seen[0] > 0.0 and seen[-1] == 1.0
+    pid_seen: list[float] = []
+    gearctl.load_controller("pid", plant, progress=pid_seen.append)
+    assert pid_seen == []
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_design_bar_shows_only_once_the_design_is_slow(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the CLI's bar for a duration it cannot tell beforehand (an MPC's design): nothing for a quick one, a bar on the
+    # terminal once it has taken the threshold
+    from gearctl.cli.common import progress_bar
+
+    for wait, shown in ((0.0, False), (0.3, True)):
+        term = _Terminal()
+        monkeypatch.setattr("sys.stderr", term)
+        with progress_bar("design", expected_s=None, threshold=0.1) as bar:
+            time.sleep(wait)
+            for k in range(1, 11):
+                bar(k / 10)
+        assert ("design" in term.getvalue()) is shown, term.getvalue()

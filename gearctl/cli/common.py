@@ -299,19 +299,21 @@ def save_figure(fig: Any, path: str) -> None:
 
 
 class progress_bar:  # noqa: N801 (a context manager used like a function)
-    """A tqdm bar on stderr for runs expected to take more than ``threshold`` seconds (and only on a terminal).
+    """A tqdm bar on stderr for runs expected to take more than ``threshold`` seconds (and only on a terminal);
+    with ``expected_s=None`` (a duration not known beforehand), shown once the run has taken ``threshold`` seconds.
 
     Call the object with the fraction done (0..1).
     """
 
-    def __init__(self, desc: str, *, expected_s: float, threshold: float = 2.0, total: int = 1000) -> None:
+    def __init__(self, desc: str, *, expected_s: float | None, threshold: float = 2.0, total: int = 1000) -> None:
         self.bar = None
         self.total = total
         self.done = 0
-        if expected_s > threshold and sys.stderr.isatty():
+        if (expected_s is None or expected_s > threshold) and sys.stderr.isatty():
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, desc=desc, file=sys.stderr, leave=False, unit="‰")
+            self.bar = tqdm(total=total, desc=desc, file=sys.stderr, leave=False, unit="‰",
+                            delay=threshold if expected_s is None else 0.0)
 
     def __call__(self, fraction: float) -> None:
         if self.bar is not None:

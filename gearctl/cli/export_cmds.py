@@ -7,7 +7,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..units import BACKLASH, SEED
-from .common import dump_json, spec_arg, unused_estimate, warn
+from .common import dump_json, progress_bar, spec_arg, unused_estimate, warn
 
 __all__ = ["register"]
 
@@ -19,7 +19,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     model = load_model(args.model)
     plant = build_plant(model, backlash=args.backlash)
-    ctrl = load_controller(args.controller, plant, backlash=args.estimate, sensors=model.sensors)
+    with progress_bar("gearctl export: design", expected_s=None) as bar:
+        ctrl = load_controller(args.controller, plant, backlash=args.estimate, sensors=model.sensors, progress=bar)
     info = export_controller(ctrl, args.out, plant=plant, sensors=model.sensors, vectors=not args.no_vectors,
                              seed=args.seed, model=model.name, prefix=args.prefix)
     summary = {"model": model.name, "controller": ctrl.name, "kind": info.kind, "out": str(info.path),

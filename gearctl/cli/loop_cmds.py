@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -10,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError
+from ..errors import GearctlError, InputError
 from ..units import BACKLASH, DURATION, SEED, Spec
 from .common import (
     CYCLES,
@@ -35,7 +36,7 @@ __all__ = ["register"]
 
 
 def _cmd_track(args: argparse.Namespace) -> int:
-    from ..runs import execute, make_run, unholdable_load_step
+    from ..runs import design_controller, execute, make_run, unholdable_load_step
 
     if args.exported is not None and args.estimate is not None:
         raise InputError("--estimate and --exported: an exported controller runs with the numbers it was exported "
@@ -53,6 +54,9 @@ def _cmd_track(args: argparse.Namespace) -> int:
     run = make_run(args.model, args.controller, plant=args.plant, reference_kind=args.reference,
                    duration=args.duration, seed=args.seed, backlash=args.backlash, estimate=args.estimate,
                    realtime=args.realtime, overrides=dict(args.set))
+    if args.exported is None:  # the design first, with its own bar: an MPC's long horizon takes minutes
+        with progress_bar("gearctl track: design", expected_s=None) as bar, contextlib.suppress(GearctlError):
+            design_controller(run.design, progress=bar)  # (a design that fails is reported by execute)
     with progress_bar("gearctl track", expected_s=run.duration * 0.02):
         if args.exported is None:
             out, res = execute(run, keep=True)
@@ -137,7 +141,8 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     true_model = true_model_of(args.model, model, dict(args.set), args.plant) if args.set else model
     nominal = build_plant(model, backlash=args.backlash)
     plant = build_plant(true_model, args.plant, backlash=args.backlash)
-    ctrl = load_controller(args.controller, nominal, backlash=args.estimate, sensors=model.sensors)
+    with progress_bar("gearctl precision: design", expected_s=None) as bar:
+        ctrl = load_controller(args.controller, nominal, backlash=args.estimate, sensors=model.sensors, progress=bar)
     TARGETS.check("targets", args.targets)
     CYCLES.check("cycles", args.cycles)
     res = precision_test(plant, ctrl, targets=args.targets, cycles=args.cycles, travel=args.travel,

@@ -322,6 +322,7 @@ import os
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -510,7 +511,8 @@ def _plugin_loads(plugin: str) -> bool:
 
 
 def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, name: str,
-              backlash: float | None = None, sensors: Sensors | None = None) -> MPC:
+              backlash: float | None = None, sensors: Sensors | None = None,
+              progress: Callable[[float], Any] | None = None) -> MPC:
     """Build the MPC of a controller file (called by :func:`gearctl.design.registry.build_controller`).
 
     Parameters
@@ -541,6 +543,8 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         to 7.6e-4 rad RMS. Except where a count of the load encoder is over the lost motion at the load (it
         cannot resolve the gap): the load reading is then weighed by its own error (``load_noise``; see *Coarse
         load encoders* in the module docstring).
+    progress : callable, optional
+        Called with the fraction of the design done (see :class:`MPC`).
 
     Returns
     -------
@@ -597,7 +601,7 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
             load_noise = load_std
     try:
         mpc = MPC(info, settings, Ts=Ts, name=name, reading_error=reading_error, load_noise=load_noise,
-                  load_std=load_std, scaled_smoothing=scaled_smoothing)
+                  load_std=load_std, scaled_smoothing=scaled_smoothing, progress=progress)
     except InputError as exc:
         raise InputError(f"{path}: {exc}", field=exc.field) from None
     if mpc.rigid_reason and settings.backlash > 0.0:
@@ -1273,6 +1277,12 @@ class MPC(Controller):
     load_std : float, optional
         The load reading's own std [rad] (:func:`build_mpc` gives it from the sensors): under a rigid plan the
         centre of inertia is measured with the combination of the encoders of least error (*Coarse load encoders*).
+    scaled_smoothing : bool
+        ``smoothing`` is the default scaled down to a quarter of the mesh torque the torque limit gives the load
+        (:func:`build_mpc`): a design where even that is below the load's friction and load torque is refused.
+    progress : callable, optional
+        Called with the fraction of the design done (the condensed QPs, one per mode sequence, are most of it:
+        about 10 s at a horizon of 100 samples, 80 s at 150).
 
     Attributes
     ----------
@@ -1315,7 +1325,8 @@ class MPC(Controller):
     def __init__(self, info: LoopInfo, settings: MPCSettings | None = None, *, Ts: float = 1e-3,
                  name: str = "mpc", compiled: bool | None = None, inject_failures: set[int] | None = None,
                  reading_error: tuple[float, float] | None = None, load_noise: float | None = None,
-                 load_std: float | None = None, scaled_smoothing: bool = False) -> None:
+                 load_std: float | None = None, scaled_smoothing: bool = False,
+                 progress: Callable[[float], Any] | None = None) -> None:
         super().__init__()
         st = settings if settings is not None else MPCSettings()
         # None: the design plant's (see MPCSettings.backlash)
@@ -1425,7 +1436,7 @@ class MPC(Controller):
         self._ip_r, self._ip_rd, self._ip_ff, self._ip_u = 6, 6 + n, 7 + n, 7 + 2 * n
         self.n_p = 8 + 2 * n
         _check_pattern_memory(n, self.n_cross, self._rigid, t_cross / Ts)
-        self._build_patterns()
+        self._build_patterns(progress)
         self._build_observer()
         self._qp = _make_qp(n, n + 2, st.solver, compiled)
         for pat in self._patterns.values():
@@ -1550,15 +1561,19 @@ class MPC(Controller):
         return _Pattern(H=Hc, K=np.ascontiguousarray(K), A=A_f, M=M_f, ptr=ptr, has_landing=land_s is not None,
                         land_row=e if e < n else -1, gap_rows=np.flatnonzero(gap))
 
-    def _build_patterns(self) -> None:
+    def _build_patterns(self, progress: Callable[[float], Any] | None = None) -> None:
         n, nc = self.N, self.n_cross
         self._all_contact = (n, n + 1)
         self._cost_scale = 1.0
         H0 = self._condense(n, n + 1).H
         self._cost_scale = 1.0 / float(np.mean(np.diag(H0)))  # Hessian diagonal ~ 1 for the solver
         # backlash-free: the train is always in contact, no separation or landing patterns
-        self._patterns: dict[tuple[int, int], _Pattern] = {
-            key: self._condense(*key) for key in _pattern_keys(n, nc, self._rigid)}
+        keys = _pattern_keys(n, nc, self._rigid)
+        self._patterns: dict[tuple[int, int], _Pattern] = {}
+        for i, key in enumerate(keys):
+            self._patterns[key] = self._condense(*key)
+            if progress is not None:
+                progress((i + 1) / len(keys))
 
     # -- offline: observer --------------------------------------------------------------------------------
     def _build_observer(self) -> None:

@@ -11,6 +11,7 @@ suggestion; a value out of range names the file, the key and the allowed range.
 from __future__ import annotations
 
 import difflib
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -36,7 +37,8 @@ CONTROLLER_KEYS: dict[str, tuple[set[str], dict[str, set[str]]]] = {
 
 
 def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "<controller>",
-                     backlash: float | None = None, sensors: Sensors | None = None) -> Controller:
+                     backlash: float | None = None, sensors: Sensors | None = None,
+                     progress: Callable[[float], Any] | None = None) -> Controller:
     """Build a controller from a parsed controller file.
 
     Parameters
@@ -54,6 +56,9 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
         The model's encoders, as the design knows them: the MPC's default ``measurement_noise`` follows them
         (see :func:`gearctl.design.mpc.build_mpc`), and the inverses' rattle guard is never finer than the motor
         encoder (:func:`gearctl.design.deadzone.jump_floor`); the other kinds do not use them.
+    progress : callable, optional
+        Called with the fraction of the design done: an MPC's condensed QPs, which take seconds to minutes at long
+        horizons (:class:`~gearctl.design.mpc.MPC`); the other kinds are designed at once and do not call it.
 
     Returns
     -------
@@ -103,7 +108,8 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
             Ts = SAMPLE_TIME.check("sample_time", ts)
         except InputError as exc:
             raise InputError(f"{path}: sample_time = {ts!r} {exc.rule}", field="sample_time", rule=exc.rule) from None
-        ctrl = mpc.build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash, sensors=sensors)
+        ctrl = mpc.build_mpc(path, spec, info, Ts=Ts, name=name, backlash=backlash, sensors=sensors,
+                             progress=progress)
     elif kind in ("deadzone_inverse", "adaptive_inverse"):  # the rattle guard's floor follows the motor encoder
         ctrl = MODULES[kind].build(path, spec, info, name=name, backlash=backlash, sensors=sensors)
     else:
