@@ -168,6 +168,19 @@ def _field_meta(cls: type, name: str) -> Mapping[str, Any]:
     raise KeyError(name)
 
 
+def _whole(cls: type, name: str, value: Any) -> Any:
+    """``value`` as an ``int`` where field ``name`` takes a whole number and TOML gave a whole float (``teeth =
+    80.0``, ``motor_encoder_cpr = 1e6``): kept a float, it printed as ``80.0 x 20 teeth`` and ``1000000.0
+    counts/rev`` and went into the JSON so. Any other value is left for the field's own check."""
+    try:
+        integer = _field_meta(cls, name).get("integer")
+    except KeyError:
+        return value
+    if integer and isinstance(value, float) and math.isfinite(value) and value == int(value):
+        return int(value)
+    return value
+
+
 def required_fields(cls: type) -> set[str]:
     """Fields of ``cls`` without a default."""
     return {f.name for f in dataclasses.fields(cls)
@@ -209,7 +222,7 @@ def build_dataclass(path: Path, cls: type, values: Mapping[str, tuple[Binding | 
         raise InputError(f"{path}: missing key {fname}: {meta.get('doc', '')}, {describe_range(meta)}{unit}",
                          field=fname)
     try:
-        return cls(**{f: v for f, (_, v) in values.items()})
+        return cls(**{f: _whole(cls, f, v) for f, (_, v) in values.items()})
     except InputError as exc:
         b = values.get(exc.field or "", (None, None))[0]
         if b is not None and exc.field is not None and exc.rule:  # b is found by exc.field

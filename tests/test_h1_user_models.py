@@ -1,0 +1,44 @@
+"""Found by an outside user's own models (h1): each test fails on the code before its fix."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from gearctl import load_model
+from gearctl.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _servo_with(tmp_path: Path, *edits: tuple[str, str]) -> Path:
+    text = (ROOT / "models" / "shing1993_servo.toml").read_text()
+    for old, new in edits:
+        assert old in text
+        text = text.replace(old, new, 1)
+    p = tmp_path / "m.toml"
+    p.write_text(text)
+    return p
+
+
+def test_a_whole_number_written_as_a_float_is_kept_a_whole_number(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    # TOML's `teeth = 20.0` and `motor_encoder_cpr = 1e6` pass the whole-number check, but stayed floats: `info`
+    # printed "20.0 x 80 teeth" and "1000000.0 counts/rev", and the JSON gave 20.0 and 1000000.0
+    p = _servo_with(tmp_path, ("teeth = 20\n", "teeth = 20.0\n"),
+                    ("motor_encoder_cpr = 1048576", "motor_encoder_cpr = 1e6"))
+    m = load_model(p)
+    assert type(m.pair.teeth1) is int and m.pair.teeth1 == 20
+    assert type(m.sensors.motor_encoder_cpr) is int and m.sensors.motor_encoder_cpr == 1_000_000
+    assert main(["info", str(p)]) == 0
+    out = capsys.readouterr().out
+    assert "20 x 80 teeth" in out and "motor 1000000 counts/rev" in out
+    assert main(["info", str(p), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["teeth"][0] == 20 and isinstance(doc["teeth"][0], int)
+    assert isinstance(doc["sensors"]["motor_encoder_cpr"], int)
+
+
+def test_a_fractional_whole_number_key_is_still_refused(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    p = _servo_with(tmp_path, ("teeth = 20\n", "teeth = 20.5\n"))
+    assert main(["info", str(p)]) == 2
+    assert "[gear1] teeth = 20.5 is not a whole number" in capsys.readouterr().err
