@@ -94,7 +94,7 @@ from .parallel import (
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
 from .runs import Design, Run, RunResult, controller_spec, design_controller
-from .units import BACKLASH, DURATION, SEED, Spec, check_number
+from .units import BACKLASH, DURATION, SEED, Spec, check_number, describe_rule
 
 __all__ = ["Vary", "SweepResult", "SweepContext", "SweepPlan", "sweep", "plan_sweep", "run_batch", "parse_vary",
            "parse_set", "perturb_model", "Scale", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
@@ -227,7 +227,10 @@ def parse_set(text: str) -> tuple[str, float | int]:
     if meta["owner"] == "controller":
         raise InputError(f"{key} is not a model key: the estimate is an option of its own (--estimate)", field=key)
     text_v = value.strip()
-    if text_v.endswith("x") and not meta["integer"]:
+    if text_v.endswith("x") and meta["integer"]:  # '2x' read as a number said "'2x' is not a number"
+        raise InputError(f"{key} = {text_v!r}: a whole-number key takes a whole number, not a factor of the nominal "
+                         f"value: expected {describe_rule(meta)}", field=key)
+    if text_v.endswith("x"):
         try:
             f = float(text_v[:-1])
         except ValueError:

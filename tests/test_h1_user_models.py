@@ -42,3 +42,11 @@ def test_a_fractional_whole_number_key_is_still_refused(tmp_path: Path, capsys) 
     p = _servo_with(tmp_path, ("teeth = 20\n", "teeth = 20.5\n"))
     assert main(["info", str(p)]) == 2
     assert "[gear1] teeth = 20.5 is not a whole number" in capsys.readouterr().err
+
+
+def test_set_a_factor_of_a_whole_number_key_says_why_it_is_refused(capsys) -> None:  # noqa: ANN001
+    # `--set motor_encoder_cpr=2x` said "'2x' is not a number": the factor form is for real-valued keys only
+    assert main(["track", "shing1993_servo", "pid", "--set", "motor_encoder_cpr=2x"]) == 2
+    err = capsys.readouterr().err
+    assert "motor_encoder_cpr = '2x': a whole-number key takes a whole number, not a factor" in err
+    assert "4 <= value <= 1.09951e+12 [counts/rev]" in err and "is not a number" not in err
