@@ -50,3 +50,17 @@ def test_set_a_factor_of_a_whole_number_key_says_why_it_is_refused(capsys) -> No
     err = capsys.readouterr().err
     assert "motor_encoder_cpr = '2x': a whole-number key takes a whole number, not a factor" in err
     assert "4 <= value <= 1.09951e+12 [counts/rev]" in err and "is not a number" not in err
+
+
+def test_the_unholdable_load_step_counts_the_models_load_torque(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    # the step's 0.5 N m alone is below what the motor gives the load (4 x 0.19 = 0.76 N m), but the model's own
+    # -0.3 N m load torque acts the same way: 0.8 N m in all, and the load ran off (1.55 rad) with no word of why
+    p = _servo_with(tmp_path, ("torque_limit = 1.0", "torque_limit = 0.19"),
+                    ("load_torque = 0.0", "load_torque = -0.3"))
+    assert main(["track", str(p), "pid", "--reference", "step"]) == 0
+    err = capsys.readouterr().err
+    assert "on top of the model's load_torque (-0.3 N m), 0.8 N m in all" in err and "no controller can hold it" in err
+    # a load torque against the step leaves less to hold: no warning
+    p = _servo_with(tmp_path, ("torque_limit = 1.0", "torque_limit = 0.1"), ("load_torque = 0.0", "load_torque = 0.3"))
+    assert main(["track", str(p), "pid", "--reference", "step", "--duration", "1.2"]) == 0
+    assert "no controller can hold it" not in capsys.readouterr().err
