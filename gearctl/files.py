@@ -257,6 +257,8 @@ def check_source(path: Path, content: Any, *, required: tuple[str, ...] = ("cita
             raise InputError(f"{path}: [source] {key} = {value!r} must be a string", field=key)
     if required and not any(k in content for k in required):
         raise InputError(f"{path}: missing key [source] {required[0]}: where the data come from", field=required[0])
+    if required and not any(content.get(k, "").strip() for k in required):  # `citation = ""` passed as given
+        raise InputError(f"{path}: [source] {required[0]} is empty: say where the data come from", field=required[0])
     return dict(content)
 
 

@@ -64,3 +64,14 @@ def test_the_unholdable_load_step_counts_the_models_load_torque(tmp_path: Path, 
     p = _servo_with(tmp_path, ("torque_limit = 1.0", "torque_limit = 0.1"), ("load_torque = 0.0", "load_torque = 0.3"))
     assert main(["track", str(p), "pid", "--reference", "step", "--duration", "1.2"]) == 0
     assert "no controller can hold it" not in capsys.readouterr().err
+
+
+def test_an_empty_citation_is_refused(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    # [source] citation is required; `citation = ""` (or blanks) gave a model with no source at all
+    text = (ROOT / "models" / "shing1993.toml").read_text()
+    start = text.index("citation = ")
+    end = text.index("\n", start)
+    p = tmp_path / "m.toml"
+    p.write_text(text[:start] + 'citation = "  "' + text[end:])
+    assert main(["info", str(p)]) == 2
+    assert "[source] citation is empty" in capsys.readouterr().err
