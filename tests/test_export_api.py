@@ -388,6 +388,27 @@ def test_the_mpc_torque_never_exceeds_the_limit(tmp_path: Path) -> None:
 
 
 @needs_make
+def test_a_saturated_mpc_torque_is_the_limit_exactly(tmp_path: Path) -> None:
+    # the header and the README: "a clipped torque is exactly +-the limit ... compare |u| with the limit to count
+    # saturated steps". The MPC's torque at the QP's bound came out a few ulps short of it (x[0] - f1, or the
+    # solver's x recomputed from its factorisation): on shing1993_servo's step 4 of 11 saturated steps were
+    # 2e-16..4e-16 N m under the limit (a harness counted no saturation on the pair and trains it was run on)
+    from gearctl.export import load_exported
+
+    d, c = _export(tmp_path, SERVO, "mpc", vectors=False)
+    limit = _macro((d / "gearctl_ctrl.h").read_text(), "GEARCTL_TORQUE_LIMIT")
+    m = load_model(SERVO)
+    plant = build_plant(m)
+    ref = reference("step")
+    u_py = simulate_closed_loop(plant, c, ref, 1.5, sensors=m.sensors).torque
+    u_c = simulate_closed_loop(plant, load_exported(d), ref, 1.5, sensors=m.sensors).torque
+    assert np.array_equal(u_py, u_c)
+    near = np.abs(u_py) >= limit * (1.0 - 1e-9)
+    assert near.sum() >= 5
+    assert np.all(np.abs(u_py[near]) == limit)
+
+
+@needs_make
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="feenableexcept is glibc's")
 @pytest.mark.parametrize(("ctrl", "missing_load"), [("mpc", 1), ("adaptive_inverse", 2), ("deadzone_inverse", 0)])
 @pytest.mark.parametrize("cflags", ["-O2", "-O2 -ffast-math"])

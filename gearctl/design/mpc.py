@@ -1151,6 +1151,7 @@ _FLICKER_STD = 24.0  # alternating gap innovations within this many reading stds
 _FRICTION_NOISE = 10.0  # the plan ramps the motor's Coulomb friction in over this many noise stds per sample
 _STALL_SAMPLES = 5  # a landing due for this many samples more than a crossing lasts has stalled ...
 _STALL_SHARE = 0.25  # ... if the gap stopped within this share of the flank
+_AT_LIMIT = 0.999999999999  # a planned torque within 1e-12 of the limit is at the QP's bound: the limit exactly
 _SMOOTHING_DEFAULT_SHARE = 0.25  # without a smoothing in the file: at most this share of that mesh torque
 _SMOOTHING_SHARE = 0.5  # smoothing may be at most this share of the mesh torque the torque limit gives the load
 
@@ -1200,6 +1201,14 @@ def _check_pattern_memory(n: int, n_cross: int, rigid: bool, cross_steps: float)
     raise InputError(f"horizon = {n} samples: the MPC's {_pattern_count(n, n_cross, rigid):,} condensed QPs would take "
                      f"about {need / 1e9:.3g} GB, more than the {cap / 1e9:.3g} GB this run may use ({why}); {ask} "
                      f"(or a longer sample_time, which shortens the crossing in samples)", field="horizon")
+
+
+def _clip_torque(u: float, umax: float) -> float:
+    """The QP's torque clipped to the limit ``umax``; one at the QP's bound, which holds only to rounding (a few
+    ulps either side: the solver's ``x`` recomputed from its factorisation, ``x[0] - f1``), is the limit exactly,
+    so that a saturated step can be counted by comparing with the limit (the exported header's word)."""
+    u = min(max(u, -umax), umax)
+    return math.copysign(umax, u) if abs(u) >= _AT_LIMIT * umax else u
 
 
 def _samples(steps: float, cap: int) -> int:
@@ -2174,11 +2183,11 @@ class MPC(Controller):
         if reason is None:
             self._plan[:] = qp.x
             self._lam[:] = qp.lam_x
-            u = min(max(float(qp.x[0]) - f1, -self._umax), self._umax)  # the QP's bound holds to rounding: clip
+            u = _clip_torque(float(qp.x[0]) - f1, self._umax)  # the QP's bound holds to rounding: clip
             if note is not None:  # a reading missing or rejected: the plan ran on the prediction
                 self.fallbacks.append({"t": float(t), "reason": note})
         else:  # the previous plan's next input, saturated; a late plan still warm-starts the next one
-            u = min(max(float(qp.x0[0]) - f1, -self._umax), self._umax)
+            u = _clip_torque(float(qp.x0[0]) - f1, self._umax)
             self.fallbacks.append({"t": float(t), "reason": reason if note is None else f"{reason}; {note}"})
             if status == "ok":
                 self._plan[:] = qp.x

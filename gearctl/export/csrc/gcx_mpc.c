@@ -36,6 +36,14 @@
 #define GCX_BRAKE_REST 0.1    /* mpc.py: _BRAKE_REST */
 #define GCX_STALL_SAMPLES 5   /* mpc.py: _STALL_SAMPLES */
 #define GCX_STALL_SHARE 0.25  /* mpc.py: _STALL_SHARE */
+#define GCX_AT_LIMIT 0.999999999999 /* mpc.py: _AT_LIMIT */
+
+/* mpc.py: _clip_torque -- the QP's torque clipped to the limit; one at the QP's bound (which holds to rounding
+ * only) is the limit exactly */
+GCX_FN double gcx_mpc_clip_torque(const gcx_mpc_p *P, double u) {
+    u = gcx_min(gcx_max(u, -P->umax), P->umax);
+    return fabs(u) >= GCX_AT_LIMIT * P->umax ? copysign(P->umax, u) : u;
+}
 
 /* MPC.reset */
 GCX_FN void gcx_mpc_init(const gcx_mpc_p *P, gcx_mpc_s *S) {
@@ -538,9 +546,9 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
     int flag = 0;
     if (status == 0) {
         memcpy(S->plan, S->x, sizeof S->x);
-        u = gcx_min(gcx_max(S->x[0] - f1, -P->umax), P->umax); /* the QP's bound holds to rounding: clip */
+        u = gcx_mpc_clip_torque(P, S->x[0] - f1); /* the QP's bound holds to rounding: clip */
     } else { /* the previous plan's next input, saturated */
-        u = gcx_min(gcx_max(S->x0[0] - f1, -P->umax), P->umax);
+        u = gcx_mpc_clip_torque(P, S->x0[0] - f1);
         memcpy(S->plan, S->x0, sizeof S->x0);
         S->plan[0] = u + f1;
         flag = 1;
