@@ -670,3 +670,15 @@ def test_the_folder_readme_call_example_compiles_as_written(tmp_path: Path, ctrl
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     assert f"{prefix}_ctrl_step(&ctrl, y, ref, &u)" in blocks[0]
+
+
+@pytest.mark.parametrize("ctrl", ["pid", "mpc"])
+def test_the_exported_sources_name_no_empty_address(tmp_path: Path, ctrl: str) -> None:
+    # the PID family's C said "part of gearctl (https://github.com/ -- see LICENSE)": an address with no repository,
+    # in every exported gearctl_ctrl.c of the PIDs and inverses; the licence notice is the LICENSE file's
+    d, _ = _export(tmp_path, SERVO, ctrl, vectors=False)
+    for f in d.iterdir():
+        if f.suffix in (".c", ".h"):
+            text = f.read_text()
+            assert "https://github.com/ " not in text, f.name
+            assert "SPDX-License-Identifier: MIT" in text, f.name

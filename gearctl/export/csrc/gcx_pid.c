@@ -1,4 +1,4 @@
-/* SPDX-License-Identifier: MIT -- part of gearctl (https://github.com/ -- see LICENSE), written for it. */
+/* SPDX-License-Identifier: MIT -- part of gearctl, written for it (see LICENSE). */
 /*
  * The PID family of gearctl's controllers in C99: the position PID (gearctl/design/pid.py), the offset
  * ramp and offset_torque (gearctl/design/deadzone.py), the reversal offset (reversal.py), the dead-zone
