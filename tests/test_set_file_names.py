@@ -58,3 +58,22 @@ def test_a_stage_key_with_the_files_name_is_told_the_overrides(capsys: pytest.Ca
     assert main(["track", "servo_3stage_quanser_srv02", "pid", "--set", key]) == 2
     err = capsys.readouterr().err
     assert says in err and "not a stage's key" not in err, err
+
+
+@pytest.mark.parametrize(("argv", "ratio"), [
+    (["track", "shing1993_servo", "pid", "--set", "teeth1=30", "--duration", "0.2"], "2.66667, the controller was "
+                                                                                     "designed for 4 "),
+    (["track", "servo_2stage_phm09", "pid", "--set", "stage2.teeth2=90", "--duration", "0.2"], "5.625, the controller "
+                                                                                              "was designed for 5 "),
+    (["track", "shing1993_servo", "pid", "--set", "backlash=2x", "--duration", "0.2"], None),
+])
+def test_set_that_changes_the_ratio_is_noted(capsys: pytest.CaptureFixture[str], argv: list[str],
+                                             ratio: str | None) -> None:
+    # --set teeth1=30 on the 4:1 pair ran a design for 4:1 on a 2.67:1 plant (0.55 rad RMS) with no word of why (an
+    # h1 review); a --set that keeps the ratio gets no note
+    main(argv)
+    err = capsys.readouterr().err
+    if ratio is None:
+        assert "gear ratio" not in err
+    else:
+        assert f"gearctl track: note: --set: the true plant's gear ratio is {ratio}" in err

@@ -344,6 +344,17 @@ def unused_estimate(kind: str | None, estimate: float | None) -> list[str]:
             f"reversal_offset, deadzone_inverse, adaptive_inverse and mpc)"]
 
 
+def ratio_changed(nominal: Any, true: Any) -> list[str]:
+    """A note where ``--set`` (teeth) gave the true plant another gear ratio than the design's: every loop gain, the
+    lost motion at the load and the feedforward then act on a ratio the controller was not designed for (a reviewer's
+    ``--set teeth1=30`` on a 4:1 pair ran at 0.55 rad RMS with no word of why)."""
+    n, t = nominal.gear_ratio, true.gear_ratio
+    if abs(t - n) <= 1e-9 * abs(n):
+        return []
+    return [f"--set: the true plant's gear ratio is {t:.6g}, the controller was designed for {n:.6g} (the design "
+            "stays nominal; vary the teeth of the model file itself to design for the new ratio)"]
+
+
 def separated_past_flank(plant: Any, s: Any, mode: Any) -> float:
     """The largest ``(|s| - b) / b`` of a stage labelled separated at an output time (0 if none): a contact the
     kernel missed, the teeth passing through each other (``simulate`` and ``track --json``, the fuzzer's oracle;

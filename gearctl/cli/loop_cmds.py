@@ -22,6 +22,7 @@ from .common import (
     format_rate,
     positive_float,
     progress_bar,
+    ratio_changed,
     save_figure,
     say_written,
     separated_past_flank,
@@ -81,6 +82,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
                                             + c["plastic_back"][i]) for i in range(n)]
     warn("track", [f"{ctrl['name']}: {n}" for n in ctrl.get("design_notes", ())], kind="note")
     warn("track", unused_estimate(ctrl.get("kind"), args.estimate), kind="note")
+    warn("track", ratio_changed(run.design.nominal, plant), kind="note")
     warn("track", m.health.warnings)
     too_large = unholdable_load_step(plant, run.reference)
     if too_large:
@@ -169,6 +171,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     }
     warn("precision", [f"{ctrl.name}: {n}" for n in out["controller"].get("design_notes", ())], kind="note")
     warn("precision", unused_estimate(out["controller"].get("kind"), args.estimate), kind="note")
+    warn("precision", ratio_changed(nominal, plant), kind="note")
     warn("precision", health.warnings)
     if args.plot:
         from ..plots import plot_precision
