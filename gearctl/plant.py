@@ -333,10 +333,28 @@ class Plant:
         InputError
             If ``i`` is not a stage index (a negative one read the stages from the end).
         """
-        if not (isinstance(i, int | np.integer) and not isinstance(i, bool) and 0 <= i < self.n_stages):
-            raise InputError(f"i = {i!r} is out of range: expected a stage index from 0 to {self.n_stages - 1}",
-                             field="i")
+        i = self._stage_index(i, "i")
         return math.prod(s.ratio for s in self.stages[i + 1:])
+
+    def _stage_index(self, i: Any, field: str) -> int:
+        """``i`` as a stage index 0..n-1, else :class:`InputError` naming ``field`` (a negative index would read
+        the stages from the end and pair the last stage with the motor shaft)."""
+        if not (isinstance(i, int | np.integer) and not isinstance(i, bool) and 0 <= i < self.n_stages):
+            raise InputError(f"{field} = {i!r} is out of range: expected a stage index from 0 to "
+                             f"{self.n_stages - 1}", field=field)
+        return int(i)
+
+    def _states(self, x: Any, field: str = "x") -> NDArray[np.float64]:
+        """``x`` as an array of states, shape ``(nx, ...)``, else :class:`InputError` naming ``field``."""
+        try:
+            a = np.asarray(x, dtype=float)
+        except (TypeError, ValueError):
+            a = None
+        if a is None or a.ndim == 0 or a.shape[0] != self.nx:
+            shape = "not numbers" if a is None else f"shape {a.shape}"
+            raise InputError(f"{field} has {shape}: expected states of shape ({self.nx}, ...), the "
+                             f"{len(self.shafts)} shaft angles [rad], then their velocities [rad/s]", field=field)
+        return a
 
     @property
     def stage_lost_motions(self) -> tuple[float, ...]:
@@ -355,7 +373,13 @@ class Plant:
         ----------
         i : int
             Stage index, 0 for the motor's stage; the stage couples shafts ``i`` and ``i + 1``.
+
+        Raises
+        ------
+        InputError
+            If ``i`` is not a stage index.
         """
+        i = self._stage_index(i, "i")
         s = self.stages[i]
         return equivalent_mass(self.shafts[i].J, self.shafts[i + 1].J, s.rb1, s.rb2)
 
@@ -417,8 +441,13 @@ class Plant:
         flank : int or array_like
             The contact's side, broadcast with ``theta``: negative for the back flank, anything else (1, or 0 in
             the gap) for the front.
+
+        Raises
+        ------
+        InputError
+            If ``stage`` is not a stage index.
         """
-        s = self.stages[stage]
+        s = self.stages[self._stage_index(stage, "stage")]
         if s.kv_table is None:
             return s.k + 0.0 * np.asarray(theta)
         n = s.kv_table.size
@@ -435,8 +464,13 @@ class Plant:
         ----------
         x : array_like
             States, shape ``(nx, ...)``: the ``n + 1`` shaft angles [rad], then their velocities [rad/s].
+
+        Raises
+        ------
+        InputError
+            If ``x`` is not numbers of shape ``(nx, ...)``.
         """
-        x = np.asarray(x)
+        x = self._states(x)
         return np.stack([s.rb1 * x[i] - s.rb2 * x[i + 1] for i, s in enumerate(self.stages)])
 
     def gap_rates(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -446,8 +480,13 @@ class Plant:
         ----------
         x : array_like
             States, shape ``(nx, ...)``: the ``n + 1`` shaft angles [rad], then their velocities [rad/s].
+
+        Raises
+        ------
+        InputError
+            If ``x`` is not numbers of shape ``(nx, ...)``.
         """
-        x = np.asarray(x)
+        x = self._states(x)
         w = len(self.shafts)
         return np.stack([s.rb1 * x[w + i] - s.rb2 * x[w + i + 1] for i, s in enumerate(self.stages)])
 
@@ -458,6 +497,11 @@ class Plant:
         ----------
         x : array_like
             States, shape ``(nx, ...)``: the ``n + 1`` shaft angles [rad], then their velocities [rad/s].
+
+        Raises
+        ------
+        InputError
+            If ``x`` is not numbers of shape ``(nx, ...)``.
         """
         g = self.gaps(x)
         return g[0] if self.n_stages == 1 else g
@@ -470,8 +514,16 @@ class Plant:
         s : float or array_like
             Relative displacement(s) along the line of action [m]: for a train, one row per stage
             (:meth:`relative_displacement`).
+
+        Raises
+        ------
+        InputError
+            For a train, if ``s`` has not one row per stage.
         """
         s = np.asarray(s)
+        if self.n_stages > 1 and (s.ndim == 0 or s.shape[0] != self.n_stages):
+            raise InputError(f"s has shape {s.shape}: expected one row per stage ({self.n_stages}, ...), as "
+                             "relative_displacement(x) gives it", field="s")
         b = np.array(self.backlashes).reshape((-1,) + (1,) * (s.ndim - 1)) if self.n_stages > 1 else self.backlash
         return np.where(s > b, 1, np.where(s < -b, -1, 0))
 
@@ -488,8 +540,13 @@ class Plant:
         ----------
         x : array_like
             States, shape ``(nx, ...)``: the ``n + 1`` shaft angles [rad], then their velocities [rad/s].
+
+        Raises
+        ------
+        InputError
+            If ``x`` is not numbers of shape ``(nx, ...)``.
         """
-        x = np.asarray(x)
+        x = self._states(x)
         w = len(self.shafts)
         E = sum(0.5 * sh.J * x[w + j] ** 2 for j, sh in enumerate(self.shafts))
         for i, st in enumerate(self.stages):
@@ -510,8 +567,16 @@ class Plant:
         x : array_like
             A trajectory, shape ``(nx, m)``: states in time order, one per column (angles [rad], then
             velocities [rad/s]).
+
+        Raises
+        ------
+        InputError
+            If ``x`` is not numbers of shape ``(nx, m)``.
         """
-        x = np.asarray(x, dtype=float)
+        x = self._states(x)
+        if x.ndim != 2:
+            raise InputError(f"x has shape {x.shape}: expected a trajectory of shape ({self.nx}, m), one state "
+                             "per column", field="x")
         W = np.zeros(x.shape[1])
         for i, st in enumerate(self.stages):
             if st.kv_table is None:
