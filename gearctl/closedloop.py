@@ -23,7 +23,7 @@ from .limits import check_output_size
 from .params import Sensors
 from .plant import Plant, check_plant
 from .simulate import DIVERGENCE_LIMIT, Event, located_events
-from .units import DURATION, SEED
+from .units import DURATION, SEED, check_progress
 
 __all__ = ["ClosedLoopResult", "simulate_closed_loop", "check_controller", "loop_samples", "loop_result", "Encoder"]
 
@@ -237,8 +237,9 @@ def simulate_closed_loop(
     Raises
     ------
     InputError
-        If ``plant`` is not a Plant, ``ref`` not a reference, ``controller`` not a controller, or the
-        controller reads the load encoder and ``sensors`` say the servo has none.
+        If ``plant`` is not a Plant, ``ref`` not a reference, ``controller`` not a controller, ``x0`` not a
+        state of the plant, ``progress`` not callable, or the controller reads the load encoder and ``sensors``
+        say the servo has none.
     SimulationError
         If the loop diverges or the plant state becomes NaN; ``error.result`` holds the run so far.
     """
@@ -257,9 +258,10 @@ def simulate_closed_loop(
     enc_m = Encoder(sensors.motor_encoder_cpr, sensors.motor_noise)
     enc_l = Encoder(sensors.load_encoder_cpr, sensors.load_noise)
     rng = np.random.default_rng(seed)
-    x0 = np.zeros(plant.nx) if x0 is None else np.asarray(x0, dtype=float)
+    check_progress(progress)
+    kn = Kernel(plant, np.zeros(plant.nx) if x0 is None else x0, dt=Ts, compiled=compiled)  # checks x0 by name
+    x0 = np.array(kn.x0, dtype=float)
     w = plant.nx // 2
-    kn = Kernel(plant, x0, dt=Ts, compiled=compiled)
     controller.reset()
     t = np.arange(n + 1) * Ts
     tl_list = t.tolist()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Callable
 from typing import Any
 
@@ -21,7 +22,7 @@ from .errors import InputError, SimulationError
 from .kernel import EVENT_DTYPE, EventKind, Kernel
 from .limits import check_output_size
 from .plant import Mode, Plant, check_plant, mesh_force, signal_names
-from .units import DURATION, OUTPUT_INTERVAL
+from .units import DURATION, OUTPUT_INTERVAL, RTOL, check_progress
 
 __all__ = ["Event", "SimulationResult", "simulate", "report_case", "contact_force", "CASES", "DIVERGENCE_LIMIT",
            "default_output_interval", "output_steps", "located_events"]
@@ -317,7 +318,8 @@ def simulate(
     ------
     InputError
         For a non-positive duration or output interval, an output too large to hold, a bad initial
-        state, or a torque (or a value of the torque function) that is not two finite numbers.
+        state, a torque (or a value of the torque function) that is not two finite numbers, an ``rtol``
+        outside 1e-14..1e-2 or a ``progress`` that is not callable.
     SimulationError
         If the state becomes NaN or diverges, or events cascade without end; ``error.result`` holds
         the trajectory up to the failure.
@@ -326,6 +328,8 @@ def simulate(
     DURATION.check("duration", duration)
     dt = default_output_interval(duration) if dt is None else dt
     dt = OUTPUT_INTERVAL.check("dt", dt)  # a string or a bool is named as such, not 'out of range'
+    RTOL.check("rtol", rtol)
+    check_progress(progress)
     if not callable(torque):
         try:
             pair = [float(v) for v in torque]
@@ -458,7 +462,7 @@ def report_case(
     c = dict(CASES[case])
     for key, val in (("omega1", omega1), ("omega2", omega2), ("torque1", torque1), ("torque2", torque2)):
         if val is not None:
-            if not math.isfinite(val):
+            if isinstance(val, bool) or not isinstance(val, numbers.Real) or not math.isfinite(val):
                 raise InputError(f"{key} = {val!r} must be a finite number", field=key)
             c[key] = float(val)
     w = plant.nx // 2

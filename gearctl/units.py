@@ -212,6 +212,19 @@ def check_choice(name: str, value: Any, allowed: tuple[Any, ...], *, what: str =
     return value
 
 
+def check_progress(progress: Any) -> None:
+    """Refuse a ``progress`` that is neither None nor callable (else it failed at its first call, a TypeError).
+
+    Raises
+    ------
+    InputError
+        Naming ``progress``.
+    """
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress = {progress!r} is not callable: expected a function f(fraction) or None",
+                         field="progress")
+
+
 def validate_fields(obj: Any) -> None:
     """Check every spec'd field of a dataclass instance against its declared range.
 
@@ -280,6 +293,7 @@ DURATION = Spec(unit="s", doc="simulated time", low=0.0, low_open=True, high=1e5
 #: A simulation's output interval (``dt`` of :func:`gearctl.simulate.simulate` and the kernel); its size against
 #: the duration is checked by :func:`gearctl.limits.check_output_size`.
 OUTPUT_INTERVAL = Spec(unit="s", doc="output interval", low=0.0, low_open=True)
+RTOL = Spec(unit="1", doc="relative tolerance of the nonlinear solver", low=1e-14, high=1e-2)
 SEED = Spec(unit="1", doc="random seed", low=0, high=2**63 - 1, integer=True)
 #: Sample points of a computed curve over a mesh cycle or a path of contact (``points`` of
 #: :func:`gearctl.stiffness.mesh_stiffness` and :func:`~gearctl.stiffness.tooth_deflections`, the CLI's ``--points``).
