@@ -71,7 +71,18 @@ class PIDGains:
 
         The one statement of the discretisation: :meth:`PID.torque` runs it, :meth:`sampled_tf` and
         :mod:`gearctl.describe` analyse it.
+
+        Parameters
+        ----------
+        Ts : float
+            Sample period [s].
+
+        Raises
+        ------
+        InputError
+            If ``Ts`` is not a sample period (1e-6..1 s, as a controller file's ``sample_time``).
         """
+        Ts = SAMPLE_TIME.check("Ts", Ts)
         Tf = 1.0 / (2 * math.pi * self.derivative_filter_hz)
         a = Tf / (Tf + Ts)
         return self.kp, self.ki * Ts, self.kd * (1.0 - a) / Ts, a
@@ -89,6 +100,16 @@ class PIDGains:
         a backward-Euler filter, ``y_f,k = a y_f,k-1 + (1 - a) y_k``, ``dy_k = (y_f,k - y_f,k-1) / Ts``:
         ``(1 - a)(z - 1) / (Ts (z - a))``. With a constant reference the derivative of the measurement
         is minus that of the error. Anti-windup is inactive below the torque limit.
+
+        Parameters
+        ----------
+        Ts : float
+            Sample period [s].
+
+        Raises
+        ------
+        InputError
+            If ``Ts`` is not a sample period (1e-6..1 s).
         """
         import control as ct
 
