@@ -22,7 +22,7 @@ from .catalog import load_model, read_toml, resolve
 from .closedloop import ClosedLoopResult, simulate_closed_loop
 from .controller import Controller
 from .design.registry import build_controller
-from .errors import GearctlError
+from .errors import GearctlError, InputError, short_repr
 from .metrics import TrackingMetrics, tracking_metrics
 from .model import GearModel
 from .overrides import Scale, check_keys_act, perturb_model, split_stage_key
@@ -250,6 +250,14 @@ def _trace(res: ClosedLoopResult) -> tuple[np.ndarray, np.ndarray]:
     return res.t[::step].copy(), res.error[::step].copy()
 
 
+def check_run(run: Any) -> Run:
+    """``run`` itself if it is a :class:`Run`, else an :class:`InputError` naming ``run``."""
+    if not isinstance(run, Run):
+        raise InputError(f"run = {short_repr(run)} is not a Run: expected gearctl.make_run(model, controller, ...)",
+                         field="run")
+    return run
+
+
 @overload
 def execute(run: Run, *, keep: Literal[False] = ...) -> RunResult: ...
 @overload
@@ -270,7 +278,13 @@ def execute(run: Run, *, keep: bool = False) -> RunResult | tuple[RunResult, Clo
     Returns
     -------
     RunResult, or (RunResult, ClosedLoopResult or None) with ``keep``
+
+    Raises
+    ------
+    InputError
+        If ``run`` is not a :class:`Run` (from :func:`make_run`): not a run that failed, a call that is wrong.
     """
+    check_run(run)
     try:
         ctrl = design_controller(run.design)
     except GearctlError as exc:
