@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from .closedloop import ClosedLoopResult
+from .errors import InputError
 
 __all__ = ["TrackingMetrics", "LoopHealth", "tracking_metrics", "loop_health", "HEALTH_LIMITS"]
 
@@ -33,6 +34,13 @@ HEALTH_LIMITS = {
 }
 
 
+class UnknownKeyError(InputError, KeyError):
+    """A key that is not a figure of a metrics mapping: an :class:`InputError` naming it (with the keys there are)
+    and a ``KeyError``, as the mapping protocol asks (``except KeyError`` keeps working)."""
+
+    __str__ = BaseException.__str__  # KeyError's would print the message in quotes
+
+
 class _Mapping:
     """Read a frozen dataclass like a mapping (``m["key"]``, ``dict(m)``, ``**m``)."""
 
@@ -44,7 +52,13 @@ class _Mapping:
 
     def __getitem__(self, key: str) -> Any:
         if key not in self.keys():
-            raise KeyError(key)
+            import difflib
+
+            close = ([k for k in self.keys() if k.startswith(str(key))]
+                     or difflib.get_close_matches(str(key), self.keys(), n=1))
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise UnknownKeyError(f"{key!r} is not a figure of {type(self).__name__}: expected one of "
+                                  f"{', '.join(self.keys())}{hint}", field=str(key))
         return getattr(self, key)
 
     def __iter__(self) -> Iterator[str]:
@@ -289,14 +303,12 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         ``duration`` [s], ``wall_time`` [s], ``health`` (:func:`loop_health`).
     """
     if not isinstance(res, ClosedLoopResult):
-        from .errors import InputError, short_repr
+        from .errors import short_repr
 
         raise InputError(f"res = {short_repr(res)} is not a closed-loop run (a {type(res).__name__}): expected the "
                          "ClosedLoopResult of simulate_closed_loop (or a precision test's .run)", field="res")
     end = float(res.t[-1]) if res.t.size else 0.0
     if settle is not None and not (isinstance(settle, int | float | np.floating) and 0.0 <= settle <= end):
-        from .errors import InputError
-
         raise InputError(f"settle = {settle!r} is out of range: expected 0 <= value <= {end:g} [s] (the run's end: "
                          "past it nothing would be scored)", field="settle")
     e = res.error
