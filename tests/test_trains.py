@@ -534,7 +534,8 @@ def test_three_stage_inverse_factor_is_that_of_the_pair(sine_rms: Callable[[str,
                    "the pair's 226x. The intermediate shafts, "
                    "free between two gaps and unmeasured, are hit at the crossing's speed and bounce (986 impacts "
                    "in 3 s against 126 on the pair); on servo_2stage_phm09, whose intermediate shaft, reflected, is "
-                   "half the motor shaft's inertia, the MPC gives 1.42e-3 (1.21e-3 on an earlier machine) against the PID's 1.52e-3")
+                   "half the motor shaft's inertia, the MPC gives 1.42e-3 (1.21e-3 on an earlier machine) against "
+                   "the PID's 1.52e-3")
 def test_three_stage_mpc_beats_pid(sine_rms: Callable[[str, str], float]) -> None:
     """The same kind of factor as on the pair: at least half the pair's PID / MPC ratio, and 2.
 
@@ -848,8 +849,9 @@ def without_upstream_gaps(plant: Plant) -> Plant:
 def test_mpc_notes_a_train_whose_intermediate_shafts_it_does_not_see() -> None:
     # the one-gap plan ignores the intermediate shafts: where they carry over 15 % of the motor side's inertia the
     # MPC gained at most 1.52x over the PID on the sine on the four such trains where it plans the gap
-    # (servo_2stage_phm09, 33 %: 1.07x on this machine, 1.25x on an earlier one; train_steel_alu 1.52x; train3_r120_grazing 1.48x; the gravity joint, 19 %:
-    # 0.2x), where the three-stage train (6 %) gives 4.8x. The design says so; a pair and that train get no note
+    # (servo_2stage_phm09, 33 %: 1.07x on this machine, 1.25x on an earlier one; train_steel_alu 1.52x;
+    # train3_r120_grazing 1.48x (1.33x here); the gravity joint, 19 %: 0.2x, 0.34x here), where the three-stage
+    # train (6 %) gives 4.8x. The design says so; a pair and that train get no note
     from gearctl.design.mpc import INTERMEDIATE_SHARE, intermediate_share
 
     for name, share in (("servo_2stage_phm09", 0.328), (GRAVITY_JOINT, 0.187), ("servo_3stage_quanser_srv02", 0.056),
