@@ -701,7 +701,8 @@ def _contact_noise(m: _Encoder, N: float) -> NDArray[np.float64]:
 
 
 def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.float64],
-             lower: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+             lower: NDArray[np.float64], floors: Sequence[float] | None = None
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Bounded least squares of torque balances with a prior, corrected for noisy regressors:
     ``(theta, covariance)``.
 
@@ -717,7 +718,8 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
     pulls the inertias towards zero (regression dilution: 34 % low on the motor's free flights of a 2 kHz
     log, whose raw second differences are 4x noisier than at 1 kHz). It is subtracted from the normal
     matrix (the errors-in-variables correction of Fuller, *Measurement Error Models*, 1987, ch. 2), halved
-    until the matrix stays positive definite.
+    until the matrix stays positive definite. ``floors`` (one per block, or None) holds each block's noise at
+    least at that level (the load's free flights under a load torque, :func:`identify`).
 
     The covariance is the larger, parameter by parameter, of the model's (rows independent beyond
     ``correlation`` samples) and a cluster-robust sandwich (Liang & Zeger 1986; White 1980): the last
@@ -729,6 +731,8 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
     """
     from scipy.optimize import lsq_linear
 
+    fl = [0.0] * len(blocks) if floors is None else list(floors)
+    fl = [f for blk, f in zip(blocks, fl, strict=True) if len(blk[1]) >= 10]
     blocks = [blk for blk in blocks if len(blk[1]) >= 10]
     theta = mean.copy()
     keeps = [np.ones(len(blk[1]), bool) for blk in blocks]
@@ -739,7 +743,8 @@ def _regress(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.floa
     # a block's noise never falls below a thousandth of its first estimate: a block of a dozen rows kept only the
     # few the fit passed through exactly, its noise fell to the 1e-12 floor and its rows outweighed the prior by
     # 1e23 (a reviewer's log with the torque one sample late: the normal matrix lost its definiteness to rounding)
-    sig_floor = [1e-3 * s0 for s0 in sig]
+    sig_floor = [max(1e-3 * s0, f) for s0, f in zip(sig, fl, strict=True)]
+    sig = [max(s0, f) for s0, f in zip(sig, fl, strict=True)]
     D = np.diag(sd)
 
     def normal(with_rhs: bool) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -825,7 +830,7 @@ PRIOR_PULL_WIDENING = 10.0
 
 def _with_prior_pull(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray[np.float64],
                      lower: NDArray[np.float64], theta: NDArray[np.float64],
-                     cov: NDArray[np.float64]) -> NDArray[np.float64]:
+                     cov: NDArray[np.float64], floors: Sequence[float] | None = None) -> NDArray[np.float64]:
     """``cov`` with the prior's pull on each parameter added to its variance, as a systematic error.
 
     The weak prior keeps the directions the data hardly see at the model's values, but it also pulls the ones
@@ -834,7 +839,7 @@ def _with_prior_pull(blocks: list[Block], mean: NDArray[np.float64], sd: NDArray
     same regression with the prior :data:`PRIOR_PULL_WIDENING` times wider moves each parameter by what the prior
     held it at; that shift, as a 95 % half-width, is added in quadrature.
     """
-    weak, _ = _regress(blocks, mean, PRIOR_PULL_WIDENING * sd, lower)
+    weak, _ = _regress(blocks, mean, PRIOR_PULL_WIDENING * sd, lower, floors)
     pull = np.abs(weak - theta) / 1.96
     out = cov.copy()
     out[np.diag_indices_from(out)] += pull**2
@@ -957,6 +962,11 @@ class _Problem:
         u_rms = float(np.sqrt(np.mean(self.ubar**2)))
         self.tc_floor = (1e-3 * u_rms, 1e-3 * u_rms * self.N)
         self.uf = _smooth(self.ubar, _hann(self.W))
+        #: the model's constant load torque [N m] (gearctl adds it to the load shaft's balance, as the re-simulation
+        #: does): the load's own balance in free flight is J2 theta2'' + d2 theta2' + T_c2 sgn = T_L, and the total
+        #: balance in contact takes it at the motor as T_L / N, so ``uc = uf + T_L / N`` is the contact rows' torque
+        self.tl = float(nominal.load_torque)
+        self.uc = self.uf + self.tl / self.N
         self.ug = _smooth(self.ubar, _hann(self.Wg))
         self.m = _Encoder(log.theta1, Ts, self.W, self.Wg)
         theta2 = log.theta2 if encoders == "motor+load" else None  # (identify refuses motor+load without the column)
@@ -1103,7 +1113,7 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
                              f"{1 / RATIO_FACTOR:.3g}-{RATIO_FACTOR:g}){hint}", field="theta2")
     if mv.sum() >= 20:
         A = np.column_stack([m.a, m.w, np.sign(m.w)])[mv]
-        y = p.uf[mv]
+        y = p.uc[mv]  # the balance in contact, with the load torque at the motor
         keep = np.ones(y.size, bool)
         for _ in range(3):  # drop the gap crossings' outliers
             sol = np.linalg.lstsq(A[keep], y[keep], rcond=None)[0]
@@ -1949,23 +1959,42 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         z2 = np.zeros(int(g2.sum()))
         A_l = np.column_stack([z2, ld.ag[g2], z2, ld.wg[g2], z2, np.sign(ld.wg[g2])])
         e = np.eye(len(PARAMS))
-        blocks: list[Block] = [(A_c, p.uf[both], float(p.W), _contact_noise(m, N), np.flatnonzero(both))]
+        blocks: list[Block] = [(A_c, p.uc[both], float(p.W), _contact_noise(m, N), np.flatnonzero(both))]
+        floors = [0.0]
         if g1.sum() >= 10:
             blocks.append((A_g, p.ug[g1], float(p.Wg + 2), _noise_cov(((e[0], m.noise_g[0]), (e[2], m.noise_g[1]))),
                            np.flatnonzero(g1)))
+            floors.append(0.0)
         if g2.sum() >= 10:
-            blocks.append((A_l, np.zeros(int(g2.sum())), float(p.Wg + 2),
-                           _noise_cov(((e[1], ld.noise_g[0]), (e[3], ld.noise_g[1]))), np.flatnonzero(g2)))
-        theta, cov = _regress(blocks, mean, sd, lower)
-        cov = _with_prior_pull(blocks, mean, sd, lower, theta, cov)
-        b, ci, centre, est, times, _ = _plateau_backlash(p, theta, eps)
+            noise_l = _noise_cov(((e[1], ld.noise_g[0]), (e[3], ld.noise_g[1])))
+            blocks.append((A_l, np.full(int(g2.sum()), p.tl), float(p.Wg + 2), noise_l, np.flatnonzero(g2)))
+            # with a load torque the load's free-flight rows have a right-hand side, T_L, that its Coulomb friction
+            # matches exactly where the load coasts one way (T_L near T_c2: it hardly decelerates, and the raw second
+            # difference of its encoder reads 0 counts). The robust scale then fell onto those rows, every row with a
+            # count of acceleration was cut as an outlier, J2 went to its bound and T_c2 to T_L with a tight interval
+            # (T_L = 0.045, T_c2 = 0.05 N m, the model's own excitation; the log was then refused for want of a rest
+            # on a flank). The block's noise is held at least at what the encoder's noise puts into its rows at the
+            # model's values, sqrt(theta0^T E theta0) (without a load torque the block is left as it was)
+            floors.append(math.sqrt(max(float(mean @ noise_l @ mean), 0.0)) if p.tl != 0.0 else 0.0)
+        theta, cov = _regress(blocks, mean, sd, lower, floors)
+        cov = _with_prior_pull(blocks, mean, sd, lower, theta, cov, floors)
+        # an inertia at its bound leaves the other holding J1 + J2/N^2, and the torque the mesh takes from the motor,
+        # u - J1 theta1'' - ..., loses the load's inertia: with a load torque the rests on a flank were then not found
+        # (h3: "no rest on the front flank", T_L = 0.045 near T_c2 = 0.05 N m). With a load torque the flank rests and
+        # the crossings' start are read with the model's inertias wherever a fitted one sits at its bound (without
+        # one, as before)
+        at_bound = bool(theta[0] <= 1.01 * lower[0] or theta[1] <= 1.01 * lower[1])
+        theta_tx = theta.copy()
+        if at_bound and p.tl != 0.0:
+            theta_tx[:2] = mean[:2]
+        b, ci, centre, est, times, _ = _plateau_backlash(p, theta_tx, eps)
         if b < SPAN_SHARE * b0:
             # s reaches +-b0 (a median removes the impacts' spikes): plateaus well inside are not resting contact
             raise InputError(f"{lg.name}: column theta2: {len(eps) - 1} gap crossings, but the flanks never rest "
                              f"in contact (the plateaus of r_b1 theta1 - r_b2 theta2 give b = {b * 1e6:.3g} um, its "
                              f"half-span is {b0 * 1e6:.3g} um): the loop rattles in the gap or hunts; record moves "
                              f"with dwells in contact", field="theta2")
-        wins = _gap_windows(p, eps, theta)
+        wins = _gap_windows(p, eps, theta_tx)
         # the share of the Coulomb friction on each shaft: the free flights may be too short to tell (a loop
         # that crosses fast and bounces); whether the load sticks or coasts in the re-simulated crossings does
         J_eq, d_eq, teq = _lumped(theta, N)
@@ -2028,7 +2057,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
             raise InputError(f"{lg.name}: column theta1: only {int(rows.sum())} samples of steady motion in "
                              f"contact; the friction cannot be estimated (record longer moves)", field="theta1")
         A_c = np.column_stack([m.a, m.a / N**2, m.w, m.w / N**2, sg1, sg1 / N])[rows]
-        theta, cov = _regress([(A_c, p.uf[rows], float(p.W), _contact_noise(m, N), np.flatnonzero(rows))], mean, sd,
+        theta, cov = _regress([(A_c, p.uc[rows], float(p.W), _contact_noise(m, N), np.flatnonzero(rows))], mean, sd,
                               lower)
         # the motor's own inertia is the model's (see sd_kappa below), J2 what is left of the J1 + J2/N^2 the log sees:
         # the regression's split is the prior's pull (a reviewer's J1 12 % off the model's, with an interval of the
@@ -2149,6 +2178,12 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         # that missed the truth, unflagged)
         if other in ni and key not in ni:
             widen(key, f"{other} is not identified: {key} holds the rest of the J1 + J2/N^2 the log sees")
+    if encoders == "motor+load" and p.tl != 0.0 and theta[1] <= 1.01 * lower[1]:
+        # the load's free flights did not show its inertia: its own balance J2 theta2'' + d2 theta2' + T_c2 sgn = T_L
+        # was met by its friction alone, which then holds what the acceleration should (T_c2 went to T_L)
+        for key in ("viscous2", "coulomb2"):
+            widen(key, "J2 is at the fit's bound: the load's friction holds what its acceleration should in its "
+                       "balance with the load torque")
     if encoders == "motor":
         ni.setdefault("J1", f"the model's within {MOTOR_INERTIA_TOLERANCE:.0%}: the motor encoder sees J1 + J2/N^2")
         # J2 = N^2 (J_eq - J1): a motor inertia off the model's by more than its tolerance moves J2 N^2 times as much
