@@ -436,6 +436,9 @@ def _number(token: str, where: str, nominal: float | None, key: str, *, relative
         if nominal is None:
             raise InputError(f"{where}: {token.strip()!r}: {key} has no nominal value to scale; give absolute "
                              f"values", field=key)
+        if nominal == 0.0 and v != 0.0:  # every factor of 0 is 0: the sweep would vary nothing, without a word
+            raise InputError(f"{where}: {token.strip()!r}: the nominal {key} is 0, so every factor of it is 0 (the "
+                             f"runs would not vary it); give absolute values", field=key)
         v *= nominal
     return v
 

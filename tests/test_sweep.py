@@ -139,6 +139,18 @@ def test_bad_specs_are_one_line_errors(text: str, match: str) -> None:
     assert "\n" not in str(exc.value)
 
 
+def test_a_factor_of_a_zero_nominal_is_refused() -> None:
+    # coulomb_friction2 is 0 on the catalog servo: `--vary coulomb_friction2=0.5x:2x` swept 0 .. 0, every run the
+    # nominal plant, and the report read "varied coulomb_friction2 = 0.5x:2x (0 .. 0 N m)" without a word
+    for text in ("coulomb_friction2=0.5x:2x", "coulomb_friction2=normal(1x,0.1x,0,inf)", "coulomb_friction2=0,2x"):
+        with pytest.raises(InputError, match=r"the nominal coulomb_friction2 is 0.*give absolute values") as exc:
+            parse_vary(text, NOMINAL)
+        assert "\n" not in str(exc.value)
+    assert parse_vary("coulomb_friction2=0x,0.1", NOMINAL).args == (0.0, 0.1)  # 0x is 0 whatever the nominal
+    rc, out, err = _cli(["sweep", MODEL, "pid", "--vary", "coulomb_friction2=0.5x:2x", "--runs", "2", "--quiet"])
+    assert rc == 2 and out == "" and err.count("\n") == 1 and "nominal coulomb_friction2 is 0" in err
+
+
 def test_bad_spec_at_the_cli_is_exit_2_one_line() -> None:
     rc, out, err = _cli(["sweep", MODEL, "--vary", "backlash=normal(5e-5)", "--quiet"])
     assert rc == 2 and out == ""
