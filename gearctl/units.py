@@ -186,10 +186,11 @@ def check_number(name: str, value: Any, meta: Mapping[str, Any]) -> float:
     lo, hi = meta["low"], meta["high"]
     bad = not math.isfinite(v) and not (meta.get("allow_inf") and v == math.inf)
     if math.isfinite(v):
+        x = value if isinstance(value, numbers.Integral) else v  # an int as it is: float() rounds beyond 2**53
         if lo is not None:
-            bad = bad or (v <= lo if meta["low_open"] else v < lo)
+            bad = bad or (x <= lo if meta["low_open"] else x < lo)
         if hi is not None:
-            bad = bad or (v >= hi if meta["high_open"] else v > hi)
+            bad = bad or (x >= hi if meta["high_open"] else x > hi)
         floor = meta.get("floor")
         if floor is not None:
             bad = bad or (v != 0.0 and abs(v) < floor)

@@ -151,6 +151,25 @@ def test_a_factor_of_a_zero_nominal_is_refused() -> None:
     assert rc == 2 and out == "" and err.count("\n") == 1 and "nominal coulomb_friction2 is 0" in err
 
 
+def test_a_whole_number_option_is_read_exactly() -> None:
+    # `--seed` was read through float(): 9000000000000000001 ran as 9000000000000000000 (three seeds typed, one sweep),
+    # and the largest seed allowed, 2**63 - 1, was refused as out of range
+    import argparse
+
+    from gearctl.cli.common import spec_arg
+    from gearctl.units import SEED
+
+    seed = spec_arg(SEED)
+    assert seed("9000000000000000001") == 9000000000000000001
+    assert seed(str(2**63 - 1)) == 2**63 - 1 and seed("0") == 0 and seed("1e3") == 1000
+    for bad in (str(2**63), "-1", "1.5"):
+        with pytest.raises(argparse.ArgumentTypeError, match=r"expected a whole number"):
+            seed(bad)
+    SEED.check("seed", 2**63 - 1)  # and the API's check (sweep, plan_sweep) takes it too
+    with pytest.raises(InputError, match="out of range"):
+        SEED.check("seed", 2**63)
+
+
 def test_bad_spec_at_the_cli_is_exit_2_one_line() -> None:
     rc, out, err = _cli(["sweep", MODEL, "--vary", "backlash=normal(5e-5)", "--quiet"])
     assert rc == 2 and out == ""

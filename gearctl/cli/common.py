@@ -7,6 +7,7 @@ import csv
 import errno
 import json
 import math
+import re
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from ..files import write_whole
-from ..units import POINTS, Spec
+from ..units import POINTS, Spec, describe_rule
 
 __all__ = ["spec_arg", "positive_float", "finite_float", "nonnegative_float", "dump_json", "write_csv_stream",
            "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE", "TARGETS", "CYCLES",
@@ -36,6 +37,15 @@ WHOLE = Spec(unit="1", doc="whole number", low=-2**31, high=2**31, integer=True)
 def spec_arg(spec: Spec) -> Callable[[str], Any]:
     """An argparse type that parses a number and checks it against ``spec`` (the schema's range)."""
     def parse(text: str) -> Any:
+        if spec.integer and re.fullmatch(r"\s*[+-]?\d+\s*", text):
+            # a whole number as typed: float() rounds beyond 2**53 (--seed 9000000000000000001 ran as ...000, and
+            # 2**63 - 1, the largest seed, was refused)
+            n = int(text)
+            low_ok = spec.low is None or (n > spec.low if spec.low_open else n >= spec.low)
+            high_ok = spec.high is None or (n < spec.high if spec.high_open else n <= spec.high)
+            if low_ok and high_ok:
+                return n
+            raise argparse.ArgumentTypeError(f"{text} is out of range: expected {describe_rule(spec.meta())}")
         try:
             v = float(text)
         except ValueError:
