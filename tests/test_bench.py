@@ -344,3 +344,31 @@ def test_a_run_that_would_not_fit_at_its_controllers_sample_time_is_refused(tmp_
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "(10,000,001 samples of 832 bytes)" in err
+
+
+def test_the_progress_bar_counts_the_iso_rows_too(monkeypatch: pytest.MonkeyPatch,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    # the bar was made for the tracking runs alone and the ISO rows went past its end: "3/4 ... 5run ... 7run"
+    # (4 runs, 3 ISO rows) on a terminal, the bar turned into a bare counter
+    import tqdm
+
+    bars: list[Any] = []
+
+    class Bar:
+        def __init__(self, *, total: int, **_kw: Any) -> None:
+            self.total, self.n = total, 0
+            bars.append(self)
+
+        def update(self, k: int = 1) -> None:
+            self.n += k
+            assert self.n <= self.total, (self.n, self.total)
+
+        def close(self) -> None:
+            pass
+
+    monkeypatch.setattr(tqdm, "tqdm", Bar)
+    rc = main(["bench", MODEL, "--controllers", "pid", "--plants", "improved", "--references", "sine",
+               "--duration", "0.2", "--jobs", "1"])
+    assert rc == 0 and len(bars) == 1
+    assert bars[0].n == bars[0].total == 4  # 2 tracking runs (improved, backlash-free) and 2 ISO rows
+    assert "2 runs in" in capsys.readouterr().out

@@ -208,8 +208,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     spec = BenchSpec(models=tuple(args.models) or ("shing1993_servo",), controllers=tuple(args.controllers or ()),
                      plants=plants, references=refs, duration=args.duration, seed=args.seed,
                      realtime=args.realtime, precision=not args.no_precision)
-    runs = spec.runs()
+    skipped = spec.skipped()
+    runs = spec.runs(skipped)
     n = len(runs)
+    tasks = n + len(spec.precision_runs(skipped))  # what the bar counts: the ISO rows are tasks too
     from ..closedloop import DEFAULT_TS, check_loop_memory
 
     def sample_time(run: Any) -> float:  # the controller file's (a 0.1 ms PID's 1000 s runs all failed, exit 0)
@@ -229,17 +231,20 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if not args.quiet:
         from tqdm import tqdm
 
-        bar = tqdm(total=n, desc="gearctl bench", unit="run", file=sys.stderr, leave=False, disable=None)
+        bar = tqdm(total=tasks, desc="gearctl bench", unit="run", file=sys.stderr, leave=False, disable=None)
 
     def progress(done: int, total: int) -> None:
         if bar is not None:
-            bar.update(1)
+            bar.total = total
+            bar.update(done - bar.n)
 
     t0 = time.perf_counter()
-    result = run_bench(spec, jobs=args.jobs, progress=progress, runs=runs, scheduler=args.scheduler)
+    try:
+        result = run_bench(spec, jobs=args.jobs, progress=progress, runs=runs, scheduler=args.scheduler)
+    finally:
+        if bar is not None:
+            bar.close()
     wall = time.perf_counter() - t0
-    if bar is not None:
-        bar.close()
     result["wall_time"] = wall
     from ..parallel import local_processes
 
