@@ -12,7 +12,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..units import DURATION, SEED, Spec
-from .common import check_writable, dump_json, save_figure, spec_arg, warn, write_whole
+from .common import check_writable, save_figure, spec_arg, warn, write_json, write_whole
 
 __all__ = ["register"]
 
@@ -217,12 +217,13 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             lg.setLevel(lv)
         if bar is not None:
             bar.close()
-    if to_stdout:
-        print(dump_json(result.as_dict()))
+    if to_stdout:  # written piece by piece: the whole text of a large sweep is more than its results (iter_json)
+        write_json(sys.stdout, result.as_dict())
+        print()
     elif args.json:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-            write_whole(args.json, dump_json(result.as_dict()))
+            write_whole(args.json, lambda fh: write_json(fh, result.as_dict()))
         except OSError as exc:
             raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
     if args.out:
