@@ -372,3 +372,14 @@ def test_the_progress_bar_counts_the_iso_rows_too(monkeypatch: pytest.MonkeyPatc
     assert rc == 0 and len(bars) == 1
     assert bars[0].n == bars[0].total == 4  # 2 tracking runs (improved, backlash-free) and 2 ISO rows
     assert "2 runs in" in capsys.readouterr().out
+
+
+def test_a_folder_where_out_writes_a_file_is_refused_before_the_runs(tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    # a folder named report.md in --out DIR: the bench ran, wrote its plots, then failed on the report, exit 2
+    (tmp_path / "report.md").mkdir()
+    rc = main(["bench", MODEL, "--controllers", "pid", "--plants", "improved", "--references", "sine", "--jobs", "1",
+               "--quiet", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"{tmp_path / 'report.md'} is a folder" in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.md"]

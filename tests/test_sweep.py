@@ -1028,3 +1028,15 @@ def test_dump_json_writes_what_it_wrote_before() -> None:
     assert dump_json(obj) == "".join(iter_json(obj)) == old
     with pytest.raises(TypeError, match="not JSON serialisable"):
         dump_json({"x": object()})
+
+
+@pytest.mark.parametrize("name", ["runs.csv", "histogram.png", "error_vs_backlash.png"])
+def test_a_folder_where_out_writes_a_file_is_refused_before_the_runs(tmp_path: Path, name: str) -> None:
+    # --out DIR holding a folder named histogram.png: the sweep ran to its end, wrote runs.csv and then stopped at the
+    # plot, exit 2 ("cannot write DIR: Is a directory" for a folder named runs.csv, naming neither)
+    (tmp_path / name).mkdir()
+    rc, out, err = _cli(["sweep", MODEL, "pid", "--vary", "backlash=0.5x:2x", "--runs", "2", "--duration", "0.05",
+                         "--workers", "1", "--quiet", "--out", str(tmp_path)])
+    assert rc == 2 and out == "" and err.count("\n") == 1, err
+    assert f"{tmp_path / name} is a folder" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]

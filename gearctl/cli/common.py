@@ -260,14 +260,15 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
                                  f"to another name", field=k)
 
 
-def check_writable(path: str, *, directory: bool = False, key: str = "out") -> None:
+def check_writable(path: str, *, directory: bool = False, key: str = "out", files: Iterable[str] = ()) -> None:
     """Refuse, before a long run, an output path it could not write at its end: one line naming ``--KEY``.
 
-    ``directory``: the path is a folder the run writes into; else a file. Nothing is left behind: the path (through
-    any link) must not be of the other kind, the nearest folder that exists on the way to it must be one that can be
-    written, the folders missing below it are made and removed again, and an existing file must be writable.
-    (Permissions as ``os.access`` sees them: a read-only file system or root's rights can still fail at the end,
-    with the same one line.)
+    ``directory``: the path is a folder the run writes into (``files``: the names it writes there, none of which may
+    be a folder: a sweep ran to its end, wrote runs.csv and stopped at a folder named histogram.png); else a file.
+    Nothing is left behind: the path (through any link) must not be of the other kind, the nearest folder that
+    exists on the way to it must be one that can be written, the folders missing below it are made and removed
+    again, and an existing file must be writable. (Permissions as ``os.access`` sees them: a read-only file system or
+    root's rights can still fail at the end, with the same one line.)
     """
     import os
 
@@ -275,6 +276,11 @@ def check_writable(path: str, *, directory: bool = False, key: str = "out") -> N
     flag = f"--{key.replace('_', '-')}"
     if directory and p.exists() and not p.is_dir():
         raise InputError(f"{flag} {path}: is a file, expected a folder to write into", field=key)
+    if directory and p.is_dir():
+        for name in files:
+            if (p / name).is_dir():
+                raise InputError(f"{flag} {path}: {Path(path) / name} is a folder, where the run writes a file: "
+                                 f"remove it or write to another folder", field=key)
     if not directory and p.is_dir():
         raise InputError(f"{flag} {path}: is a folder, expected a file name", field=key)
     if p.exists() and not p.is_dir():

@@ -226,7 +226,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.json and not to_stdout:  # checked before the runs, as the sweep's
         check_writable(args.json, key="json")
     if args.out:
-        check_writable(args.out, directory=True, key="out")
+        check_writable(args.out, directory=True, key="out",
+                       files=["report.md", "rms_by_controller.png", *(f"errors_{r}.png" for r in refs)])
     bar = None
     if not args.quiet:
         from tqdm import tqdm

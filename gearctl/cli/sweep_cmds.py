@@ -181,7 +181,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if args.json and not to_stdout:
         check_writable(args.json, key="json")
     if args.out:
-        check_writable(args.out, directory=True, key="out")
+        keys = [text.partition("=")[0].strip() for text in args.vary or ()]
+        check_writable(args.out, directory=True, key="out", files=["runs.csv", "summary.md", "histogram.png", "map.png",
+                                                                     *(f"error_vs_{k}.png" for k in keys)])
     bar: Any = None
 
     def progress(done: int, total: int) -> None:
