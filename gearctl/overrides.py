@@ -186,6 +186,14 @@ class Scale(float):
         return f"{float(self)!r}x"
 
 
+def _check_scalable(key: str, factor: float, nominals: list[float]) -> None:
+    """Refuse a factor other than 0 of a key whose nominal value is 0 (on a train, every stage's): every factor of 0
+    is 0, so ``--set coulomb_friction2=2x`` ran the nominal plant without a word (``--vary`` refuses it too)."""
+    if factor != 0.0 and all(v == 0.0 for v in nominals):
+        raise InputError(f"{key} = {factor!r}: the nominal {key} is 0, so every factor of it is 0 (the plant would "
+                         f"not change); give a number", field=key)
+
+
 def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel:
     """The model with some fields changed (every stage's, for a stage key), checked like a model file.
 
@@ -208,6 +216,7 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
                                  f"{'s' if len(model.stages) > 1 else ''}: expected stage1 .. "
                                  f"stage{len(model.stages)}", field=key)
             if isinstance(value, Scale):
+                _check_scalable(key, value, [stage_values(field, model)[i]])
                 value = float(value) * stage_values(field, model)[i]
             one.setdefault(i, {})[field] = value
             continue
@@ -216,11 +225,13 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
             raise InputError(f"{key} is not a model key", field=key)
         if isinstance(value, Scale):
             if owner in (GearPair, MeshDynamics):
+                _check_scalable(key, value, stage_values(key, model))
                 scaled[key] = float(value)
                 continue
             nominal = getattr(model.servo if owner is Servo else model.sensors, key)
             if nominal is None or not math.isfinite(nominal):
                 raise InputError(f"{key} = {value!r}: {key} has no nominal value to scale; give a number", field=key)
+            _check_scalable(key, value, [nominal])
             value = float(value) * float(nominal)
         per[owner][key] = value
     values = {key: stage_values(key, model) for key in scaled}

@@ -77,3 +77,13 @@ def test_set_that_changes_the_ratio_is_noted(capsys: pytest.CaptureFixture[str],
         assert "gear ratio" not in err
     else:
         assert f"gearctl track: note: --set: the true plant's gear ratio is {ratio}" in err
+
+
+def test_set_a_factor_of_a_zero_nominal_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    # coulomb_friction2 is 0 on the catalog servo: `--set coulomb_friction2=2x` ran the nominal plant without a word
+    # (`--vary` with the same factor is refused); 0x is 0 whatever the nominal, and a factor of a non-zero key runs
+    assert main(["track", "shing1993_servo", "pid", "--set", "coulomb_friction2=2x", "--duration", "0.2"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the nominal coulomb_friction2 is 0, so every factor of it is 0" in err, err
+    assert main(["track", "shing1993_servo", "pid", "--set", "coulomb_friction2=0x", "--duration", "0.2"]) == 0
+    assert main(["track", "shing1993_servo", "pid", "--set", "backlash=2x", "--duration", "0.2"]) == 0
