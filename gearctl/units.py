@@ -18,7 +18,7 @@ import numbers
 from collections.abc import Mapping
 from typing import Any
 
-from .errors import InputError
+from .errors import InputError, short_repr
 
 __all__ = [
     "Spec", "quantity", "check_choice", "validate_fields", "describe_range", "describe_rule", "field_unit",
@@ -179,7 +179,11 @@ def check_number(name: str, value: Any, meta: Mapping[str, Any]) -> float:
                 if isinstance(value, str) else f"a {type(value).__name__}")
         rule = f"is not a number ({kind}): expected {allowed}"
         raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an int beyond any float (10**400): out of every range, not a traceback
+        rule = f"is out of range: expected {allowed}"
+        raise InputError(f"{name} = {short_repr(value)} {rule}", field=name, rule=rule) from None
     if meta["integer"] and (not math.isfinite(v) or v != int(v)):
         rule = f"is not a whole number: expected {allowed}"
         raise InputError(f"{name} = {value!r} {rule}", field=name, rule=rule)

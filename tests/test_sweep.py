@@ -168,6 +168,10 @@ def test_a_whole_number_option_is_read_exactly() -> None:
     SEED.check("seed", 2**63 - 1)  # and the API's check (sweep, plan_sweep) takes it too
     with pytest.raises(InputError, match="out of range"):
         SEED.check("seed", 2**63)
+    for huge in (10**400, -10**400):  # beyond any float: float() raised OverflowError from inside the check
+        with pytest.raises(InputError, match=r"^seed = -?10000.*\.\.\. is out of range") as exc:
+            SEED.check("seed", huge)
+        assert exc.value.field == "seed"
 
 
 def test_bad_spec_at_the_cli_is_exit_2_one_line() -> None:
