@@ -132,7 +132,7 @@ it is as good as the PID on the backlash-free plant.
 
 Limits (measured, see ``tests/test_compensation.py``): on a load without friction (``shing1993_servo``)
 nothing holds the load once it rests on a flank with no force on it. ISO 230-2 there gives A / B / R of 171 /
-57 / 96 urad (the PID's 1484 / 1317 / 1348; the backlash-free PID's 1.4 / 0.9 / 1.2). Two things leave the
+57 / 96 urad (the PID's 1483 / 1317 / 1348; the backlash-free PID's 1.4 / 0.9 / 1.2). Two things leave the
 load moving:
 
 - *The short overshoot moves* (0.02 rad after each end target) cross to the braking flank in the middle of
