@@ -181,7 +181,8 @@ encoder, a landing that has been due for ``n_cross + 5`` samples (:data:`_STALL_
 within a quarter of ``b`` of the flank (:data:`_STALL_SHARE`) has stalled: contact is taken where the gap stopped,
 on that side, until the gap goes further. Measured: ``gearctl track shing1993_servo_friction mpc --set
 coulomb_friction1=0.02`` 0.11 rad RMS before (the load left behind while the reference moved on), 2.0e-3 rad with
-it (4.1e-5 with the load's friction in the plan as well); a POM pair with 4096-count motor encoders, ISO accuracy
+it (4.1e-5 with the load's friction in the plan as well, 5.4e-4 once a torque at the QP's bound was the limit
+exactly: a chaotic loop); a POM pair with 4096-count motor encoders, ISO accuracy
 1.16 rad before, 23 mrad with it (0.70 mrad with the encoders' noise and the load's friction, below). An unknown
 motor friction of 5 % of the torque limit still defeats the plan on the sine (0.11 rad RMS; the move 1.4e-3 rad):
 estimating it is future work.
