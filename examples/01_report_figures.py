@@ -29,9 +29,10 @@ def main(argv: list[str] | None = None) -> None:
     # --- Figures 8-11: tooth deflections and mesh stiffness --------------------------------------------
     ms = mesh_stiffness(model.pair)
     fig = plot_stiffness(tooth_deflections(model.pair), ms, title="TR 93-28 Figures 8-11")
-    save(fig, args.out / "fig08-11_stiffness.png")
+    path = save(fig, args.out / "fig08-11_stiffness.png")
     print(f"mesh stiffness: mean {ms.mean:.5g} N/m, C1 {ms.c1:.4g}, C2 {ms.c2:.4g} "
           "(Table 1: 1.3868e8, 2.956e7, 1.684e7)")
+    print(f"wrote {path}")
 
     # --- Figures 12-16 (free vibration) and 17-21 (constant load) --------------------------------------
     for case, figs in (("free", "12-16"), ("load", "17-21")):
