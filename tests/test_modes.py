@@ -514,3 +514,27 @@ def test_cli_linearize_bad_input(capsys: pytest.CaptureFixture[str]) -> None:
     assert err.count("\n") == 1 and "Traceback" not in err
     assert main(["linearize", "shing1993", "--mode", "gap"]) == 2  # argparse choice
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_pid_transfer_functions_connect_to_the_mode_models_by_name() -> None:
+    # the designed PID's transfer functions name their signals as the mode models do (error e, motor torque xi1): a
+    # python-control user's interconnect closes the loop by name, and gives the poles of the loop closed by hand
+    # (before, the PID came back as u[0] -> y[0] and interconnect left it unconnected)
+    from gearctl import load_controller
+
+    plant = build_plant(load_model("shing1993_servo"))
+    pid = load_controller("pid", plant)
+    C, Cd = pid.gains.tf(), pid.gains.sampled_tf(1e-3)
+    assert (C.input_labels, C.output_labels) == (Cd.input_labels, Cd.output_labels) == (["e"], ["xi1"])
+    assert Cd.dt == 1e-3
+    P = linearize_modes(plant).contact
+    N = plant.gear_ratio
+    scale = ct.ss([], [], [], [[1.0 / N]], inputs="theta1", outputs="y", name="scale")
+    err = ct.summing_junction(inputs=["r", "-y"], output="e")
+    T = ct.interconnect([P, C, scale, err], inputs=["r", "xi2"], outputs="theta2", ignore_outputs=["s", "force"])
+    by_hand = ct.feedback(ct.ss(C) * ct.ss(P["theta1", "xi1"]) / N)
+
+    def key(z: complex) -> tuple[float, float]:
+        return z.real, z.imag
+
+    assert_allclose(sorted(T.poles(), key=key), sorted(by_hand.poles(), key=key), rtol=1e-8)

@@ -59,12 +59,13 @@ class PIDGains:
         validate_fields(self)
 
     def tf(self) -> ct.TransferFunction:
-        """The continuous PID as a transfer function (error [rad] to torque [N m])."""
+        """The continuous PID as a transfer function (error [rad] to torque [N m]), input ``e``, output ``xi1`` (the
+        motor torque, as the contact-mode models name it: ``ct.interconnect`` connects them by name)."""
         import control as ct
 
         wf = 2 * math.pi * self.derivative_filter_hz
         s = ct.tf("s")
-        return self.kp + self.ki / s + self.kd * s / (1 + s / wf)
+        return ct.tf(self.kp + self.ki / s + self.kd * s / (1 + s / wf), inputs="e", outputs="xi1", name="pid")
 
     def discrete(self, Ts: float) -> tuple[float, float, float, float]:
         """``(kp, ki Ts, kd (1 - a) / Ts, a)``: the sampled PID :class:`PID` runs, ``a = T_f / (T_f + Ts)``.
@@ -88,7 +89,8 @@ class PIDGains:
         return self.kp, self.ki * Ts, self.kd * (1.0 - a) / Ts, a
 
     def sampled_tf(self, Ts: float) -> ct.TransferFunction:
-        """The sampled PID as a discrete transfer function, error to torque (dt = ``Ts``).
+        """The sampled PID as a discrete transfer function, error to torque (dt = ``Ts``; input ``e``, output ``xi1``
+        as :meth:`tf`).
 
         ``C(z) = kp + ki Ts / (z - 1) + kd (1 - a) (z - 1) / (Ts (z - a))``, ``a = T_f / (T_f + Ts)``,
         ``T_f = 1 / (2 pi f_d)``.
@@ -115,7 +117,7 @@ class PIDGains:
 
         kp, kiT, kdT, a = self.discrete(Ts)
         z = ct.tf([1.0, 0.0], [1.0], Ts)
-        return kp + kiT / (z - 1) + kdT * (z - 1) / (z - a)
+        return ct.tf(kp + kiT / (z - 1) + kdT * (z - 1) / (z - a), inputs="e", outputs="xi1", name="pid")
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
