@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from gearctl import build_plant, load_model
+from gearctl import InputError, build_plant, load_model
 from gearctl import identify as ident
 from gearctl.catalog import GearModel
 from gearctl.excite import record_excitation
@@ -143,3 +143,15 @@ def test_without_a_load_torque_the_figures_are_unchanged(log_of: Callable[[str, 
     motor = identify(path, model, encoders="motor")
     assert motor.backlash == pytest.approx(9.780550477140189e-05, rel=1e-9)
     assert motor.backlash_ci == pytest.approx((7.620563043917835e-05, 0.00011940537910362542), rel=1e-9)
+
+
+def test_a_load_torque_above_the_load_friction_is_named_in_the_refusal(
+        log_of: Callable[[str, GearModel], Path]) -> None:
+    # with 0.1 N m of load torque against 0.05 N m of friction the load stays on one flank wherever the motor does not
+    # push it across: too few crossings, and the refusal blamed a loop that hunts or a low sample rate
+    model = _detc(0.1)
+    with pytest.raises(InputError) as exc:
+        identify(log_of("detc_tl100", model), model)
+    msg = str(exc.value)
+    assert "the model's load_torque (0.1 N m) exceeds the load's Coulomb friction (0.05 N m)" in msg
+    assert "never rested on a flank" not in msg
