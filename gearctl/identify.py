@@ -1001,9 +1001,9 @@ def _no_switch(p: _Problem, found: int, what: str) -> InputError:
     elif abs(p.tl) > p.nominal.tc2:  # the load torque holds the load on one flank: the motor reverses, the load not
         advice = (f"the motor reversed {reversals} times, but the model's load_torque ({p.tl:g} N m) exceeds the "
                   f"load's Coulomb friction ({p.nominal.tc2:g} N m): it keeps the load on one flank wherever the motor "
-                  f"does not push it across; record reversals whose deceleration exceeds "
-                  f"(load_torque - friction) / J2 = {(abs(p.tl) - p.nominal.tc2) / p.nominal.J2:.3g} rad/s^2 at the "
-                  f"load, or check the model's load_torque")
+                  f"does not push it across; record motions that accelerate the load side faster than the load "
+                  f"torque alone can, (|load_torque| - friction) / J2 = "
+                  f"{(abs(p.tl) - p.nominal.tc2) / p.nominal.J2:.3g} rad/s^2, or check the model's load_torque")
     else:
         advice = (f"the motor reversed {reversals} times, but the load never rested on a flank long enough to be "
                   f"seen there (a loop that hunts or rattles, or a sample rate too low for the crossings): record "
