@@ -288,6 +288,21 @@ def test_oversampled_run_is_the_same_loop(plant, pid_load, cycle):
     assert coarse["amplitude"] <= cycle["sim"]["amplitude"]  # samples can only miss a peak
 
 
+def test_load_amplitude_is_the_peak_between_samples(plant, pid_load, cycle):
+    """The simulated load amplitude is theta2's half peak-to-peak on the fine trajectory, not at the controller's
+    samples: the load turns during the collisions, between the 1 ms samples, so the samples alone read 221.3 urad
+    against 228.8 (3 % low; an independent solve_ivp run of the same loop gives >= 228.3 on an 11-per-sample grid)."""
+    sim = cycle["sim"]
+    run = run_limit_cycle(plant, pid_load)  # the same loop recorded at the collision-resolving period
+    m = run.t >= sim["window"][0]
+    fine = (run.x[1, m].max() - run.x[1, m].min()) / 2
+    # rtol 1e-3: the fine record's grid (8 samples per collision) against the re-integrated intervals' (same grid)
+    assert_allclose(sim["load_amplitude"], fine, rtol=1e-3)
+    coarse = simulate_limit_cycle(plant, pid_load, oversample=1)  # the controller's samples only
+    assert coarse["load_amplitude"] < 0.98 * sim["load_amplitude"]
+    assert_allclose(sim["load_amplitude"], 228.8e-6, rtol=2e-3)
+
+
 def test_H_holds_inside_the_simulated_cycle(plant, pid_load, cycle):
     """The harmonic balance split into its two halves, measured in the nonlinear run: the linear part is
     exact (-s1/F1 = H(j w) with F1 from the load's equation of motion, J2 theta2'' + d2 theta2' = rb2 F),
@@ -315,7 +330,7 @@ def test_prediction_against_simulation(plant, cycle):
 
     The cycle grazes the flanks (A about 1.03 b in the simulation). The DF amplitude is then about b
     whatever its error in the penetration, so it agrees to a few percent (1.2 % measured; 5 % allowed);
-    the load amplitude is the momentum split of that motion and agrees too (5 %; 15 % allowed). The DF
+    the load amplitude is the momentum split of that motion and agrees too (8 %; 15 % allowed). The DF
     frequency does not: s is a triangle wave between the flanks with short collisions, the element's real
     first-harmonic gain is about a third of k eta(A) and its loss angle is the impacts', so the DF
     overestimates the frequency (1.34 measured) -- asserted as a bias with bounds, not hidden in a wide
