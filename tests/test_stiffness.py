@@ -89,8 +89,10 @@ def test_table1_c1_does_not_follow_from_the_reports_equations(shing) -> None:
     assert_allclose(ms.c1, cn[0], rtol=1e-3)
     assert_allclose(ms.c2, cn[1], rtol=1e-3)
     assert_allclose(ms.mean, mean, rtol=1e-4)
-    # and the value is about +17.6 % above Table 1: 3.475e7 N/m, within 1 %
-    assert_allclose(cn[0], 3.475e7, rtol=1e-2)
+    # and the value is +17.6 % above Table 1: 3.4753e7 N/m (an independent scipy.integrate.quad of eqs 13-21 over
+    # the two smooth segments of the cycle gives 3.47533e7, C2 1.68295e7, mean 1.385447e8); rtol 2e-4
+    assert_allclose(cn[0], 3.4753e7, rtol=2e-4)
+    assert_allclose(ms.c1, 3.4753e7, rtol=2e-4)
 
 
 def _m_eq_by_hand(I1: float, I2: float) -> float:
@@ -130,9 +132,13 @@ def test_damping_report_value_from_base_radius_disks() -> None:
     disk = 7800.0 * math.pi * 0.01 / 2
     c4 = math.cos(20 * DEG) ** 4
     m_eq = _m_eq_by_hand(disk * 0.02**4 * c4, disk * 0.08**4 * c4)
-    # rtol 5e-4 (0.05 %)
-    assert_allclose(2 * 0.05 * math.sqrt(TABLE1_MEAN * m_eq), REPORT_C, rtol=5e-4)
-    assert_allclose(damping_coefficient(TABLE1_MEAN, 0.05, m_eq), REPORT_C, rtol=5e-4)
+    # atol 5e-5: half a unit in the last of the report's 7 printed digits (237.66515 computed, 2e-7 relative)
+    assert_allclose(2 * 0.05 * math.sqrt(TABLE1_MEAN * m_eq), REPORT_C, rtol=0, atol=5e-5)
+    assert_allclose(damping_coefficient(TABLE1_MEAN, 0.05, m_eq), REPORT_C, rtol=0, atol=5e-5)
+    # the other readings do not give it: eq 38 as printed (sqrt(k / m_eq), unit 1/s) 5152.5, pitch-radius disks
+    # with pitch radii in m_eq 252.9; so the report took the disks of the base radius
+    m_pitch = _m_eq_by_hand(disk * 0.02**4, disk * 0.08**4)
+    assert abs(2 * 0.05 * math.sqrt(TABLE1_MEAN / m_pitch) / REPORT_C - 1) > 1.0
 
 
 def test_yang_sun_stiffness_eq39(shing) -> None:
