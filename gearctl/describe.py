@@ -923,7 +923,8 @@ def simulate_limit_cycle(plant: Plant, controller: Controller, *, duration: floa
     Raises
     ------
     InputError
-        For a ``duration``, ``window`` or ``oversample`` out of range.
+        For a ``duration``, ``window`` or ``oversample`` out of range, or a train (one gap is measured: pass
+        :meth:`Plant.equivalent_pair`, as :func:`describe` does).
     SimulationError
         If the loop diverges (from :func:`~gearctl.closedloop.simulate_closed_loop`).
 
@@ -937,6 +938,9 @@ def simulate_limit_cycle(plant: Plant, controller: Controller, *, duration: floa
     """
     if not (0.0 < window <= 1.0):
         raise InputError(f"window = {window!r} is out of range: expected 0 < window <= 1", field="window")
+    if getattr(plant, "n_stages", 1) > 1:  # its load angle would be read off the first intermediate shaft
+        raise InputError(f"plant: a {plant.n_stages}-stage train; the limit cycle is measured on one gap: pass "
+                         "plant.equivalent_pair() (as describe does)", field="plant")
     factor = _collision_oversample(plant, controller.Ts) if oversample is None else oversample
     _check_oversample(min(factor, MAX_OVERSAMPLE) if oversample is None else factor)
     factor = min(factor, MAX_OVERSAMPLE)

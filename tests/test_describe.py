@@ -507,3 +507,13 @@ def test_a_predicted_cycle_beyond_the_torque_limit_is_marked(capsys: pytest.Capt
     assert main(["describe", path, "pid", "--duration", "0.5"]) == 0
     out = capsys.readouterr().out
     assert out.count("*  ") == len(over) and "beyond the servo's 1 N m torque limit" in out
+
+
+def test_simulate_limit_cycle_refuses_a_train() -> None:
+    # it measures one gap and read the load angle off x[1], on a train the first intermediate shaft (a physics
+    # review); describe passes the equivalent pair, a direct call with the train is refused, naming plant
+    train = build_plant(load_model("servo_2stage_phm09"))
+    ctrl = load_controller("pid_load", train.equivalent_pair())
+    with pytest.raises(InputError, match="2-stage train; the limit cycle is measured on one gap") as exc:
+        simulate_limit_cycle(train, ctrl, duration=0.05)
+    assert exc.value.field == "plant"
