@@ -21,6 +21,10 @@ CASES = {
     # friction: the motor crosses the gap at a steady acceleration (J1 theta1'' and tc1 sgn alike)
     "pd_tri_800hz_tc1_0": dict(A, b=50e-6, fs=800, J2=1.2e-2, Tc2=0.25, d2=3e-3, Tc1=0.0, amp=0.05, period=2.0,
                                dwell=0.3, duration=4.5),
+    # the same with 2 mN m of motor Coulomb friction (h3's A8): with Stribeck friction on the load the regression put
+    # 3.8 mN m on the motor, J1 at 0.14 of the truth, J2 26 % high; the re-simulated motor stalls mid-gap
+    "A8_offnominal_b50_800hz": dict(A, b=50e-6, fs=800, J2=1.2e-2, Tc2=0.25, d2=3e-3, amp=0.05, period=2.0,
+                                    dwell=0.3, duration=6),
 }
 
 
