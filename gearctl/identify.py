@@ -1607,7 +1607,9 @@ def _gap_misfit(p: _Problem, wins: list[_Window], fits: list[_Fit], offset: floa
     Only the samples inside the gap count: those where the re-simulated or the measured relative displacement
     ``s = r_b1 theta1 - r_b2 theta2`` lies within ``b`` (the measured one less three times its noise). Per window the
     largest miss of the motor, ``r_b1 |theta1 - theta1_sim|``, and of the load, ``r_b2 |theta2 - theta2_sim|``, over
-    those samples; returned: the median of each over the windows (0 without such samples).
+    those samples; returned: the median of each over the windows (0 without such samples). A re-simulation that
+    failed part-way (NaN from there on, :func:`_simulate`) counts over its samples before the failure, as in the RMS
+    residual (a NaN miss made the median NaN, and ``NaN > GAP_MISS_SHARE * b`` let every crossing pass).
     """
     pl = p.nominal
     ld = p.l
@@ -1619,6 +1621,7 @@ def _gap_misfit(p: _Problem, wins: list[_Window], fits: list[_Fit], offset: floa
         th2 = ld.raw[sl] + offset / pl.rb2
         s_sim = pl.rb1 * f.sim[0] - pl.rb2 * f.sim[1]
         gap = (np.abs(s_sim) < b) | (np.abs(pl.rb1 * p.log.theta1[sl] - pl.rb2 * th2) < edge)
+        gap &= np.isfinite(f.sim[0]) & np.isfinite(f.sim[1])
         if gap.any():
             worst_m.append(float(np.abs(pl.rb1 * (p.log.theta1[sl] - f.sim[0]))[gap].max()))
             worst_l.append(float(np.abs(pl.rb2 * (th2 - f.sim[1]))[gap].max()))
