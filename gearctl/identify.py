@@ -1005,10 +1005,13 @@ def _no_switch(p: _Problem, found: int, what: str) -> InputError:
         advice = (f"the motor reversed {reversals} times, but only {found} of its reversals took the load from one "
                   f"flank to the other: record more reversals, each travelling well over the lost motion")
     elif abs(p.tl) > p.nominal.tc2:  # the load torque holds the load on one flank: the motor reverses, the load not
+        size = " in size" if p.tl < 0 else ""
+        way = "increasing" if p.tl > 0 else "decreasing"
         advice = (f"the motor reversed {reversals} times, but the model's load_torque ({p.tl:g} N m) exceeds the "
-                  f"load's Coulomb friction ({p.nominal.tc2:g} N m): it keeps the load on one flank wherever the motor "
-                  f"does not push it across; record motions that accelerate the load side faster than the load "
-                  f"torque alone can, (|load_torque| - friction) / J2 = "
+                  f"load's Coulomb friction ({p.nominal.tc2:g} N m){size}: it keeps the load on one flank wherever "
+                  f"the motor does not push it across; record motions that accelerate the load side in the load "
+                  f"torque's direction ({way} theta2; against it any acceleration leaves the load on that flank) "
+                  f"faster than the load torque alone can, (|load_torque| - friction) / J2 = "
                   f"{(abs(p.tl) - p.nominal.tc2) / p.nominal.J2:.3g} rad/s^2, or check the model's load_torque")
     else:
         advice = (f"the motor reversed {reversals} times, but the load never rested on a flank long enough to be "

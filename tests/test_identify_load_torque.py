@@ -155,3 +155,20 @@ def test_a_load_torque_above_the_load_friction_is_named_in_the_refusal(
     msg = str(exc.value)
     assert "the model's load_torque (0.1 N m) exceeds the load's Coulomb friction (0.05 N m)" in msg
     assert "never rested on a flank" not in msg
+    # the load leaves the flank the load torque holds it on only where the motor runs ahead of it in the load torque's
+    # direction faster than the load falls freely, (T_L - T_c2) / J2 (the load's balance J2 theta2'' = T_L - T_c2 at
+    # rest or moving with T_L); against T_L the load torque and the friction both brake it and it stays on that flank
+    J2 = build_plant(model).J2
+    assert f"(|load_torque| - friction) / J2 = {(0.1 - 0.05) / J2:.3g} rad/s^2" in msg
+    assert "in the load torque's direction (increasing theta2" in msg
+
+
+def test_a_negative_load_torque_above_the_load_friction_names_its_direction(
+        log_of: Callable[[str, GearModel], Path]) -> None:
+    model = _detc(0.1)
+    neg = _detc(-0.1)  # the same log, identified against a model whose load torque points the other way
+    with pytest.raises(InputError) as exc:
+        identify(log_of("detc_tl100", model), neg)
+    msg = str(exc.value)
+    assert "load_torque (-0.1 N m) exceeds the load's Coulomb friction (0.05 N m) in size" in msg
+    assert "in the load torque's direction (decreasing theta2" in msg
