@@ -538,3 +538,36 @@ def test_pid_transfer_functions_connect_to_the_mode_models_by_name() -> None:
         return z.real, z.imag
 
     assert_allclose(sorted(T.poles(), key=key), sorted(by_hand.poles(), key=key), rtol=1e-8)
+
+
+def test_pid_transfer_functions_connect_to_a_trains_mode_models_by_name() -> None:
+    # a train's mode models name the motor torque xi0 (xi1 is the first intermediate shaft's, not an input): with the
+    # default xi1 interconnect warned of an unused output pid.xi1 and left the loop open (its poles: the plant's 0 and
+    # the PID's own); output="xi0" closes it as by hand
+    import warnings
+
+    from gearctl import InputError, load_controller
+
+    plant = build_plant(load_model("servo_2stage_phm09"))
+    pid = load_controller("pid", plant)
+    P = linearize_modes(plant).contact
+    assert P.input_labels[0] == "xi0" and "xi1" not in P.input_labels
+    C = pid.gains.tf(output=P.input_labels[0])
+    assert (C.input_labels, C.output_labels) == (["e"], ["xi0"])
+    assert pid.gains.sampled_tf(1e-3, output="xi0").output_labels == ["xi0"]
+    err = ct.summing_junction(inputs=["r", "-theta2"], output="e")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no unused signal
+        T = ct.interconnect([P, C, err], inputs=["r", "xi2"], outputs="theta2",
+                            ignore_outputs=["theta0", "s1", "s2", "force1", "force2"])
+    by_hand = ct.feedback(ct.ss(C) * ct.ss(P["theta2", "xi0"]))
+
+    def key(z: complex) -> tuple[float, float]:
+        return z.real, z.imag
+
+    assert_allclose(sorted(T.poles(), key=key), sorted(by_hand.poles(), key=key), rtol=1e-8)
+    assert max(T.poles().real) < 0  # the loop is closed and stable
+    for bad in ("", 1):
+        with pytest.raises(InputError, match="is not a signal name") as exc:
+            pid.gains.tf(output=bad)  # type: ignore[arg-type]
+        assert exc.value.field == "output"

@@ -58,14 +58,19 @@ class PIDGains:
     def __post_init__(self) -> None:
         validate_fields(self)
 
-    def tf(self) -> ct.TransferFunction:
-        """The continuous PID as a transfer function (error [rad] to torque [N m]), input ``e``, output ``xi1`` (the
-        motor torque, as the contact-mode models name it: ``ct.interconnect`` connects them by name)."""
+    def tf(self, *, output: str = "xi1") -> ct.TransferFunction:
+        """The continuous PID as a transfer function (error [rad] to torque [N m]), input ``e``, output ``output``.
+
+        ``output``: the name of the motor torque, ``xi1`` as a pair's mode models name it (``ct.interconnect``
+        connects them by name); a train's mode models name it ``xi0`` (their first input,
+        ``linearize_modes(plant).contact.input_labels[0]``): with ``xi1`` the PID's output is left unconnected there.
+        """
         import control as ct
 
         wf = 2 * math.pi * self.derivative_filter_hz
         s = ct.tf("s")
-        return ct.tf(self.kp + self.ki / s + self.kd * s / (1 + s / wf), inputs="e", outputs="xi1", name="pid")
+        return ct.tf(self.kp + self.ki / s + self.kd * s / (1 + s / wf), inputs="e", outputs=_signal(output),
+                     name="pid")
 
     def discrete(self, Ts: float) -> tuple[float, float, float, float]:
         """``(kp, ki Ts, kd (1 - a) / Ts, a)``: the sampled PID :class:`PID` runs, ``a = T_f / (T_f + Ts)``.
@@ -88,9 +93,9 @@ class PIDGains:
         a = Tf / (Tf + Ts)
         return self.kp, self.ki * Ts, self.kd * (1.0 - a) / Ts, a
 
-    def sampled_tf(self, Ts: float) -> ct.TransferFunction:
-        """The sampled PID as a discrete transfer function, error to torque (dt = ``Ts``; input ``e``, output ``xi1``
-        as :meth:`tf`).
+    def sampled_tf(self, Ts: float, *, output: str = "xi1") -> ct.TransferFunction:
+        """The sampled PID as a discrete transfer function, error to torque (dt = ``Ts``; input ``e``, output
+        ``output``, ``xi0`` for a train's mode models, as :meth:`tf`).
 
         ``C(z) = kp + ki Ts / (z - 1) + kd (1 - a) (z - 1) / (Ts (z - a))``, ``a = T_f / (T_f + Ts)``,
         ``T_f = 1 / (2 pi f_d)``.
@@ -107,17 +112,27 @@ class PIDGains:
         ----------
         Ts : float
             Sample period [s].
+        output : str
+            The name of the output, the motor torque (``xi1``; ``xi0`` on a train).
 
         Raises
         ------
         InputError
-            If ``Ts`` is not a sample period (1e-6..1 s).
+            If ``Ts`` is not a sample period (1e-6..1 s), or ``output`` not a name.
         """
         import control as ct
 
         kp, kiT, kdT, a = self.discrete(Ts)
         z = ct.tf([1.0, 0.0], [1.0], Ts)
-        return ct.tf(kp + kiT / (z - 1) + kdT * (z - 1) / (z - a), inputs="e", outputs="xi1", name="pid")
+        return ct.tf(kp + kiT / (z - 1) + kdT * (z - 1) / (z - a), inputs="e", outputs=_signal(output), name="pid")
+
+
+def _signal(name: Any) -> str:
+    """A signal name for :meth:`PIDGains.tf` and :meth:`PIDGains.sampled_tf`: a non-empty string."""
+    if not isinstance(name, str) or not name.strip():
+        raise InputError(f"output = {name!r} is not a signal name: expected a non-empty string such as 'xi1' or "
+                         "'xi0'", field="output")
+    return name
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
