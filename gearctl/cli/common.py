@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from ..files import write_whole
-from ..units import POINTS, Spec, describe_rule
+from ..units import POINTS, Spec
 
 __all__ = ["spec_arg", "positive_float", "finite_float", "nonnegative_float", "dump_json", "write_csv_stream",
            "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE", "TARGETS", "CYCLES",
@@ -41,11 +41,11 @@ def spec_arg(spec: Spec) -> Callable[[str], Any]:
             # a whole number as typed: float() rounds beyond 2**53 (--seed 9000000000000000001 ran as ...000, and
             # 2**63 - 1, the largest seed, was refused)
             n = int(text)
-            low_ok = spec.low is None or (n > spec.low if spec.low_open else n >= spec.low)
-            high_ok = spec.high is None or (n < spec.high if spec.high_open else n <= spec.high)
-            if low_ok and high_ok:
-                return n
-            raise argparse.ArgumentTypeError(f"{text} is out of range: expected {describe_rule(spec.meta())}")
+            try:
+                spec.check("value", n)  # (an int compared exactly)
+            except InputError as exc:
+                raise argparse.ArgumentTypeError(f"{text} {exc.rule}") from None
+            return n
         try:
             v = float(text)
         except ValueError:
