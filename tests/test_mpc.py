@@ -34,6 +34,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 import gearctl.design.mpc as mpc_module
+import gearctl.design.mpc_solvers as mpc_solvers
 from gearctl import InputError, build_plant, load_model
 from gearctl.catalog import load_controller, read_toml, resolve
 from gearctl.cli import main
@@ -231,7 +232,7 @@ def test_front_back_mirror_symmetry(servo) -> None:
     assert_allclose(b.command, -a.command, rtol=0, atol=1e-12)
 
 
-@pytest.mark.skipif(mpc_module.c_compiler() is None, reason="no C compiler: the compiled QP cannot be built")
+@pytest.mark.skipif(mpc_solvers.c_compiler() is None, reason="no C compiler: the compiled QP cannot be built")
 def test_compiled_and_casadi_paths_agree(servo) -> None:
     # the same daqp conic, once generated as C and called through ctypes, once called through CasADi
     # (measured: identical torques over 300 samples)
@@ -502,7 +503,7 @@ def test_solver_not_installed(servo, mpc_spec, monkeypatch: pytest.MonkeyPatch) 
     # every offered plugin loads in the benchmark's CasADi 3.8.2; pretend one does not
     _, plant = servo
     assert set(mpc_module.installed_solvers()) == set(SOLVERS)
-    monkeypatch.setitem(mpc_module._PLUGIN_OK, "osqp", False)
+    monkeypatch.setitem(mpc_solvers._PLUGIN_OK, "osqp", False)
     with pytest.raises(InputError, match=r"solver = 'osqp' is not installed in this CasADi: installed are 'daqp'"):
         build_mpc(Path("mpc.toml"), {**mpc_spec, "solver": "osqp"}, loop_info(plant), Ts=1e-3, name="mpc")
 
@@ -567,7 +568,7 @@ def test_backlash_free_mpc_solves_only_the_contact_qp(free_servo, mpc_spec) -> N
     assert np.all(np.isfinite(res.command)) and np.all(np.abs(res.command) <= plant.torque_limit)
 
 
-@pytest.mark.skipif(mpc_module.c_compiler() is None, reason="no C compiler: the compiled QP cannot be built")
+@pytest.mark.skipif(mpc_solvers.c_compiler() is None, reason="no C compiler: the compiled QP cannot be built")
 def test_backlash_free_compiled_and_casadi_paths_agree(free_servo) -> None:
     # as test_compiled_and_casadi_paths_agree, without backlash (measured: identical torques)
     model, plant = free_servo

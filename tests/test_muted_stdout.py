@@ -1,13 +1,13 @@
-"""The MPC's muting of standard output around OSQP's solves (``design/mpc.py``, ``_MutedStdout``): file descriptor 1
-is the process's, shared by every thread, so muting it must nest across threads (a Dask worker started with
-``--nthreads 2`` runs two MPCs at once) and give descriptor 1 back as it found it."""
+"""The MPC's muting of standard output around OSQP's solves (``design/mpc_solvers.py``, ``_MutedStdout``): file
+descriptor 1 is the process's, shared by every thread, so muting it must nest across threads (a Dask worker started
+with ``--nthreads 2`` runs two MPCs at once) and give descriptor 1 back as it found it."""
 
 from __future__ import annotations
 
 import os
 import threading
 
-from gearctl.design.mpc import _MutedStdout
+from gearctl.design.mpc_solvers import _MutedStdout
 
 
 def _same_file(a: os.stat_result, b: os.stat_result) -> bool:
