@@ -298,6 +298,7 @@ GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     S->rdd_prev = 0.0;
     S->stopped = 0;
     S->one_way_prev = 0;
+    S->press_set = 0, S->press_t = 0.0, S->press_y = 0.0;
     S->has_lag = 0;
     S->lag[0] = S->lag[1] = S->lag[2] = S->lag[3] = 0.0;
     S->contacts = 0;
@@ -496,6 +497,30 @@ GCX_FN double gcx_inv_take_up_time(const gcx_inv_p *P, const gcx_inv_s *S, doubl
     return T;
 }
 
+/* DeadzoneInverse._presses_other_flank: the motor, at rest, has pressed the flank opposite the held one for
+ * press_time */
+GCX_FN int gcx_inv_presses_other_flank(const gcx_inv_p *P, gcx_inv_s *S, double t, double y_motor, double rd,
+                                       double rdd) {
+    double u = S->u_hist[1];
+    int pressing = rd == 0.0 && rdd == 0.0 && S->sigma != 0.0 && !P->pid.feedback_load && t >= S->cross_end &&
+                   !S->has_lag && S->sigma * u < -(P->plant.tc1 + P->disturbance_threshold / P->pid.N);
+    if (!pressing) {
+        S->press_set = 0;
+        return 0;
+    }
+    if (!S->press_set) {
+        S->press_set = 1, S->press_t = t, S->press_y = y_motor;
+        return 0;
+    }
+    if (fabs(y_motor - S->press_y) / P->pid.N > P->press_travel * S->offset) {
+        S->press_t = t, S->press_y = y_motor;
+        return 0;
+    }
+    if (t - S->press_t < P->press_time - 0.5 * P->pid.Ts) return 0;
+    S->press_set = 0;
+    return 1;
+}
+
 /* DeadzoneInverse._shift_in_contact: a flank change decided at rest, no crossing */
 GCX_FN void gcx_inv_shift_in_contact(const gcx_inv_p *P, gcx_inv_s *S, double t) {
     double off[3], lag[3];
@@ -560,6 +585,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     S->rdd_prev = fabs(rdd);
     double sigma_old = S->sigma;
     double sigma = gcx_inv_flank(P, S, rd, rdd, rdd_prev);
+    if (sigma == sigma_old && gcx_inv_presses_other_flank(P, S, t, y_motor, rd, rdd)) sigma = S->sigma = -sigma_old;
     if (sigma != sigma_old && rd == 0.0 && rdd == 0.0 && t >= S->cross_end && !P->pid.feedback_load) {
         gcx_inv_shift_in_contact(P, S, t); /* decided at rest: the load is on the new flank already */
     } else if (sigma != sigma_old) {

@@ -46,6 +46,8 @@ typedef struct {
     int ramp_shape;
     int was_free, moving_ref, has_lag, contacts, free_load_exits, y_hist_n, rattling, trusted;
     int stopped, one_way_prev; /* at rest with the push-back withheld; withheld at the last step (_one_way) */
+    double press_t, press_y; /* since when, and from where, the motor at rest presses the other flank */
+    int press_set;           /* (_presses_other_flank) */
 } gcx_inv_s;
 
 #ifdef GCX_ADA_WINDOW
