@@ -2375,8 +2375,8 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
     motor or load adds is the shaft inertia less its gear's (where that would be negative, the
     gear's inertia is set to the shaft's and nothing is added). A Coulomb friction whose 95 % interval
     reaches zero is written as zero: it cannot be told from none, and a vanishing stick-slip friction
-    only makes the simulator locate stick and slip events. Everything else is the model's, and the
-    ``[source]`` names the log and the method.
+    only makes the simulator locate stick and slip events. Everything else is the model's (also the
+    ``[source]``'s ``url`` and ``doi``), and the ``[source]`` names the log and the method.
 
     Parameters
     ----------
@@ -2398,8 +2398,10 @@ def identified_model(result: Identification, model: Any) -> dict[str, dict[str, 
              f"{result.rms_residual:.3g} rad. Method: {result.method}. Model before identification: {mdl.name}"
              + "".join(f". {line}" for line in _unidentified(result))
              + (f"; its notes: {src['notes']}" if src.get("notes") else ""))
+    # the source's other keys (url, doi) are the user's and kept as given
     doc["source"] = {"citation": f"gearctl identify ({result.log}) on {mdl.name}: {src.get('citation', '')}",
-                     **({"table": src["table"]} if "table" in src else {}), "notes": notes}
+                     **({"table": src["table"]} if "table" in src else {}), "notes": notes,
+                     **{k: v for k, v in src.items() if k not in ("citation", "table", "notes")}}
     for table, (cls, keymap, _) in PAIR_TABLES.items():
         obj = pair if cls.__name__ == "GearPair" else mdl.dynamics
         keys: dict[str, Any] = {}
