@@ -1026,15 +1026,31 @@ def _check_motion(p: _Problem) -> None:
     w = p.m.w
     mv = _Encoder.moving(w, p.m.v_thr, p.W)
     signs = np.sign(w[mv])
+    span = float(np.ptp(p.log.theta1))
+    if p.n * p.Ts < MIN_LOG_DURATION and span > MOVES_NOISE * p.m.sigma:
+        # the motion of a log this short never keeps one way for the window a motion is read over: a clock in
+        # the wrong unit (it was refused as a motor that does not move, or turns one way only, naming theta1)
+        raise InputError(f"{p.log.name}: column t: the log lasts {p.n * p.Ts:.3g} s ({p.n} samples at "
+                         f"{p.Ts:.3g} s), too short for a motion from flank to flank (expected t in seconds and a "
+                         f"log of at least {MIN_LOG_DURATION:g} s; the motor's reading changes by {span:.3g} rad) "
+                         f"(t in ks, or scaled down 1000x?)", field="t")
     if signs.size == 0:
+        if span > MOVES_NOISE * p.m.sigma:  # it moves, but never one way for a window: no motion to read
+            raise InputError(f"{p.log.name}: column theta1: the motor's reading changes by {span:.3g} rad but it "
+                             f"never turns one way for {p.W} samples ({p.W * p.Ts:.3g} s): it dithers or hunts, "
+                             f"no motion from flank to flank to identify", field="theta1")
         raise InputError(f"{p.log.name}: column theta1: the motor does not move (its reading changes by "
-                         f"{float(np.ptp(p.log.theta1)):.3g} rad): no reversal in the log", field="theta1")
+                         f"{span:.3g} rad): no reversal in the log", field="theta1")
     if np.all(signs == signs[0]):
-        span = float(np.ptp(p.log.theta1))
         raise InputError(f"{p.log.name}: column theta1: the motor turns one way only ({span:.3g} rad): no reversal in "
                          f"the log", field="theta1")
 
 
+#: A motor reading that changes by more than this many times its noise moves (below it is said not to move).
+MOVES_NOISE = 100.0
+#: A log that moves and lasts less than this [s] is a clock in the wrong unit: a gap crossing lasts milliseconds,
+#: a motion is read over 21 ms of steady travel, and 500 samples last at least 0.05 s up to 10 kHz.
+MIN_LOG_DURATION = 0.02
 #: Longest sample period identify accepts [s]: a gap crossing lasts milliseconds; a log at 20 Hz or slower cannot
 #: show one (and a period of 1 s is a clock in ms).
 MAX_IDENTIFY_PERIOD = 0.02
@@ -1064,12 +1080,15 @@ def _unit_hint(ratio: float, hints: tuple[tuple[float, str], ...]) -> str:
 
 #: Likely causes of a lumped inertia this factor from the model's.
 INERTIA_HINTS = ((math.pi / 180, "theta1 in degrees"), (2 * math.pi, "theta1 in revolutions"), (1e3, "torque in mN m"),
-                 (1e6, "t in ms"), (1e-6, "t in us"), (2 * math.pi / 2**20, "theta1 in counts of a 2^20 encoder"),
+                 (1e6, "t in ms"), (1e-6, "t scaled down 1000x"),
+                 (1e-3, "theta1 in mrad, or torque in kN m"),
+                 (2 * math.pi / 2**20, "theta1 in counts of a 2^20 encoder"),
                  (2 * math.pi / 2**16, "theta1 in counts of a 2^16 encoder"))
 #: An encoder column whose values are all whole numbers reaching this far [its unit] holds counts, not radians.
 COUNTS_MIN = 100.0
 #: Likely causes of a load encoder moving this factor from theta1 / N.
-RATIO_HINTS = ((1 / (2 * math.pi), "theta2 in revolutions"), (180 / math.pi, "theta2 in degrees"))
+RATIO_HINTS = ((1 / (2 * math.pi), "theta2 in revolutions"), (180 / math.pi, "theta2 in degrees"),
+               (1e3, "theta2 in mrad"), (1e-3, "theta1 in mrad"))
 
 
 def _check_signals(p: _Problem, torque_limit: float) -> None:
@@ -1121,7 +1140,7 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
         ratio = p.N * float(np.dot(x, p.l.raw - float(np.mean(p.l.raw)))) / float(np.dot(x, x))
         if not 1 / RATIO_FACTOR <= ratio <= RATIO_FACTOR:
             hint = (" (theta1 and theta2 swapped?)" if abs(math.log(max(ratio, 1e-300) / p.N**2)) < math.log(1.5) else
-                    " (a dead load encoder?)" if abs(ratio) < 0.05 else _unit_hint(ratio, RATIO_HINTS))
+                    _unit_hint(ratio, RATIO_HINTS) or (" (a dead load encoder?)" if abs(ratio) < 0.05 else ""))
             raise InputError(f"{name}: column theta2: moves {ratio:.3g} times as far as theta1 / N over the log "
                              f"(least-squares slope of N theta2 on theta1 over {travel:.3g} rad of travel at the "
                              f"load; expected 1 at the model's ratio N = {p.N:.4g}, allowed "
@@ -1147,7 +1166,7 @@ def _check_signals(p: _Problem, torque_limit: float) -> None:
         low = max(min(pl.J1 / J_model, 1.0), INERTIA_FREE_SHARE) / INERTIA_FACTOR
         if not low <= ratio <= INERTIA_FACTOR:
             hint = _unit_hint(ratio, INERTIA_HINTS)
-            field = "t" if "t in" in hint else "torque" if "torque" in hint else "theta1"
+            field = "t" if hint.startswith(" (t ") else "torque" if hint.startswith(" (torque") else "theta1"
             raise InputError(f"{name}: column {field}: the torque balance gives a lumped inertia {J:.3g} kg m^2, "
                              f"{ratio:.3g} times the model's {J_model:.3g} (allowed {low:.3g}-"
                              f"{INERTIA_FACTOR:g}x){hint}: expected t [s], torque [N m], theta1 [rad]", field=field)

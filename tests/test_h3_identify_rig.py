@@ -6,11 +6,14 @@ the refusal of a log whose units are off by 1000x names the column and the likel
 
 from __future__ import annotations
 
+import re
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from gearctl import identify as ident
 from gearctl import load_model
 from gearctl.cli import main
 
@@ -39,3 +42,56 @@ def test_write_model_keeps_the_sources_url_and_doi(tmp_path: Path, capsys: pytes
     assert str(CHIRP) in src["citation"]
     assert load_model(out).source["doi"] == "10.1000/rig.42"  # a model gearctl reads
     capsys.readouterr()
+
+
+def _scaled_log(tmp_path: Path, name: str, factors: tuple[float, float, float, float]) -> Path:
+    """The chirp log with its columns t, torque, theta1, theta2 multiplied by ``factors`` (a unit slip)."""
+    a = np.loadtxt(CHIRP, delimiter=",", comments="#", skiprows=4) * np.array(factors)
+    path = tmp_path / name
+    np.savetxt(path, a, delimiter=",", header="t,torque,theta1,theta2", comments="", fmt="%.10g")
+    return path
+
+
+def _refusal(path: Path, capsys: pytest.CaptureFixture[str]) -> str:
+    assert main(["identify", str(path), "--model", "shing1993_servo_friction"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.count("\n") == 1
+    return err
+
+
+def test_a_clock_scaled_down_is_refused_on_t_not_as_a_motor_that_does_not_move(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # a 5 kHz log whose t was divided by 200 (period 1 us, the shortest the reader takes): the motor's reading still
+    # changes by 1.1 rad and reverses, but the window of steady motion (capped at an eighth of the log) never holds
+    # one sign. It was refused as "column theta1: the motor does not move (its reading changes by 1.12 rad)"
+    err = _refusal(_scaled_log(tmp_path, "t_scaled.csv", (1 / 200, 1, 1, 1)), capsys)
+    assert "column t:" in err and "does not move" not in err
+    assert re.search(r"lasts 0\.0025 s", err) and "t in ks" in err
+    # a motor that truly stands still is still said so
+    a = np.loadtxt(CHIRP, delimiter=",", comments="#", skiprows=4)
+    a[:, 2] = a[0, 2]
+    path = tmp_path / "still.csv"
+    np.savetxt(path, a, delimiter=",", header="t,torque,theta1,theta2", comments="", fmt="%.10g")
+    assert "column theta1: the motor does not move (its reading changes by 0 rad)" in _refusal(path, capsys)
+
+
+@pytest.mark.parametrize(("factors", "column", "hint"), [
+    ((1, 1, 1e3, 1e3), "theta1", "(theta1 in mrad, or torque in kN m?)"),  # both encoders in mrad: no hint before
+    ((1, 1e-3, 1, 1), "theta1", "(theta1 in mrad, or torque in kN m?)"),  # the same balance: torque in kN m
+    ((1, 1, 1e3, 1), "theta2", "(theta1 in mrad?)"),  # was "(a dead load encoder?)", a load encoder that moves
+    ((1, 1, 1, 1e3), "theta2", "(theta2 in mrad?)"),  # no hint before
+])
+def test_a_column_in_milliradians_or_kilonewton_metres_is_named(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], factors: tuple[float, float, float, float], column: str,
+        hint: str) -> None:
+    err = _refusal(_scaled_log(tmp_path, "scaled.csv", factors), capsys)
+    assert f"column {column}:" in err and hint in err
+    assert "dead load encoder" not in err
+
+
+def test_inertia_hints_name_the_clock_the_way_it_is_off() -> None:
+    # a lumped inertia 1e-6 of the model's is a clock 1000x too fast (t divided by 1000 once too often): the hint
+    # said "t in us", whose numbers are 1e6x too large and give an inertia 1e12x too large
+    hint = ident._unit_hint(1e-6, ident.INERTIA_HINTS)
+    assert "1000x" in hint and "us" not in hint
+    assert ident._unit_hint(1e6, ident.INERTIA_HINTS) == " (t in ms?)"
