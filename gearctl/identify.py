@@ -116,6 +116,15 @@ def _fail(path: Path, where: str, what: str, field: str | None = None) -> InputE
     return InputError(f"{path}: {where}: {what}" if where else f"{path}: {what}", field=field)
 
 
+def _is_number(field: str) -> bool:
+    """Whether a CSV field reads as a number (as :func:`read_log` reads one)."""
+    try:
+        float(field)
+    except ValueError:
+        return False
+    return "_" not in field
+
+
 def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
     """Read a servo log (CSV, see :class:`EncoderLog`), checking every line.
 
@@ -238,7 +247,10 @@ def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
                     raise ValueError(f)
                 v = float(f)
             except ValueError:
-                raise _fail(path, f"line {line_no}", f"column {names[c]} = {f.strip()!r} is not a number",
+                # a units row under the header ('s', 'N m', 'rad'): no field gearctl reads is a number
+                hint = (": a units row? the header holds the names alone, in SI units (delete the row or start it "
+                        "with #)" if k == 0 and not any(_is_number(fields[j]) for j in need) else "")
+                raise _fail(path, f"line {line_no}", f"column {names[c]} = {f.strip()!r} is not a number{hint}",
                             names[c]) from None
             if not math.isfinite(v):
                 raise _fail(path, f"line {line_no}", f"column {names[c]} = {f.strip()} is not a finite number",

@@ -108,3 +108,17 @@ def test_an_encoders_interpolation_error_leaves_b_inside_its_interval() -> None:
     res = ident.identify(DATA / "h3b_sim" / "interpolation_error_b3um.csv", "shing1993_servo_friction")
     lo, hi = res.backlash_ci
     assert lo <= 3e-6 <= hi or "backlash" in res.not_identified
+
+
+def test_a_units_row_under_the_header_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # a data logger's export with a units row: refused as "line 2: column t = 's' is not a number", now with the cause
+    lines = CHIRP.read_text().splitlines()
+    head = lines.index("t,torque,theta1,theta2")
+    path = tmp_path / "units.csv"
+    path.write_text("\n".join(lines[:head + 1] + ["s,N m,rad,rad"] + lines[head + 1:]) + "\n")
+    err = _refusal(path, capsys)
+    assert f"line {head + 2}: column t = 's' is not a number: a units row?" in err
+    # a single bad field in the first row is not taken for one
+    path.write_text("\n".join(lines[:head + 1] + ["0,abc,0.75,2.38"] + lines[head + 2:]) + "\n")
+    err = _refusal(path, capsys)
+    assert "column torque = 'abc' is not a number" in err and "units row" not in err
