@@ -31,7 +31,10 @@ typedef struct {
 static double lugre_step(double v, double *z, double Tc, double Ts, double vs, double s0, double s1, double d,
                          double h)
 {
-    if (s0 <= 0.0) {
+    if (s0 < 0.0) { /* a plain smooth Coulomb law instead of LuGre: Tc tanh(v / vs) */
+        return Tc * tanh(v / vs) + d * v;
+    }
+    if (s0 == 0.0) {
         return d * v;
     }
     double g = Tc + (Ts - Tc) * exp(-(v / vs) * (v / vs));

@@ -158,6 +158,9 @@ def simulate(setup: Setup) -> dict:
     p.d2, p.Tc2, p.Ts2, p.vs2 = tr.d2, tr.Tc2, tr.Tc2 * tr.Ts_ratio2, tr.vs2
     p.s02 = tr.Tc2 / zc2 if tr.Tc2 > 0 else 0.0
     p.s12 = 2 * 0.5 * math.sqrt(p.s02 * tr.J2)
+    if setup.extra.get("tanh"):  # plain smooth Coulomb, its slope Tc / vs at standstill
+        p.s01, p.s02 = -1.0, -1.0
+        p.vs1 = p.vs2 = setup.extra["tanh"]
     p.TL = tr.TL
     p.tau, p.h, p.umax = setup.tau, setup.h, setup.umax
     p.kp = Jeff * wc * wc / N
