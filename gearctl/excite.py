@@ -32,8 +32,8 @@ from .catalog import GearModel, load_controller, load_model
 from .closedloop import ClosedLoopResult, simulate_closed_loop
 from .controller import Controller, ReferenceLike
 from .errors import InputError
-from .identify import EncoderLog
 from .limits import check_output_size
+from .logs import EncoderLog
 from .plant import Plant, build_plant
 from .references import move_point, move_times
 from .units import DURATION, SEED, Spec, check_choice

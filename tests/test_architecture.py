@@ -10,7 +10,7 @@ The layers, bottom up (each module may import its own layer and the layers below
 3. simulation: kernel, simulate, references, controller (the interface the loop calls), closedloop;
 4. design: the controllers (``gearctl.design``);
 5. analysis: catalog (files to models and controllers), summary, metrics, runs, precision, bench, describe,
-   perf and the later tools;
+   perf and the later tools (logs: the servo log format that identify reads);
 6. apps: plots, cli.
 
 Checked here, counting imports inside functions too (a lazy import is still a dependency):
@@ -45,7 +45,7 @@ LAYERS: dict[str, int] = {
     "gearctl.design": 4,
     "gearctl.catalog": 5, "gearctl.summary": 5, "gearctl.metrics": 5, "gearctl.runs": 5, "gearctl.precision": 5,
     "gearctl.bench": 5, "gearctl.describe": 5, "gearctl.perf": 5, "gearctl.identify": 5, "gearctl.sweep": 5,
-    "gearctl.excite": 5, "gearctl.parallel": 5, "gearctl._worker_setup": 5,
+    "gearctl.excite": 5, "gearctl.parallel": 5, "gearctl._worker_setup": 5, "gearctl.logs": 5,
     "gearctl.export": 5,
     "gearctl.plots": 6, "gearctl.cli": 6,
 }

@@ -29,6 +29,7 @@ from numpy.testing import assert_allclose
 
 from gearctl import InputError, load_model
 from gearctl import identify as ident
+from gearctl import logs as log_format
 from gearctl.cli import main
 from gearctl.excite import ExcitationProgram, excitation, record_excitation
 from gearctl.identify import EncoderLog, Identification, identify, read_log, write_log
@@ -580,11 +581,11 @@ def test_bad_logs_raise_input_error_with_the_column() -> None:
 
 def test_oversized_log_is_refused_with_the_figure(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     path = DATA / "short.csv"
-    monkeypatch.setattr(ident, "MAX_LOG_BYTES", 1000)
+    monkeypatch.setattr(log_format, "MAX_LOG_BYTES", 1000)
     with pytest.raises(InputError, match=r"4,3\d\d bytes is too large for a log \(at most 1,000 bytes"):
         read_log(path)
-    monkeypatch.setattr(ident, "MAX_LOG_BYTES", 10**9)
-    monkeypatch.setattr(ident, "MAX_LOG_SAMPLES", 50)
+    monkeypatch.setattr(log_format, "MAX_LOG_BYTES", 10**9)
+    monkeypatch.setattr(log_format, "MAX_LOG_SAMPLES", 50)
     with pytest.raises(InputError, match="100 samples is more than a log may hold"):
         read_log(path)
 

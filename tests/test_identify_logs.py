@@ -357,9 +357,9 @@ def test_cli_never_writes_over_its_own_inputs(sim: dict[str, np.ndarray], folder
 def test_unreadable_logs_are_one_line(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # a device or a pipe has no size to check beforehand (/dev/zero grew to 12 GB); a field beyond the csv module's
     # limit was a traceback; Python's float() reads '0_1' as 1
-    import gearctl.identify as ident
+    import gearctl.logs as logs
 
-    monkeypatch.setattr(ident, "MAX_LOG_BYTES", 10_000)
+    monkeypatch.setattr(logs, "MAX_LOG_BYTES", 10_000)
     with pytest.raises(InputError, match="too large for a log"):
         read_log("/dev/zero")
     monkeypatch.undo()

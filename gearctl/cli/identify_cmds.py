@@ -17,7 +17,7 @@ __all__ = ["register"]
 def _cmd_excite(args: argparse.Namespace) -> int:
     from ..catalog import load_model
     from ..excite import AMPLITUDE, excitation, record_excitation, write_reference
-    from ..identify import write_log
+    from ..logs import write_log
 
     if not args.out and not args.reference_only:
         raise InputError("nothing to write: give --out LOG.csv (the simulated servo's log) or --reference-only FILE "
