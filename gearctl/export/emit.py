@@ -149,12 +149,14 @@ def header_text(spec: KindSpec) -> str:
     if spec.prefix == "mpc":
         state += source_text("gcx_mpc_state.h")
     load = int(spec.uses_load_encoder)
-    returns = "GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK or GEARCTL_STEP_BAD_INPUT"
+    returns = ("GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK, GEARCTL_STEP_BAD_INPUT\n"
+               " * or GEARCTL_STEP_NOT_INIT (c never set up by gearctl_ctrl_init)")
     if spec.prefix == "mpc":
-        returns = ("GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK, GEARCTL_STEP_BAD_INPUT\n"
-                   " * or GEARCTL_STEP_FAULT (the latched fault)")
-    statuses = "GEARCTL_STEP_OK, _FALLBACK, _BAD_INPUT or _FAULT" if spec.prefix == "mpc" else \
-        "GEARCTL_STEP_OK, _FALLBACK or _BAD_INPUT"
+        returns = ("GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK, GEARCTL_STEP_BAD_INPUT,\n"
+                   " * GEARCTL_STEP_FAULT (the latched fault) or GEARCTL_STEP_NOT_INIT (c never set up by"
+                   " gearctl_ctrl_init)")
+    statuses = "GEARCTL_STEP_OK, _FALLBACK, _BAD_INPUT, _FAULT or _NOT_INIT" if spec.prefix == "mpc" else \
+        "GEARCTL_STEP_OK, _FALLBACK, _BAD_INPUT or _NOT_INIT"
     if not spec.uses_load_encoder:
         load_rule = ""
     elif spec.prefix == "mpc":
@@ -238,6 +240,8 @@ extern "C" {{
                                     the reading has stood still for 0.1 s, on every step until gearctl_ctrl_init.
                                     A reading that keeps jumping keeps the brake acting on what it reads. A bad
                                     input during the fault returns it too, with u = 0 */
+#define GEARCTL_STEP_NOT_INIT 4  /* c was never set up by gearctl_ctrl_init (a static instance holds zeros, which
+                                    are no initialised state): u = 0, c unchanged (its clock too) */
 
 /* ---- internal sizes and state types (read them if you like; never write them) ---- */
 {defines(spec.dims)}{state}
@@ -245,7 +249,8 @@ extern "C" {{
 
 typedef struct {{
     int64_t k;     /* steps since gearctl_ctrl_init: the step's sample time is k * GEARCTL_TS */
-{_k_ran_field(spec)}    {_state_type(spec)} s; /* the controller's state */
+{_k_ran_field(spec)}    uint64_t ready; /* set by gearctl_ctrl_init; a step on an instance without it is refused */
+    {_state_type(spec)} s; /* the controller's state */
 }} gearctl_ctrl_t;
 
 /* Reset to the state after Controller.reset(). */
@@ -293,12 +298,20 @@ def _implementation(spec: KindSpec) -> str:
         f"""
 /* ---- the API ---- */
 
+/* gearctl_ctrl_t.ready of an initialised instance: neither zeros (static storage) nor a repeated byte */
+#define GCX_READY 0x6763785f72656479ULL
+
 void gearctl_ctrl_init(gearctl_ctrl_t *c) {{
     memset(c, 0, sizeof *c);
     gcx_{spec.prefix}_init(&GCX_PARAMS, &c->s);
-{init_k_ran}}}
+{init_k_ran}    c->ready = GCX_READY;
+}}
 
 int gearctl_ctrl_step(gearctl_ctrl_t *c, const double y[2], const double *ref, double *u) {{
+    if (c->ready != GCX_READY) {{ /* never initialised: its state is no controller's */
+        *u = 0.0;
+        return GEARCTL_STEP_NOT_INIT;
+    }}
     /* finiteness first, read off the bits (gcx_finite): no ordered comparison with a NaN (FE_INVALID, a trap where
      * floating-point traps are on), and a check that -ffast-math or -ffinite-math-only cannot remove */
     int i, bad = !gcx_finite(y[0]) || fabs(y[0]) > GEARCTL_INPUT_LIMIT{load_screen};
@@ -390,7 +403,8 @@ double control_step(double motor_angle, double load_angle, const double ref[3 * 
   too coarse to follow, or an encoder that keeps jumping; the motor is braked to rest from its own reading, then
   `u = 0` once the reading has stood still for 0.1 s, until `gearctl_ctrl_init`; a reading that keeps jumping keeps
   the brake acting on what it reads, within the torque limit; a bad input during the fault returns it too, with
-  `u = 0`).
+  `u = 0`); `GEARCTL_STEP_NOT_INIT` (4, `ctrl` was never set up by `gearctl_ctrl_init`: a static instance holds
+  zeros, which are no initialised state; `u = 0`, nothing changed).
 
 The step at sample `k` is the Python controller's step at `t = k * GEARCTL_TS`.
 

@@ -30,7 +30,8 @@ __all__ = ["ExportedController", "load_exported", "compile_exported", "execute_e
 _SHIM = '#include "gearctl_ctrl.h"\nlong gearctl_sil_state_size(void) { return (long)sizeof(gearctl_ctrl_t); }\n'
 _SOURCES = ("gearctl_ctrl.h", "gearctl_ctrl.c", "gearctl_ctrl_params.h", "gearctl_qp.h", "gearctl_qp.c")
 _STATUS = {1: "fallback", 2: "bad input (a reading or reference not finite or beyond 1e12: zero torque)",
-           3: "fault (latched: the motor braked to rest, then zero torque, until reset)"}
+           3: "fault (latched: the motor braked to rest, then zero torque, until reset)",
+           4: "not initialised (gearctl_ctrl_init never ran on the instance: zero torque)"}
 
 
 def _manifest(folder: Path) -> dict[str, Any]:
