@@ -36,11 +36,12 @@ __all__ = ["register"]
 
 
 def _poles(sys_: Any) -> list[complex]:
-    """The model's poles, those within the eigenvalue solver's rounding of zero (1e-10 of the largest: the free
-    rotation's, which came out as 2e-8 on one machine and 7e-9 on another) printed as the 0 they are."""
-    poles = [complex(p) for p in sys_.poles()]
-    tiny = 1e-10 * max((abs(p) for p in poles), default=0.0)
-    return [0j if abs(p) <= tiny else p for p in poles]
+    """The model's poles, those within the eigenvalue solver's rounding of zero (:func:`gearctl.modes.clean_poles`:
+    the free rotation's, and a frictionless train's double zero) printed as the 0 they are."""
+    from ..modes import clean_poles
+
+    return [complex(p) for p in clean_poles(sys_.poles())]
+
 
 def _duration_text(t: float) -> str:
     """A duration as a person reads it: ms below a second (the free case's 20 ms), s above (not "1e+08 ms")."""
