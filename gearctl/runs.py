@@ -178,23 +178,29 @@ def true_model(name: str | Path, model: GearModel, overrides: Mapping[str, Any],
 
 
 def unholdable_load_step(plant: Plant, ref: Reference) -> str | None:
-    """A warning when the reference's load-torque step exceeds what the motor can put on the load, else None.
+    """A warning when the reference's load-torque step reaches what the motor can put on the load, else None.
 
-    The most torque the motor puts on the load shaft is ``gear_ratio x torque_limit`` [N m]; a larger step
-    drives the load away under any controller (the benchmark's 0.5 N m step on a servo of a few mN m). The step
-    adds to the model's own ``load_torque``, so the two are held together: a 0.5 N m step on a load already
-    under 0.3 N m of gravity the same way needs 0.8 N m (a review's servo holding 0.76 ran off unexplained).
+    The most torque the motor puts on the load shaft is ``gear_ratio x torque_limit`` [N m]; a step as large
+    (nothing left to stop the load once it moves) or larger drives the load away under any controller (the
+    benchmark's 0.5 N m step on a servo of a few mN m). The step adds to the model's own ``load_torque``, so
+    the two are held together: a 0.5 N m step on a load already under 0.3 N m of gravity the same way needs
+    0.8 N m (a review's servo holding 0.76 ran off unexplained).
     """
     hold = plant.gear_ratio * plant.torque_limit
     step = float(getattr(ref, "disturbance", 0.0))
     static = float(getattr(plant, "load_torque", 0.0))
     total = abs(step + static)
-    if not (step != 0.0 and total > hold and np.isfinite(total)):
+    # a step equal to what the motor gives (to rounding of the ratio) leaves nothing to stop the load once the
+    # step has set it moving: a speed-up train of ratio 1 and a 0.5 N m motor ran off 8 rad under every controller
+    if not (step != 0.0 and total >= hold * (1.0 - 1e-9) and np.isfinite(total)):
         return None
     head = f"the reference's load step, {abs(step):g} N m,"
     if static != 0.0:
         head = (f"the reference's load step, {abs(step):g} N m, on top of the model's load_torque "
                 f"({static:g} N m), {total:g} N m in all,")
+    if total <= hold:
+        return (f"{head} equals the torque the motor can put on the load (ratio x torque_limit = {hold:.3g} N m): "
+                "once the step sets the load moving, no torque is left to stop it, so no controller can hold it")
     return (f"{head} is {total / hold:.3g} times the torque the motor can put on "
             f"the load (ratio x torque_limit = {hold:.3g} N m): no controller can hold it")
 

@@ -77,3 +77,19 @@ def test_an_overdamped_frictionless_pair_reports_its_mesh_mode(tmp_path: Path) -
     # holding the motor, the load rings on the mesh spring at sqrt(k rb2^2 / J2)
     st = plant.stages[0]
     assert_allclose(mm.antiresonance, math.sqrt(st.k * st.rb2**2 / plant.shafts[1].J), rtol=1e-9)
+
+
+def test_a_load_step_equal_to_what_the_motor_gives_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # a speed-up train of overall ratio 1 with a 0.5 N m motor: the step's 0.5 N m equals ratio x torque_limit, the
+    # load ran off 8.2 rad under every controller (saturated at the balance, nothing left to stop it) and track
+    # warned only of a saturated actuator (the check asked for a step strictly above what the motor gives)
+    p = DATA / "h1_speedup_ratio1.toml"
+    assert build_plant(load_model(p)).gear_ratio * 0.5 == 0.5
+    assert main(["track", str(p), "pid", "--reference", "step", "--duration", "1.3", "--json"]) == 0
+    out = capsys.readouterr()
+    assert "equals the torque the motor can put on the load (ratio x torque_limit = 0.5 N m)" in out.err
+    assert abs(json.loads(out.out)["final_error"]) > 0.5  # it does run off
+    # 10 % more torque than the step: no warning
+    q = _variant(tmp_path, p, edit=("torque_limit = 0.5", "torque_limit = 0.55"))
+    assert main(["track", str(q), "pid", "--reference", "step", "--duration", "1.3"]) == 0
+    assert "no controller can hold it" not in capsys.readouterr().err
