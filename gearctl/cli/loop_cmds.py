@@ -265,9 +265,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
              kind="note")
     warn("bench", _grouped_warnings(result["runs"]))
     warn("bench", _grouped_warnings(result.get("precision") or [], iso=True))
-    if to_stdout:
-        print(dump_json(result))
-    elif args.json:
+    if args.json and not to_stdout:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
             write_whole(args.json, dump_json(result))
@@ -292,6 +290,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise InputError(f"cannot write {out / 'report.md'}: {exc.strerror}") from None
         print(f"wrote {out}/report.md and plots", file=tables)
+    if to_stdout:  # last: a reader that closed the pipe early (`| head`) lost the --out report written after it
+        tables.flush()
+        print(dump_json(result))
     return 0
 
 

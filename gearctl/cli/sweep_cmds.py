@@ -219,10 +219,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             lg.setLevel(lv)
         if bar is not None:
             bar.close()
-    if to_stdout:  # written piece by piece: the whole text of a large sweep is more than its results (iter_json)
-        write_json(sys.stdout, result.as_dict())
-        print()
-    elif args.json:
+    if args.json and not to_stdout:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
             write_whole(args.json, lambda fh: write_json(fh, result.as_dict()))
@@ -244,6 +241,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         print(f"  wrote {args.json} (JSON)")
     if args.out:
         print(f"  wrote {args.out}/runs.csv, summary.md and plots", file=summary)
+    if to_stdout:  # written piece by piece: the whole text of a large sweep is more than its results (iter_json)
+        # last: a reader that closes the pipe early (`| head`) ends the command quietly, and before, the --out
+        # files and the summary, written after it, were lost with exit 0
+        summary.flush()
+        write_json(sys.stdout, result.as_dict())
+        print()
     return 0
 
 

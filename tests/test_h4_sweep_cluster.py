@@ -1,0 +1,73 @@
+"""Sweeps and the bench as a controls engineer runs them on a cluster: output to a pipe that closes early, a user's
+own ``distributed.Client``.
+
+The runs are short (0.2 s simulated); the sweep's CLI runs its batches in this process (``engine="serial"``), which
+gives the Dask path's rows (tests/test_sweep.py), so no cluster starts where the point is the output.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import io
+import json
+from pathlib import Path
+
+import pytest
+
+import gearctl.sweep
+from gearctl.cli import main
+
+
+class _ClosedPipe(io.StringIO):
+    """Standard output whose reader went away (``| head`` after its lines): every write fails as a pipe's does."""
+
+    def write(self, s: str) -> int:
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+def _cli_into_closed_pipe(argv: list[str]) -> tuple[int, str]:
+    err = io.StringIO()
+    with contextlib.redirect_stdout(_ClosedPipe()), contextlib.redirect_stderr(err), \
+            contextlib.suppress(ValueError):  # (main points a real stdout at /dev/null; a StringIO has no fileno)
+        rc = main(argv)
+    return rc, err.getvalue()
+
+
+def test_sweep_json_to_a_closed_pipe_still_writes_out_and_the_summary(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    # `gearctl sweep ... --json - --out DIR | head`: the JSON was written first, the closed pipe ended the command
+    # quietly (exit 0), and the --out folder and the summary, written after it, were never made: a cluster sweep's
+    # results lost without a word. The JSON goes last now.
+    monkeypatch.setattr(gearctl.sweep, "sweep", functools.partial(gearctl.sweep.sweep, engine="serial"))
+    out = tmp_path / "sweep"
+    rc, err = _cli_into_closed_pipe(["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs", "3",
+                                     "--duration", "0.2", "--quiet", "--json", "-", "--out", str(out)])
+    assert rc == 0
+    assert (out / "runs.csv").read_text().count("\n") == 4  # header and three runs
+    assert (out / "summary.md").is_file() and (out / "error_vs_backlash.png").is_file()
+    assert "RMS error [urad]" in err and f"wrote {out}/runs.csv" in err
+
+
+def test_sweep_json_to_standard_output_is_whole_after_the_summary(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr(gearctl.sweep, "sweep", functools.partial(gearctl.sweep.sweep, engine="serial"))
+    out = tmp_path / "sweep"
+    assert main(["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs", "3", "--duration", "0.2",
+                 "--quiet", "--json", "-", "--out", str(out)]) == 0
+    cap = capsys.readouterr()
+    d = json.loads(cap.out)  # standard output holds the JSON alone
+    assert [r["index"] for r in d["runs"]] == [0, 1, 2]
+    assert "RMS error [urad]" in cap.err and (out / "runs.csv").is_file()
+
+
+def test_bench_json_to_a_closed_pipe_still_writes_the_report(tmp_path: Path) -> None:
+    # the same for `gearctl bench --json - --out DIR | head`: report.md and the plots were lost
+    out = tmp_path / "bench"
+    rc, err = _cli_into_closed_pipe(["bench", "shing1993_servo", "--controllers", "pid", "--plants", "improved",
+                                     "--references", "sine", "--duration", "0.2", "--no-precision", "--jobs", "1",
+                                     "--quiet", "--json", "-", "--out", str(out)])
+    assert rc == 0
+    assert (out / "report.md").read_text().startswith("# gearctl bench")
+    assert (out / "rms_by_controller.png").is_file()
+    assert f"wrote {out}/report.md" in err
