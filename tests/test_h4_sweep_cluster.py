@@ -71,3 +71,53 @@ def test_bench_json_to_a_closed_pipe_still_writes_the_report(tmp_path: Path) -> 
     assert (out / "report.md").read_text().startswith("# gearctl bench")
     assert (out / "rms_by_controller.png").is_file()
     assert f"wrote {out}/report.md" in err
+
+
+def test_a_sweep_rerun_into_its_out_folder_leaves_no_plot_of_the_earlier_one(tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch,
+                                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    # a two-key grid, then a one-key sweep into the same --out: error_vs_backlash.png, error_vs_estimate_error.png
+    # and map.png of the first stayed beside the second's runs.csv and summary.md, as if the second's
+    monkeypatch.setattr(gearctl.sweep, "sweep", functools.partial(gearctl.sweep.sweep, engine="serial"))
+    out = tmp_path / "sweep"
+    mine = out / "notes.png"  # the user's own file: not a plot the earlier sweep wrote, stays
+    base = ["sweep", "shing1993_servo", "deadzone_inverse", "--duration", "0.2", "--quiet", "--out", str(out)]
+    grid = ["--grid", "--runs", "2", "--vary", "backlash=0.5x:2x", "--vary", "estimate_error=-0.1,0.1"]
+    assert main([*base, *grid]) == 0
+    first = {p.name for p in out.iterdir()}
+    assert {"map.png", "error_vs_backlash.png", "error_vs_estimate_error.png", "histogram.png"} <= first
+    mine.write_bytes(b"mine")
+    capsys.readouterr()
+    assert main([*base, "--runs", "3", "--vary", "load_inertia=0.5x:2x"]) == 0
+    err = capsys.readouterr().err
+    assert {p.name for p in out.iterdir()} == {"runs.csv", "summary.md", "histogram.png", "error_vs_load_inertia.png",
+                                               "notes.png"}
+    assert "removed error_vs_backlash.png, error_vs_estimate_error.png, map.png" in err
+    # and the same sweep again removes nothing, says nothing
+    assert main([*base, "--runs", "3", "--vary", "load_inertia=0.5x:2x"]) == 0
+    assert "removed" not in capsys.readouterr().err and mine.read_bytes() == b"mine"
+
+
+def test_a_folder_whose_summary_is_not_a_sweeps_keeps_its_plots(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(gearctl.sweep, "sweep", functools.partial(gearctl.sweep.sweep, engine="serial"))
+    out = tmp_path / "sweep"
+    out.mkdir()
+    (out / "summary.md").write_text("# my notes\n\n![a map](map.png)\n")
+    (out / "map.png").write_bytes(b"mine")
+    assert main(["sweep", "shing1993_servo", "pid", "--duration", "0.2", "--runs", "2", "--quiet",
+                 "--vary", "backlash=0.5x:2x", "--out", str(out)]) == 0
+    assert (out / "map.png").read_bytes() == b"mine"
+
+
+def test_a_bench_rerun_into_its_out_folder_leaves_no_plot_of_the_earlier_one(tmp_path: Path,
+                                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "bench"
+    base = ["bench", "shing1993_servo", "--controllers", "pid", "--plants", "improved", "--duration", "0.2",
+            "--no-precision", "--jobs", "1", "--quiet", "--out", str(out)]
+    assert main([*base, "--references", "sine,move"]) == 0
+    assert (out / "errors_move.png").is_file()
+    capsys.readouterr()
+    assert main([*base, "--references", "sine"]) == 0
+    assert "removed errors_move.png" in capsys.readouterr().err
+    assert {p.name for p in out.iterdir()} == {"report.md", "rms_by_controller.png", "errors_sine.png"}

@@ -22,7 +22,8 @@ from ..units import POINTS, Spec
 
 __all__ = ["spec_arg", "positive_float", "finite_float", "nonnegative_float", "dump_json", "write_csv_stream",
            "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE", "TARGETS", "CYCLES",
-           "STAGE", "JOBS", "WHOLE", "write_whole", "iter_json", "write_json"]
+           "STAGE", "JOBS", "WHOLE", "write_whole", "iter_json", "write_json", "earlier_plots",
+           "remove_earlier_plots"]
 
 #: command-line quantities not in a model file (POINTS is the schema's: the Python API checks the same range)
 OMEGA = Spec(unit="rad/s", doc="initial shaft speed", low=-1e5, high=1e5)
@@ -361,6 +362,39 @@ class progress_bar:  # noqa: N801 (a context manager used like a function)
     def __exit__(self, *exc: object) -> None:
         if self.bar is not None:
             self.bar.close()
+
+
+def earlier_plots(index: Path, title: str, patterns: Sequence[str]) -> list[str]:
+    """The plots an earlier run wrote into an ``--out`` folder, as its index (``summary.md``, ``report.md``, which
+    starts with ``title``) links them; only names matching ``patterns`` (gearctl's own plot names), none when the
+    index is not gearctl's."""
+    import fnmatch
+
+    try:
+        with open(index, encoding="utf-8") as fh:
+            text = fh.read(1_000_000)
+    except (OSError, UnicodeDecodeError):
+        return []
+    if not text.startswith(title + "\n"):
+        return []
+    names = re.findall(r"^!\[[^\]\n]*\]\(([^()/\\\n]+)\)$", text, flags=re.MULTILINE)
+    return [n for n in dict.fromkeys(names) if any(fnmatch.fnmatch(n, pat) for pat in patterns)]
+
+
+def remove_earlier_plots(folder: Path, earlier: Iterable[str], written: Iterable[str]) -> list[str]:
+    """Remove from ``folder`` the plots of :func:`earlier_plots` that this run did not write again; return their
+    names. Re-running a sweep into its ``--out`` folder with other keys left the earlier run's plots
+    (``error_vs_backlash.png``, ``map.png``) beside the new ``runs.csv`` and ``summary.md``, as if this run's."""
+    gone = []
+    for name in sorted(set(earlier) - set(written)):
+        f = folder / name
+        if f.is_file() and not f.is_symlink():
+            try:
+                f.unlink()
+            except OSError:
+                continue
+            gone.append(name)
+    return gone
 
 
 def warn(command: str, warnings: Iterable[str], *, kind: str = "warning") -> None:

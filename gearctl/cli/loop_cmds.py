@@ -19,10 +19,12 @@ from .common import (
     TARGETS,
     check_writable,
     dump_json,
+    earlier_plots,
     format_rate,
     positive_float,
     progress_bar,
     ratio_changed,
+    remove_earlier_plots,
     save_figure,
     say_written,
     separated_past_flank,
@@ -276,6 +278,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         from ..plots import plot_bench_bars, plot_bench_errors
 
         out = Path(args.out)
+        earlier = earlier_plots(out / "report.md", "# gearctl bench", ("rms_by_controller.png", "errors_*.png"))
         traces = error_traces(result)
         for ref in spec.references:
             save_figure(plot_bench_errors(traces, reference=ref), str(out / f"errors_{ref}.png"))
@@ -290,6 +293,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise InputError(f"cannot write {out / 'report.md'}: {exc.strerror}") from None
         print(f"wrote {out}/report.md and plots", file=tables)
+        gone = remove_earlier_plots(out, earlier, ["rms_by_controller.png",
+                                                   *(f"errors_{ref}.png" for ref in spec.references)])
+        if gone:
+            warn("bench", [f"--out {out}: removed {', '.join(gone)}, which an earlier bench wrote there and this one "
+                           f"does not (its references differ)"], kind="note")
     if to_stdout:  # last: a reader that closed the pipe early (`| head`) lost the --out report written after it
         tables.flush()
         print(dump_json(result))

@@ -12,7 +12,16 @@ from typing import Any
 
 from ..errors import InputError
 from ..units import DURATION, SEED, Spec
-from .common import check_writable, save_figure, spec_arg, warn, write_json, write_whole
+from .common import (
+    check_writable,
+    earlier_plots,
+    remove_earlier_plots,
+    save_figure,
+    spec_arg,
+    warn,
+    write_json,
+    write_whole,
+)
 
 __all__ = ["register"]
 
@@ -134,9 +143,15 @@ def _write_csv(result: Any, path: Path) -> None:
     write_whole(path, write)
 
 
-def _write_out(result: Any, out: Path) -> None:
+#: The plots a sweep writes into its --out folder (an earlier sweep's that this one does not write are removed).
+_SWEEP_PLOTS = ("histogram.png", "map.png", "error_vs_*.png")
+
+
+def _write_out(result: Any, out: Path) -> list[str]:
+    """Write runs.csv, the plots and summary.md into ``out``; return the earlier sweep's plots removed there."""
     from ..plots import plot_sweep_histogram, plot_sweep_map, plot_sweep_scatter
 
+    earlier = earlier_plots(out / "summary.md", "# gearctl sweep", _SWEEP_PLOTS)
     try:
         out.mkdir(parents=True, exist_ok=True)
         _write_csv(result, out / "runs.csv")
@@ -157,6 +172,7 @@ def _write_out(result: Any, out: Path) -> None:
         write_whole(out / "summary.md", _markdown(result, plots))
     except OSError as exc:
         raise InputError(f"cannot write {out / 'summary.md'}: {exc.strerror}") from None
+    return remove_earlier_plots(out, earlier, [name for name, _ in plots])
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
@@ -226,7 +242,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
     if args.out:
-        _write_out(result, Path(args.out))
+        gone = _write_out(result, Path(args.out))
+        if gone:
+            warn("sweep", [f"--out {args.out}: removed {', '.join(gone)}, which an earlier sweep wrote there and this "
+                           f"one does not (its keys or runs differ)"], kind="note")
     design = result.settings.get("design", {})
     warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
     if not args.vary:
