@@ -25,7 +25,7 @@ from typing import Any
 from .errors import InputError
 from .limits import available_memory
 
-__all__ = ["Engine", "map_tasks", "check_local_workers", "WORKER_BYTES",
+__all__ = ["Engine", "check_one_cluster", "map_tasks", "check_local_workers", "WORKER_BYTES",
            "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
            "checked", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
 
@@ -244,6 +244,15 @@ def _sigint_held() -> Iterator[Callable[[], bool]]:
         signal.signal(signal.SIGINT, old_handler)
 
 
+def check_one_cluster(client: Any, scheduler: str | None) -> None:
+    """Refuse a ``client`` given with a ``scheduler`` address: the client's cluster ran the work and the address
+    was dropped without a word (a sweep given a closed port and a working client ran, as if the port answered)."""
+    if client is not None and scheduler:
+        where = getattr(getattr(client, "scheduler", None), "address", None) or "another"
+        raise InputError(f"scheduler = {scheduler!r} and a client: give one of them (the client's own scheduler is "
+                         f"{where})", field="scheduler")
+
+
 class Engine:
     """A Dask client on a local cluster or a running scheduler; closes what it opened.
 
@@ -255,7 +264,8 @@ class Engine:
         ``tcp://HOST:PORT`` of a running scheduler (default the ``DASK_SCHEDULER_ADDRESS`` environment
         variable, else a local cluster). Its workers must run the same gearctl version.
     client : distributed.Client, optional
-        An open client to use as is (not closed here). Without it, a scheduler, or ``DASK_SCHEDULER_ADDRESS``,
+        An open client to use as is (not closed here); not with ``scheduler`` (an
+        :class:`~gearctl.InputError`: one of them was ignored). Without it, a scheduler, or ``DASK_SCHEDULER_ADDRESS``,
         dask's default client (one a script opened) is used if there is one, else a local cluster. A scheduler's
         address is checked first (:func:`probe_scheduler`), and its workers must run this gearctl
         (:func:`code_id`).
@@ -264,6 +274,7 @@ class Engine:
     def __init__(self, *, workers: int | None = None, scheduler: str | None = None, client: Any = None) -> None:
         import distributed
 
+        check_one_cluster(client, scheduler)
         self.cluster = None
         self.own = client is None
         address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None

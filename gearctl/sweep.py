@@ -84,6 +84,7 @@ from .parallel import (
     CONNECT_TIMEOUT,
     WORKER_TIMEOUT,
     Engine,
+    check_one_cluster,
     checked,
     code_id,
     completed,
@@ -1318,7 +1319,7 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
         Address of a running Dask scheduler (``tcp://host:8786``); default ``DASK_SCHEDULER_ADDRESS``,
         else a local cluster.
     client : distributed.Client, optional
-        Use this client (left open).
+        Use this client (left open); not with ``scheduler``.
     engine : str
         ``dask``, or ``serial``: every batch in this process, one after the other (the plain loop).
     batch : int, optional
@@ -1335,9 +1336,10 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
     InputError
         Before any run: a bad spec or setting, a draw outside its key's range, an invalid perturbed model,
         a design that fails on the nominal model, too many runs for the memory; a scheduler that cannot be
-        reached or has no worker.
+        reached or has no worker; both ``client`` and ``scheduler``.
     """
     t0 = time.perf_counter()
+    check_one_cluster(client, scheduler)  # before the design, as every check
     plan = plan_sweep(model, controller, vary=vary, runs=runs, grid=grid, reference_kind=reference_kind,
                       duration=duration, seed=seed, plant=plant, precision=precision)
     if batch is not None:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+import gearctl
 import gearctl.sweep
 from gearctl.cli import main
 
@@ -121,3 +122,18 @@ def test_a_bench_rerun_into_its_out_folder_leaves_no_plot_of_the_earlier_one(tmp
     assert main([*base, "--references", "sine"]) == 0
     assert "removed errors_move.png" in capsys.readouterr().err
     assert {p.name for p in out.iterdir()} == {"report.md", "rms_by_controller.png", "errors_sine.png"}
+
+
+def test_a_client_and_a_scheduler_together_are_refused_before_the_design() -> None:
+    # sweep(client=c, scheduler="tcp://...") ran on the client's cluster and dropped the address without a word
+    # (a closed port given with a working client ran as if it answered)
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster, set_as_default=False) as client:
+        with pytest.raises(gearctl.InputError, match=r"scheduler = 'tcp://127.0.0.1:1' and a client: give one") as e:
+            gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2, client=client,
+                                scheduler="tcp://127.0.0.1:1")
+        assert e.value.field == "scheduler" and client.status == "running"
+        r = gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2, client=client)  # alone: it runs
+        assert r.engine["where"] == cluster.scheduler_address and client.status == "running"
