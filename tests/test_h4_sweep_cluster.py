@@ -137,3 +137,26 @@ def test_a_client_and_a_scheduler_together_are_refused_before_the_design() -> No
         assert e.value.field == "scheduler" and client.status == "running"
         r = gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2, client=client)  # alone: it runs
         assert r.engine["where"] == cluster.scheduler_address and client.status == "running"
+
+
+def test_bench_jobs_with_a_scheduler_warns_as_sweep_workers_does(monkeypatch: pytest.MonkeyPatch,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    # `bench --scheduler ADDR --jobs 4` ran on the cluster's workers and dropped --jobs without a word (sweep's
+    # --workers warns); the bench itself is not the point here: the run is replaced by its first step's refusal
+    import gearctl.bench
+
+    def no_runs(*args: object, **kwargs: object) -> None:
+        raise gearctl.InputError("stop here", field="scheduler")
+
+    monkeypatch.setattr(gearctl.bench, "run_bench", no_runs)
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    argv = ["bench", "--controllers", "pid", "--plants", "improved", "--references", "sine", "--duration", "0.2",
+            "--no-precision", "--quiet"]
+    assert main([*argv, "--scheduler", "tcp://127.0.0.1:1", "--jobs", "4"]) == 2
+    assert "--jobs sizes the local cluster" in capsys.readouterr().err
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:1")
+    assert main([*argv, "--jobs", "4"]) == 2
+    assert "--jobs sizes the local cluster" in capsys.readouterr().err
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
+    assert main([*argv, "--jobs", "4"]) == 2  # a local cluster: --jobs is what sizes it, no warning
+    assert "--jobs sizes" not in capsys.readouterr().err

@@ -205,6 +205,9 @@ def _cmd_precision(args: argparse.Namespace) -> int:
 def _cmd_bench(args: argparse.Namespace) -> int:
     from ..bench import BenchSpec, bench_table, error_traces, run_bench
 
+    if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.jobs:  # as sweep's --workers
+        warn("bench", ["--jobs sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the cluster's "
+                       "own workers run the bench"])
     plants = tuple(p.strip() for p in args.plants.split(",") if p.strip())
     refs = tuple(r.strip() for r in args.references.split(",") if r.strip())
     spec = BenchSpec(models=tuple(args.models) or ("shing1993_servo",), controllers=tuple(args.controllers or ()),
