@@ -27,7 +27,7 @@ from .limits import available_memory
 
 __all__ = ["Engine", "check_one_cluster", "map_tasks", "check_local_workers", "WORKER_BYTES",
            "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
-           "checked", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
+           "checked", "killed_worker_text", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
 
 #: Seconds to reach a scheduler, and for its first worker to join.
 CONNECT_TIMEOUT, WORKER_TIMEOUT = 10.0, 60.0
@@ -430,6 +430,16 @@ def completed(client: Any, futures: Sequence[Any], *,
             alone_since = None
 
 
+def killed_worker_text(exc: BaseException) -> str:
+    """What Dask's ``KilledWorker`` means, in one line: a task whose every worker died while running it (a worker
+    past its memory limit, ``dask worker --memory-limit``, restarted by its nanny each time, or a crash)."""
+    tries = getattr(exc, "allowed_failures", None)
+    last = getattr(getattr(exc, "last_worker", None), "address", None)
+    return (f"each of the {tries + 1 if isinstance(tries, int) else 'several'} workers that ran it died while it ran"
+            f"{f' (the last {last})' if last else ''}: a worker's memory limit (a gearctl worker takes about "
+            f"{WORKER_BYTES / 1e9:g} GB; `dask worker --memory-limit`) or a crash, see the workers' logs")
+
+
 #: Seconds between looks for finished tasks (a task takes tens of ms at least: batches, see gearctl.sweep).
 _NAP = 0.01
 
@@ -474,6 +484,8 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
             if progress:
                 progress(i + 1, n)
         return out
+    from distributed import KilledWorker
+
     results: list[Any] = [None] * n
     with Engine(workers=local_processes(n, workers), scheduler=scheduler) as eng:
         tag = uuid.uuid4().hex[:12]
@@ -482,6 +494,9 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
                    for k, x in enumerate(items)}
         try:
             for done, (fut, got, exc) in enumerate(completed(eng.client, list(futures), where=eng.where), start=1):
+                if isinstance(exc, KilledWorker):  # Dask's traceback and exit 1 (a bench on workers of 120 MB)
+                    raise InputError(f"{eng.where}: the task {fut.key} could not run: {killed_worker_text(exc)}",
+                                     field="scheduler") from None
                 if exc is not None:
                     raise exc
                 results[futures[fut]] = got

@@ -89,6 +89,7 @@ from .parallel import (
     code_id,
     completed,
     default_workers,
+    killed_worker_text,
     local_cluster,
     local_processes,
 )
@@ -1041,8 +1042,8 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
             for fut, got, exc in completed(eng.client, list(futures), where=eng.where):
                 part = futures.pop(fut)
                 if isinstance(exc, KilledWorker):  # the batch killed its workers again and again: record, go on
-                    got = [_row(plan.context, j, None, None, None, message=f"the batch killed its worker "
-                                f"({exc.__class__.__name__})") for j in part]
+                    got = [_row(plan.context, j, None, None, None, message=f"the batch of runs {part[0][0]}.."
+                                f"{part[-1][0]} did not run: {killed_worker_text(exc)}") for j in part]
                 elif exc is not None:
                     raise exc
                 fut.release()

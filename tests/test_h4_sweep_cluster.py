@@ -160,3 +160,20 @@ def test_bench_jobs_with_a_scheduler_warns_as_sweep_workers_does(monkeypatch: py
     monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
     assert main([*argv, "--jobs", "4"]) == 2  # a local cluster: --jobs is what sizes it, no warning
     assert "--jobs sizes" not in capsys.readouterr().err
+
+
+def test_a_task_that_kills_its_workers_is_one_line_in_map_tasks() -> None:
+    # bench on a cluster whose workers died in each run (dask worker --memory-limit 120MB: the nanny killed the
+    # worker as gearctl loaded) ended in Dask's KilledWorker traceback, exit 1; sweep records such a batch as failed
+    # rows. Here each task ends its worker process (os._exit), which Dask restarts, up to its allowed failures.
+    import os
+
+    import dask
+
+    from gearctl.parallel import map_tasks
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}), \
+            pytest.raises(gearctl.InputError, match=r"the task gearctl-\S+ could not run: each of the 2 workers that "
+                                                    r"ran it died while it ran .*memory limit") as e:
+        map_tasks(os._exit, [3, 3], workers=2)  # (two tasks: one would run in this process)
+    assert e.value.field == "scheduler"
