@@ -339,7 +339,9 @@ class Engine:
                 self.close()
                 w, err = sorted(broken.items())[0]
                 raise InputError(f"the worker{'s' if len(broken) > 1 else ''} {', '.join(sorted(broken))} of "
-                                 f"{self.where} cannot run gearctl ({w}: {type(err).__name__}: {err})",
+                                 f"{self.where} cannot run gearctl ({w}: {type(err).__name__}: "
+                                 f"{' '.join(str(err).split())[:200]}): install this gearctl on every worker (the "
+                                 f"same version and sources), or start them with it on their PYTHONPATH",
                                  field="scheduler")
             other = {w: v for w, v in ids.items() if v != code_id()}
             if other:

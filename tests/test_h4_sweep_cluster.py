@@ -177,3 +177,26 @@ def test_a_task_that_kills_its_workers_is_one_line_in_map_tasks() -> None:
                                                     r"ran it died while it ran .*memory limit") as e:
         map_tasks(os._exit, [3, 3], workers=2)  # (two tasks: one would run in this process)
     assert e.value.field == "scheduler"
+
+
+def test_a_worker_that_cannot_import_gearctl_is_named_with_the_fix(tmp_path: Path) -> None:
+    # the refusal named the worker and its ImportError but not what to do about it
+    from distributed import Client, LocalCluster
+
+    from gearctl.parallel import Engine
+
+    # a worker process where `import gearctl` fails (a worker's PYTHONPATH does not reach a spawned process: the
+    # preload takes gearctl away as a broken install would)
+    preload = tmp_path / "no_gearctl.py"
+    preload.write_text("import sys\n"
+                       "for name in [m for m in sys.modules if m == 'gearctl' or m.startswith('gearctl.')]:\n"
+                       "    del sys.modules[name]\n"
+                       "sys.modules['gearctl'] = None  # import gearctl: ImportError, a broken install\n")
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+                      preload=[str(preload)]) as cluster, \
+            Client(cluster, set_as_default=False) as client:
+        worker = next(iter(client.scheduler_info()["workers"]))
+        with pytest.raises(gearctl.InputError, match=rf"the worker {worker} of \S+ cannot run gearctl \(.*gearctl.*\): "
+                                                     r"install this gearctl on every worker") as e:
+            Engine(client=client)
+        assert e.value.field == "scheduler" and client.status == "running"
