@@ -291,17 +291,27 @@ class Engine:
             self.client = client
             self.where = str(getattr(client.scheduler, "address", "the client's scheduler"))
         elif address:
-            probe_scheduler(address)
             try:
-                self.client = distributed.Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-            except (OSError, TimeoutError) as exc:
-                raise InputError(f"cannot reach the Dask scheduler at {address}: {exc}", field="scheduler") from None
-            try:
-                self.client.wait_for_workers(1, timeout=WORKER_TIMEOUT)
-            except TimeoutError:
-                self.client.close()
-                raise InputError(f"no worker joined the Dask scheduler at {address} within {WORKER_TIMEOUT:g} s: "
-                                 f"start one with `dask worker {address} --nthreads 1`", field="scheduler") from None
+                probe_scheduler(address)
+                try:
+                    self.client = distributed.Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+                except (OSError, TimeoutError) as exc:
+                    raise InputError(f"cannot reach the Dask scheduler at {address}: {exc}",
+                                     field="scheduler") from None
+                try:
+                    self.client.wait_for_workers(1, timeout=WORKER_TIMEOUT)
+                except TimeoutError:
+                    self.client.close()
+                    raise InputError(f"no worker joined the Dask scheduler at {address} within {WORKER_TIMEOUT:g} "
+                                     f"s: start one with `dask worker {address} --nthreads 1`",
+                                     field="scheduler") from None
+            except InputError as exc:
+                if scheduler:
+                    raise
+                # an address the user did not type here: "cannot reach the Dask scheduler at garbage" left them
+                # looking for where it came from (a shell profile, a notebook's environment)
+                raise InputError(f"{exc} (the address is the DASK_SCHEDULER_ADDRESS environment variable's; unset "
+                                 f"it to run on a local cluster)", field="scheduler") from None
             self.where = address
         else:
             from .kernel import compiled_available

@@ -200,3 +200,17 @@ def test_a_worker_that_cannot_import_gearctl_is_named_with_the_fix(tmp_path: Pat
                                                      r"install this gearctl on every worker") as e:
             Engine(client=client)
         assert e.value.field == "scheduler" and client.status == "running"
+
+
+def test_an_address_from_the_environment_is_named_as_such(monkeypatch: pytest.MonkeyPatch,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    # DASK_SCHEDULER_ADDRESS=garbage (set by a profile or a notebook): "cannot reach the Dask scheduler at garbage"
+    # said nothing of where the address came from
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:1")
+    argv = ["sweep", "shing1993_servo", "pid", "--runs", "2", "--duration", "0.2", "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tcp://127.0.0.1:1" in err and "DASK_SCHEDULER_ADDRESS" in err
+    assert main([*argv, "--scheduler", "tcp://127.0.0.1:1"]) == 2  # typed on the command line: no such note
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tcp://127.0.0.1:1" in err and "DASK_SCHEDULER_ADDRESS" not in err
