@@ -214,3 +214,15 @@ def test_an_address_from_the_environment_is_named_as_such(monkeypatch: pytest.Mo
     assert main([*argv, "--scheduler", "tcp://127.0.0.1:1"]) == 2  # typed on the command line: no such note
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "tcp://127.0.0.1:1" in err and "DASK_SCHEDULER_ADDRESS" not in err
+
+
+def test_bench_tables_to_a_closed_pipe_still_write_the_json_file_and_the_report(tmp_path: Path) -> None:
+    # `gearctl bench --json FILE --out DIR | head -1`: the tables were printed before the files were written, and the
+    # closed pipe ended the command quietly at the first flush: the report and at times the JSON file were lost
+    out, js = tmp_path / "bench", tmp_path / "bench.json"
+    rc, err = _cli_into_closed_pipe(["bench", "shing1993_servo", "--controllers", "pid", "--plants", "improved",
+                                     "--references", "sine", "--duration", "0.2", "--no-precision", "--jobs", "1",
+                                     "--quiet", "--json", str(js), "--out", str(out)])
+    assert rc == 0 and "Traceback" not in err
+    assert [r["controller"] for r in json.loads(js.read_text())["runs"]].count("pid") >= 1
+    assert (out / "report.md").read_text().startswith("# gearctl bench")

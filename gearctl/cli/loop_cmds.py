@@ -259,24 +259,17 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     result["jobs"] = None if where else local_processes(result["tasks"], args.jobs)
     text = bench_table(result)
     tables = sys.stderr if to_stdout else sys.stdout
-    print(text, end="", file=tables)
-    print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
-                                          f"on {result['jobs']} process(es)"), file=tables)
-    warn("bench", dict.fromkeys(f"{r['model']}, {r['controller']}: {n}" for r in result["runs"]
-                                for n in r.get("design_notes", ())), kind="note")
-    if spec.controllers and "pid" not in spec.controllers:  # the baseline every comparison is made against
-        warn("bench", ["--controllers without pid: no PID baseline, so no ratios over the PID, no backlash-free ISO "
-                       "row and no 'worse than the pid' warnings; add pid to --controllers to compare with it"],
-             kind="note")
-    warn("bench", _grouped_warnings(result["runs"]))
-    warn("bench", _grouped_warnings(result.get("precision") or [], iso=True))
+    # the files first, what is printed after: a reader that closed standard output early (`| head`) ends the
+    # command quietly at the first print, and the JSON file and the --out report written after it were lost
+    wrote = []
     if args.json and not to_stdout:
         try:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
             write_whole(args.json, dump_json(result))
         except OSError as exc:
             raise InputError(f"cannot write {args.json}: {exc.strerror}") from None
-        print(f"wrote {args.json}")
+        wrote.append(f"wrote {args.json}")
+    gone: list[str] = []
     if args.out:
         from ..plots import plot_bench_bars, plot_bench_errors
 
@@ -295,12 +288,25 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             (out / "report.md").write_text("\n".join(md) + "\n")
         except OSError as exc:
             raise InputError(f"cannot write {out / 'report.md'}: {exc.strerror}") from None
-        print(f"wrote {out}/report.md and plots", file=tables)
+        wrote.append(f"wrote {out}/report.md and plots")
         gone = remove_earlier_plots(out, earlier, ["rms_by_controller.png",
                                                    *(f"errors_{ref}.png" for ref in spec.references)])
-        if gone:
-            warn("bench", [f"--out {out}: removed {', '.join(gone)}, which an earlier bench wrote there and this one "
-                           f"does not (its references differ)"], kind="note")
+    print(text, end="", file=tables)
+    print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
+                                          f"on {result['jobs']} process(es)"), file=tables)
+    warn("bench", dict.fromkeys(f"{r['model']}, {r['controller']}: {n}" for r in result["runs"]
+                                for n in r.get("design_notes", ())), kind="note")
+    if spec.controllers and "pid" not in spec.controllers:  # the baseline every comparison is made against
+        warn("bench", ["--controllers without pid: no PID baseline, so no ratios over the PID, no backlash-free ISO "
+                       "row and no 'worse than the pid' warnings; add pid to --controllers to compare with it"],
+             kind="note")
+    warn("bench", _grouped_warnings(result["runs"]))
+    warn("bench", _grouped_warnings(result.get("precision") or [], iso=True))
+    if gone:
+        warn("bench", [f"--out {args.out}: removed {', '.join(gone)}, which an earlier bench wrote there and this "
+                       f"one does not (its references differ)"], kind="note")
+    for line in wrote:
+        print(line, file=tables)
     if to_stdout:  # last: a reader that closed the pipe early (`| head`) lost the --out report written after it
         tables.flush()
         print(dump_json(result))
