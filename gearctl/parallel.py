@@ -27,7 +27,7 @@ from .limits import available_memory
 
 __all__ = ["Engine", "check_one_cluster", "map_tasks", "check_local_workers", "WORKER_BYTES",
            "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
-           "checked", "killed_worker_text", "CONNECT_TIMEOUT", "WORKER_TIMEOUT"]
+           "checked", "killed_worker_text", "CONNECT_TIMEOUT", "WORKER_TIMEOUT", "ANSWER_TIMEOUT"]
 
 #: Seconds to reach a scheduler, and for its first worker to join.
 CONNECT_TIMEOUT, WORKER_TIMEOUT = 10.0, 60.0
@@ -382,6 +382,8 @@ class Engine:
 
 #: Seconds between checks, while no task finishes, that the cluster still has workers.
 POLL = 1.0
+#: Seconds each of those checks waits for the scheduler's answer.
+ANSWER_TIMEOUT = 5.0
 
 
 def completed(client: Any, futures: Sequence[Any], *,
@@ -390,21 +392,43 @@ def completed(client: Any, futures: Sequence[Any], *,
     (``distributed.as_completed`` on ``client``'s loop), its result fetched here. A cluster left without workers for
     :data:`WORKER_TIMEOUT` seconds is an :class:`~gearctl.InputError`: with every worker killed a sweep waited
     forever, for the tasks left and for a finished task's result that only the dead worker held. While nothing
-    arrives, the cluster's workers are counted every :data:`POLL` seconds."""
+    arrives, the cluster's workers are counted every :data:`POLL` seconds; a scheduler that gives no answer for
+    :data:`WORKER_TIMEOUT` seconds (each question waits :data:`ANSWER_TIMEOUT`) is an ``InputError`` too."""
     from distributed import as_completed
     from distributed.comm.core import CommClosedError
 
     ac = as_completed(list(futures), loop=client.loop)
     checked = time.monotonic()
     alone_since: float | None = None
+    silent_since: float | None = None
+
+    def workers_now() -> dict | None:
+        # the scheduler's workers, or None without an answer within ANSWER_TIMEOUT: client.scheduler_info() waited
+        # for it without end, and a scheduler stopped mid-sweep (SIGSTOP, a paused VM, a link cut without the
+        # connection closing) hung the sweep for good
+        try:
+            info = client.sync(client.scheduler.identity, n_workers=-1, callback_timeout=ANSWER_TIMEOUT)
+        except (TimeoutError, OSError):
+            return None
+        return dict(info.get("workers") or {})
 
     def watch(left: int) -> None:
-        nonlocal checked, alone_since
+        nonlocal checked, alone_since, silent_since
         now = time.monotonic()
         if now - checked < POLL:
             return
-        checked = now
-        if client.scheduler_info(n_workers=-1)["workers"]:
+        workers = workers_now()
+        checked = now = time.monotonic()
+        if workers is None:
+            if silent_since is None:
+                silent_since = now
+            elif now - silent_since > WORKER_TIMEOUT:
+                raise InputError(f"{where}: the scheduler has not answered for {WORKER_TIMEOUT:g} s with {left} "
+                                 f"task(s) unfinished (stopped, hung, or cut off from this machine); run again when "
+                                 f"it answers", field="scheduler")
+            return
+        silent_since = None
+        if workers:
             alone_since = None
         elif alone_since is None:
             alone_since = now
