@@ -339,7 +339,15 @@ class Engine:
                                  f"(version+code hash): Dask's scheduler reads the tasks, install the same gearctl "
                                  f"where it runs (and restart one started before an edit)", field="scheduler")
             try:  # each worker's answer, or its exception: the refusal names the workers at fault
-                ids = self.client.run(code_id, on_error="return")
+                # within WORKER_TIMEOUT: a worker stopped or hung (kill -STOP) held the answer back, and the sweep
+                # with it, for good
+                ids = self.client.run(code_id, on_error="return", callback_timeout=WORKER_TIMEOUT)
+            except TimeoutError:
+                quiet = self._silent_workers()
+                self.close()
+                raise InputError(f"the workers of {self.where} did not all answer within {WORKER_TIMEOUT:g} s "
+                                 f"(stopped or hung{': ' + ', '.join(quiet) if quiet else ''}): restart them, or "
+                                 f"stop them and run on the others", field="scheduler") from None
             except Exception as exc:  # the cluster itself, not a worker: say it in one line
                 self.close()
                 raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",
@@ -361,6 +369,18 @@ class Engine:
                                  f"{self.where} run{'' if len(other) > 1 else 's'} gearctl {theirs}, this is "
                                  f"{code_id()} (version+code hash): install the same gearctl on every worker, and "
                                  f"restart workers started before an edit", field="scheduler")
+
+    def _silent_workers(self) -> list[str]:
+        """The workers the scheduler has not heard from for 10 s while others spoke (its heartbeats, by its clock),
+        as far as it answers: those that did not answer, likely."""
+        try:
+            seen = {w: float(d.get("last_seen") or 0.0) for w, d in
+                    self.client.sync(self.client.scheduler.identity, n_workers=-1,
+                                     callback_timeout=ANSWER_TIMEOUT)["workers"].items()}
+        except Exception:  # (a hint only)
+            return []
+        latest = max(seen.values(), default=0.0)
+        return sorted(w for w, t in seen.items() if latest - t > 10.0)
 
     @property
     def workers(self) -> int:

@@ -11,6 +11,12 @@ import contextlib
 import functools
 import io
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -228,38 +234,49 @@ def test_bench_tables_to_a_closed_pipe_still_write_the_json_file_and_the_report(
     assert (out / "report.md").read_text().startswith("# gearctl bench")
 
 
-@pytest.mark.slow
-def test_a_scheduler_that_stops_answering_mid_sweep_ends_with_one_line(tmp_path: Path,
-                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
-    # a scheduler stopped mid-sweep (SIGSTOP here; a paused VM, a link cut without the connection closing) hung the
-    # sweep for good: the check for workers waited for its answer without end. Now each check waits ANSWER_TIMEOUT
-    # and the sweep ends after WORKER_TIMEOUT without an answer (60 s; 2 s here)
-    import os
-    import signal
-    import subprocess
-    import sys
-    import time
-
-    import gearctl.parallel
-
-    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 2.0)
-    monkeypatch.setattr(gearctl.parallel, "POLL", 0.2)
-    monkeypatch.setattr(gearctl.parallel, "ANSWER_TIMEOUT", 0.5)
+@contextlib.contextmanager
+def _subprocess_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen]]]:
+    """A ``dask scheduler`` and one ``dask worker`` process (no nanny): the address and [scheduler, worker]."""
     sched_file = tmp_path / "scheduler.json"
     procs = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
                                "--no-dashboard", "--scheduler-file", str(sched_file)], cwd=tmp_path,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)]
     try:
         deadline = time.monotonic() + 60
-        while not sched_file.exists() and time.monotonic() < deadline:
+        address = None
+        while address is None and time.monotonic() < deadline:
+            with contextlib.suppress(OSError, ValueError, KeyError):
+                address = json.loads(sched_file.read_text())["address"]
             time.sleep(0.1)
-        time.sleep(0.2)  # (the file is written whole, then read)
-        address = json.loads(sched_file.read_text())["address"]
+        assert address, "the dask scheduler did not start"
         procs.append(subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
                                        "--no-nanny", "--no-dashboard", "--host", "127.0.0.1",
                                        "--local-directory", str(tmp_path / "w")], cwd=tmp_path,
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
+        from distributed import Client
 
+        with Client(address, timeout=30, set_as_default=False) as c:
+            c.wait_for_workers(1, timeout=90)
+        yield address, procs
+    finally:
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
+
+
+@pytest.mark.slow
+def test_a_scheduler_that_stops_answering_mid_sweep_ends_with_one_line(tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    # a scheduler stopped mid-sweep (SIGSTOP here; a paused VM, a link cut without the connection closing) hung the
+    # sweep for good: the check for workers waited for its answer without end. Now each check waits ANSWER_TIMEOUT
+    # and the sweep ends after WORKER_TIMEOUT without an answer (60 s; 2 s here)
+    import gearctl.parallel
+
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 2.0)
+    monkeypatch.setattr(gearctl.parallel, "POLL", 0.2)
+    monkeypatch.setattr(gearctl.parallel, "ANSWER_TIMEOUT", 0.5)
+    with _subprocess_cluster(tmp_path) as (address, procs):
         def progress(done: int, total: int) -> None:
             if done == 1:
                 os.killpg(procs[0].pid, signal.SIGSTOP)
@@ -270,8 +287,20 @@ def test_a_scheduler_that_stops_answering_mid_sweep_ends_with_one_line(tmp_path:
             gearctl.sweep.sweep("shing1993_servo", "pid", vary=["backlash=0.5x:2x"], runs=12, duration=0.3,
                                 scheduler=address, batch=1, progress=progress)
         assert e.value.field == "scheduler" and time.monotonic() - t0 < 60.0
-    finally:
-        for p in procs:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(p.pid, signal.SIGKILL)
-            p.wait(timeout=30)
+
+
+@pytest.mark.slow
+def test_a_worker_stopped_before_the_sweep_is_named_within_the_timeout(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    # a worker stopped (SIGSTOP) or hung before the sweep: the check of the workers' gearctl waited for its answer
+    # for good (still waiting after 150 s). Now WORKER_TIMEOUT (60 s; 2 s here), and one line
+    import gearctl.parallel
+
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 2.0)
+    with _subprocess_cluster(tmp_path) as (address, procs):
+        os.killpg(procs[1].pid, signal.SIGSTOP)
+        t0 = time.monotonic()
+        with pytest.raises(gearctl.InputError, match=rf"the workers of {address} did not all answer within 2 s "
+                                                     r"\(stopped or hung") as e:
+            gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2, scheduler=address)
+        assert e.value.field == "scheduler" and time.monotonic() - t0 < 60.0
