@@ -744,7 +744,8 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     check_loop_memory(design.nominal, dur, ctrl.Ts)
     if {"estimate", "estimate_error"} & set(keys) and not _uses_estimate(ctrl):
         raise InputError(f"--vary {'estimate' if 'estimate' in keys else 'estimate_error'}: "
-                         f"{Path(label).stem} uses no backlash estimate (vary it for deadzone_inverse or mpc)",
+                         f"{Path(label).stem} uses no backlash estimate (vary it for a controller that takes one: "
+                         "deadzone_inverse, adaptive_inverse, reversal_offset or mpc)",
                          field="estimate")
     # the values of every run, drawn and checked here
     columns = _draw(varies, n, points, grid, seed)
