@@ -111,3 +111,21 @@ def test_a_step_on_an_instance_never_initialised_is_refused(tmp_path: Path, ctrl
     header = (d / "gearctl_ctrl.h").read_text()
     assert f"#define GEARCTL_STEP_NOT_INIT {code} " in header
     assert "GEARCTL_STEP_NOT_INIT" in (d / "README.md").read_text()
+
+
+@pytest.mark.parametrize("ctrl", ["pid", "deadzone_inverse", "adaptive_inverse", "reversal_offset", "mpc"])
+def test_the_header_promises_only_the_statuses_the_step_returns(ctrl: str) -> None:
+    # the PID family's step returns OK, BAD_INPUT or NOT_INIT (its run never flags a fallback): its header listed
+    # GEARCTL_STEP_FALLBACK among the returns, which an embedded engineer's harness then handled for nothing
+    from gearctl.export.emit import header_text
+    from gearctl.export.kinds import kind_spec
+
+    model = load_model("shing1993_servo")
+    plant = build_plant(model)
+    text = header_text(kind_spec(load_controller(ctrl, plant, sensors=model.sensors)))
+    returns = text[text.index("Returns GEARCTL_STEP_OK"):].split("*/")[0]
+    if ctrl == "mpc":
+        assert "GEARCTL_STEP_FALLBACK" in returns.split(";")[0] and "GEARCTL_STEP_FAULT" in returns
+    else:
+        assert "GEARCTL_STEP_FALLBACK" not in returns.split(";")[0]
+        assert "GEARCTL_STEP_BAD_INPUT" in returns and "GEARCTL_STEP_NOT_INIT" in returns

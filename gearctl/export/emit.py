@@ -149,14 +149,14 @@ def header_text(spec: KindSpec) -> str:
     if spec.prefix == "mpc":
         state += source_text("gcx_mpc_state.h")
     load = int(spec.uses_load_encoder)
-    returns = ("GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK, GEARCTL_STEP_BAD_INPUT\n"
-               " * or GEARCTL_STEP_NOT_INIT (c never set up by gearctl_ctrl_init)")
+    returns = ("GEARCTL_STEP_OK, GEARCTL_STEP_BAD_INPUT or GEARCTL_STEP_NOT_INIT\n"
+               " * (c never set up by gearctl_ctrl_init); GEARCTL_STEP_FALLBACK and _FAULT are the MPC's")
     if spec.prefix == "mpc":
         returns = ("GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK, GEARCTL_STEP_BAD_INPUT,\n"
                    " * GEARCTL_STEP_FAULT (the latched fault) or GEARCTL_STEP_NOT_INIT (c never set up by"
                    " gearctl_ctrl_init)")
     statuses = "GEARCTL_STEP_OK, _FALLBACK, _BAD_INPUT, _FAULT or _NOT_INIT" if spec.prefix == "mpc" else \
-        "GEARCTL_STEP_OK, _FALLBACK, _BAD_INPUT or _NOT_INIT"
+        "GEARCTL_STEP_OK, _BAD_INPUT or _NOT_INIT"
     if not spec.uses_load_encoder:
         load_rule = ""
     elif spec.prefix == "mpc":
