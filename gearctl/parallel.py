@@ -374,11 +374,10 @@ class Engine:
         """The workers the scheduler has not heard from for 10 s while others spoke (its heartbeats, by its clock),
         as far as it answers: those that did not answer, likely."""
         try:
-            seen = {w: float(d.get("last_seen") or 0.0) for w, d in
-                    self.client.sync(self.client.scheduler.identity, n_workers=-1,
-                                     callback_timeout=ANSWER_TIMEOUT)["workers"].items()}
+            workers = _scheduler_workers(self.client)
         except Exception:  # (a hint only)
             return []
+        seen = {w: float(d.get("last_seen") or 0.0) for w, d in (workers or {}).items()}
         latest = max(seen.values(), default=0.0)
         return sorted(w for w, t in seen.items() if latest - t > 10.0)
 
@@ -406,6 +405,18 @@ POLL = 1.0
 ANSWER_TIMEOUT = 5.0
 
 
+def _scheduler_workers(client: Any) -> dict | None:
+    """The scheduler's workers (address: its info), or None without an answer within :data:`ANSWER_TIMEOUT`.
+
+    ``client.scheduler_info()`` waits for the answer without end: a scheduler stopped mid-sweep (SIGSTOP, a paused
+    VM, a link cut without the connection closing) hung the sweep for good."""
+    try:
+        info = client.sync(client.scheduler.identity, n_workers=-1, callback_timeout=ANSWER_TIMEOUT)
+    except (TimeoutError, OSError):
+        return None
+    return dict(info.get("workers") or {})
+
+
 def completed(client: Any, futures: Sequence[Any], *,
               where: str = "the cluster") -> Iterator[tuple[Any, Any, BaseException | None]]:
     """``(future, result, None)`` or ``(future, None, exception)`` for each future as it finishes
@@ -422,22 +433,12 @@ def completed(client: Any, futures: Sequence[Any], *,
     alone_since: float | None = None
     silent_since: float | None = None
 
-    def workers_now() -> dict | None:
-        # the scheduler's workers, or None without an answer within ANSWER_TIMEOUT: client.scheduler_info() waited
-        # for it without end, and a scheduler stopped mid-sweep (SIGSTOP, a paused VM, a link cut without the
-        # connection closing) hung the sweep for good
-        try:
-            info = client.sync(client.scheduler.identity, n_workers=-1, callback_timeout=ANSWER_TIMEOUT)
-        except (TimeoutError, OSError):
-            return None
-        return dict(info.get("workers") or {})
-
     def watch(left: int) -> None:
         nonlocal checked, alone_since, silent_since
         now = time.monotonic()
         if now - checked < POLL:
             return
-        workers = workers_now()
+        workers = _scheduler_workers(client)
         checked = now = time.monotonic()
         if workers is None:
             if silent_since is None:

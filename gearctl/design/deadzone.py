@@ -198,14 +198,14 @@ CONTACT_LAG = 0.05
 #: A crossing ends at once where the predicted free load is farther than this many half lost motions from the
 #: motor (outside the gap, where no load can be: it met a flank).
 FREE_LOAD_REACH = 1.5
-#: Rattle guard: a motor speed jump above ``jump_threshold`` counts 1 in a level that decays by RATTLE_DECAY per
-#: sample; above RATTLE_LEVEL the feedback in contact is scaled by RATTLE_GAIN J1 / J_eq until the level drops
-#: below 1.
 #: At rest, a motor pressing against its held flank's direction this long [s] without moving is on the other flank
 #: (see *Pressing the other flank* in the module docstring) ...
 PRESS_TIME = 0.02
 #: ... where not moving is moving less than this share of the half gap (the load angle's ``offset``).
 PRESS_TRAVEL = 0.05
+#: Rattle guard: a motor speed jump above ``jump_threshold`` counts 1 in a level that decays by RATTLE_DECAY per
+#: sample; above RATTLE_LEVEL the feedback in contact is scaled by RATTLE_GAIN J1 / J_eq until the level drops
+#: below 1.
 RATTLE_DECAY, RATTLE_LEVEL, RATTLE_GAIN = 0.9, 3.0, 0.25
 #: ... but never while the motor's error exceeds this many lost motions (2 b / r_b2): a rattle in the gap cannot explain
 #: it. On a 5 um CNC table the softened loop left the start-up's mrad error to swing for a second (the
