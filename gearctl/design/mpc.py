@@ -295,7 +295,48 @@ model's dependence on ``phi`` is set to exactly none (the similarity transform l
 *Preview.* The MPC reads ``horizon + 1`` reference samples per step (``r(t)`` to ``r(t + N Ts)``, with the
 feedforward over the horizon): :attr:`MPC.preview` and ``describe()["preview"]`` say so, and the bench
 table shows it beside the PIDs' 1. It therefore starts moving up to ``horizon`` samples before a step of
-the reference, which a controller that reads ``r(t)`` only cannot.
+the reference, which a controller that reads ``r(t)`` only cannot (a step the plan cannot stop within its horizon is
+given to it as a profile that starts at the step: *Large steps*).
+
+*Large steps: a reference governor.* The plan sees ``horizon x Ts`` ahead (20 ms in the catalog). After a jump of
+the reference that saturates the torque, the stop takes longer than that, so the plan brakes late: on
+``shing1993_servo`` a 2 rad step peaked at 2.97 rad (48 % over) and a 20 rad one at 35.5 rad; on a reviewer's pair
+(``tests/data/reviewer_pair_24x72.toml``) with a horizon of 13 samples at 0.5 ms a 20 rad step peaked at 208 rad.
+The plan is therefore given a governed reference (:meth:`MPC._governed`; the exported C, ``gcx_mpc_govern``, does
+the same arithmetic). Let ``a_net`` be the load's acceleration the torque limit leaves after the model's Coulomb
+friction and load torque (``(u_max - T_c1 - (|tau_L| + T_c2) / N) / (N J_eq)``) and ``t_s = (horizon - n_cross) Ts``
+what the horizon leaves after a crossing of the gap. A sample ``k -> k + 1`` of the reference is given to the plan
+as it is where its angle jumps (beyond what its speeds explain, by the trapezoid rule) by at most ``a_net t_s^2``,
+its speed by at most ``a_net t_s`` (a jump the plan stops alone within its horizon at the torque limit), and its
+acceleration is at most ``a_net``. A reference made of such samples (the sine, the moves, the ramp, the catalog's
+0.05 rad step on ``shing1993_servo``) reaches the plan bit for bit as before; so does one that starts in motion (the
+sine) from a load within ``a_net t_s^2`` of it. Any other sample takes the governor off the reference: the governed
+angle then moves with the reference's own speed change (up to ``a_net`` in all) and closes on it with the discrete
+time-optimal profile, in the frame that moves with it (:func:`_governor_step`), at :data:`_GOVERNOR_SHARE` (a
+quarter) of ``a_net``, at most as fast as the speed at which the viscous friction leaves the profile that share, and
+at most ``a_net t_s^2`` and ``a_net t_s`` ahead of the load's estimated angle and speed (a load that lags the profile
+holds it back, so the plan is never asked to catch up more than it stops within its horizon). It is back on the
+reference at the sample where it comes within ``a_net Ts^2`` and ``a_net Ts`` of it (what the plan takes in a
+sample). The governor is run over the whole preview each step (``horizon`` samples, a bounded loop), so the plan sees
+the profile's stop as it saw the reference's.
+
+Why a reference governor: it leaves the QP, its tables and a feasible reference as they were, and makes every stop
+the plan is asked for one it sees within its horizon. Why a quarter of ``a_net`` (the share a planned crossing
+uses): with half, the plan could not follow the profile on two review models (each reversal of the torque is a
+crossing it lands softly), fell behind and caught up late: 2 rad steps 22 % over on the reviewer's pair and 14 % on
+``tests/data/tight_torque_servo.toml``; with a quarter, 0.2 % and 0.1 %. Why the reference's own jumps up to what
+the plan stops alone pass: governed, the catalog's 0.05 rad step ends on the braking flank, and its 0.5 N m load
+step then needs a crossing (largest error 1.5 mrad before, 2.9 governed). Measured, overshoot of a step through
+:func:`~gearctl.closedloop.simulate_closed_loop`, before / after (the PID): ``shing1993_servo`` 0.2 rad 2.4 / 0.0 %
+(7.3), 2 rad 48 / 0.0 % (40), 20 rad 77 / 0.0 % (71); the reviewer's pair 18 / 8.7 % (6.3), 33 / 0.2 % (39),
+55 / 0.0 % (62), with horizon 13 at 0.5 ms 76 / 0.4, 96 / 0.1, 939 / 0.0 %; ``tight_torque_servo`` 21 / 0.6 % (8.9),
+55 / 0.0 % (35), 54 / 0.0 % (76); ``servo_3stage_quanser_srv02`` 9.2 / 0.5 % (4.3), 20 / 0.0 % (15), 6.1 / 0.0 %
+(5.6). A 2 rad step added to the 1 Hz sine at 0.3 s went 0.97 rad past the reference on ``shing1993_servo``, now
+0.3 mrad; on ``tests/data/coarse_encoders_train.toml`` (a weak drive: a quarter of its 6.7 rad/s^2 is below the
+sine's 3.9) 0.10 rad, now 0.24 mrad. The price: a governed step is slower to start than the plan's own (0.2 rad on
+``shing1993_servo`` within 2 % after 93 ms, 61 ms before), while the large ones settle sooner (2 rad: 295 against
+381 ms; 20 rad: 0.94 against 3.0 s). The plan's own small steps are not changed: on the reviewer's pair a 0.01 rad
+step still overshoots 17 % and a 0.05 rad one 30 % (landings, not the horizon).
 
 *A solver plugin that is not installed* is an :class:`~gearctl.errors.InputError` when the controller is
 built (not a silent switch to another solver, which would make the solve-time figures describe a
@@ -761,6 +802,10 @@ _STALL_SHARE = 0.25  # ... if the gap stopped within this share of the flank
 _AT_LIMIT = 0.999999999999  # a planned torque within 1e-12 of the limit is at the QP's bound: the limit exactly
 _SMOOTHING_DEFAULT_SHARE = 0.25  # without a smoothing in the file: at most this share of that mesh torque
 _SMOOTHING_SHARE = 0.5  # smoothing may be at most this share of the mesh torque the torque limit gives the load
+_GOVERNOR_SHARE = 0.25  # the reference governor's profile accelerates and brakes the load with this share of what the
+# torque limit leaves after the model's friction and load torque (see *Large steps*)
+_GOVERNOR_PASS = 1.0  # the plan is given a jump of the reference as it is where it stops it within its horizon
+# (after a crossing) at this share of that acceleration
 
 
 def _pattern_keys(n: int, n_cross: int, rigid: bool) -> list[tuple[int, int]]:
@@ -808,6 +853,32 @@ def _check_pattern_memory(n: int, n_cross: int, rigid: bool, cross_steps: float)
     raise InputError(f"horizon = {n} samples: the MPC's {_pattern_count(n, n_cross, rigid):,} condensed QPs would take "
                      f"about {need / 1e9:.3g} GB, more than the {cap / 1e9:.3g} GB this run may use ({why}); {ask} "
                      f"(or a longer sample_time, which shortens the crossing in samples)", field="horizon")
+
+
+def _governor_step(g: float, w: float, rd0: float, r1: float, rd1: float, a: float, a_max: float, v_max: float,
+                   Ts: float) -> tuple[float, float]:
+    """One sample of the reference governor's profile while it is off the reference (see *Large steps*).
+
+    From the governed angle ``g`` and speed ``w`` at a sample (where the reference's speed is ``rd0``), the governed
+    angle and speed at the next one [rad, rad/s], towards the reference ``r1`` that moves on at ``rd1`` from there.
+    The profile moves with the reference's own speed change (at most ``a_max - a`` of it per second, so that its
+    speed changes by at most ``a_max`` [rad/s^2] in all) and closes on it with the discrete time-optimal profile at
+    ``a`` [rad/s^2] in the frame that moves with the reference, at most ``v_max`` fast [rad/s]: braking at ``a``
+    from the closing speed ``a Ts m`` covers ``a Ts^2 m (m + 1) / 2`` including this sample's move, hence ``m``;
+    within a sample of the reference the profile steps onto it (on a reference at rest the last sample may pass it
+    by up to ``a Ts^2 / 8``: the sample before cannot brake quite enough). The exported C
+    (``gcx_mpc_governor_step``) does the same arithmetic in the same order.
+    """
+    E = r1 - g - Ts * rd1  # how far the reference leads, in the frame moving with it
+    aT = a * Ts
+    e = abs(E)
+    m = 0.5 * (math.sqrt(1.0 + 8.0 * e / (aT * Ts)) - 1.0)
+    y = math.copysign(min(aT * m, e / Ts), E)  # the closing speed that still stops on the reference
+    fT = (a_max - a) * Ts
+    y0 = w + min(max(rd1 - rd0, -fT), fT) - rd1  # the closing speed if the profile moved with the reference
+    y1 = y0 + min(max(y - y0, -aT), aT)
+    w1 = min(max(rd1 + y1, -v_max), v_max)
+    return g + Ts * w1, w1
 
 
 def _clip_torque(u: float, umax: float) -> float:
@@ -1035,6 +1106,20 @@ class MPC(Controller):
         # (at most the horizon and one: a crossing the horizon cannot hold is planned as one that ends beyond it)
         self.n_cross = 0 if self._rigid else max(2, _samples(t_cross / Ts, n + 1))
         self.n_lead = self.n_cross // 2
+        # the reference governor (see *Large steps*): the load's acceleration the torque limit leaves after the
+        # model's friction and load torque, the governed profile's share of it, the jumps of the reference the plan
+        # is left to stop alone within its horizon (after a crossing), and the speed at which the viscous friction
+        # leaves the profile's share to accelerate
+        u_net = self._umax - p.tc1 - (abs(p.load_torque) + p.tc2) / self._ratio
+        t_stop = (n - self.n_cross) * Ts
+        self._a_net = u_net / (info.J_eq * self._ratio)  # [rad/s^2] at the load
+        self._a_gov = _GOVERNOR_SHARE * self._a_net
+        self._gov_on = u_net > 0.0 and self._a_gov * Ts * Ts >= 1e-250 and math.isfinite(self._a_gov)
+        a_pass = _GOVERNOR_PASS * self._a_net
+        self._dv_pass = a_pass * t_stop  # [rad/s]
+        self._dp_pass = a_pass * t_stop * t_stop  # [rad]
+        self._v_gov = ((1.0 - _GOVERNOR_SHARE) * u_net / (info.d_eq * self._ratio) if info.d_eq > 0.0 and u_net > 0.0
+                       else math.inf)  # [rad/s] at the load
         # the readings' gate: along the line of action, what the torque limit can move the motor in one sample
         # (from full torque one way to full the other) plus twice the lost motion (the gap prediction may be off
         # by the whole gap, at an impact, and the backlash estimate by its size); on each shaft [rad], plus twice the
@@ -1289,6 +1374,7 @@ class MPC(Controller):
         self._ref: ReferenceLike | None = None
         self._blk_t0 = 0.0
         self._blk_len = 0
+        self._gov: tuple[float, float, bool] | None = None  # the governor at t: angle, speed, on the reference
         self._qp.reset()  # the solver's own state too (OSQP's workspace): a reused MPC runs as a new one
 
     def _preview(self, t: float, ref: ReferenceLike) -> int:
@@ -1303,8 +1389,15 @@ class MPC(Controller):
         tt = t + self.Ts * np.arange(self._blk_len)
         r, rd, rdd = (np.asarray(v, dtype=float) for v in ref.at(tt))
         info = self.info
-        self._R, self._Rd = r, rd
+        self._R, self._Rd, self._Rdd = r, rd, rdd
         self._FF = FF = self._ratio * (info.J_eq * rdd + info.d_eq * rd)  # rigid-train torque, without the load
+        # the reference governor: the samples k -> k + 1 the plan is given as they are (a jump of the angle beyond
+        # what the reference's speeds explain, or of the speed, that the plan stops alone within its horizon, and
+        # an acceleration the torque limit gives), counted so that a window is checked at once
+        ok = ((np.abs(r[1:] - r[:-1] - 0.5 * self.Ts * (rd[:-1] + rd[1:])) <= self._dp_pass)
+              & (np.abs(rd[1:] - rd[:-1]) <= self._dv_pass) & (np.abs(rdd[1:]) <= self._a_net))
+        self._gov_ok = ok
+        self._gov_bad = np.concatenate(([0], np.cumsum(~ok)))
         # per sample i, the preview the parameter vector needs: r_{i+1..i+N}, r'_{i+N}, FF_{i..i+N-1}
         L = self._blk_len - n - 1
         win = np.empty((L, 2 * n + 1))
@@ -1314,6 +1407,59 @@ class MPC(Controller):
         win[:, n + 1:] = sw(FF, n)[:L]
         self._win = win
         return 0
+
+    def _governed(self, i: int, z: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray] | None:
+        """The reference governor (see *Large steps*): the reference the plan is given over the preview.
+
+        ``None`` where it is the reference itself over the whole preview (the governor on the reference, every
+        sample ``k -> k + 1`` of the preview one the plan is given as it is); else the governed angle, speed (samples
+        ``0..N``) and acceleration (``0..N-1``) [rad, rad/s, rad/s^2]. Off the reference, the profile follows
+        :func:`_governor_step`; it is back on the reference at the sample where it is within ``a Ts^2`` and ``a Ts`` of
+        it (and the reference's acceleration is one the torque limit gives). Advances the governor by one sample.
+        """
+        if not self._gov_on:
+            return None
+        n, Ts, m = self.N, self.Ts, self.model
+        R, Rd, Rdd = self._R, self._Rd, self._Rdd
+        if self._gov is None:  # the first sample: on the reference if the plan can take its angle from the load's
+            # estimate (a reference that starts in motion, as the sine does, is the plan's to catch)
+            th2 = float(z[0]) / m.N - m.kappa2 * float(z[2])
+            om2 = float(z[1]) / m.N - m.kappa2 * float(z[3])
+            on = abs(float(R[i]) - th2) <= self._dp_pass and abs(float(Rdd[i])) <= self._a_net
+            self._gov = (float(R[i]), float(Rd[i]), True) if on else (th2, om2, False)
+        g, w, on = self._gov
+        if on and self._gov_bad[i + n] == self._gov_bad[i]:  # the reference as it is over the whole preview
+            return None
+        if on:  # (the reference at t as this step reads it)
+            g, w = float(R[i]), float(Rd[i])
+        else:  # off the reference: at most what the plan stops within its horizon ahead of the load's estimate
+            th2 = float(z[0]) / m.N - m.kappa2 * float(z[2])
+            om2 = float(z[1]) / m.N - m.kappa2 * float(z[3])
+            g = min(max(g, th2 - self._dp_pass), th2 + self._dp_pass)
+            w = min(max(w, om2 - self._dv_pass), om2 + self._dv_pass)
+        # back on the reference within what the plan takes in a sample at the torque limit
+        a, aTT, aT = self._a_gov, self._a_net * Ts * Ts, self._a_net * Ts
+        gr, gd, gdd = np.empty(n + 1), np.empty(n + 1), np.empty(n)
+        gr[0], gd[0] = g, w
+        ok = self._gov_ok
+        for k in range(n):
+            j = i + k
+            w0 = w
+            if on and ok[j]:
+                g, w = float(R[j + 1]), float(Rd[j + 1])
+                gdd[k] = Rdd[j]
+            else:
+                g, w = _governor_step(g, w, float(Rd[j]), float(R[j + 1]), float(Rd[j + 1]), a, self._a_net,
+                                      self._v_gov, Ts)
+                on = (abs(g - float(R[j + 1])) <= aTT and abs(w - float(Rd[j + 1])) <= aT
+                      and abs(float(Rdd[j + 1])) <= self._a_net)
+                if on:  # back on the reference
+                    g, w = float(R[j + 1]), float(Rd[j + 1])
+                gdd[k] = (w - w0) / Ts
+            gr[k + 1], gd[k + 1] = g, w
+            if k == 0:
+                self._gov = (g, w, on)
+        return gr, gd, gdd
 
     def _observe(self, y_motor: float, y_load: float | None) -> str | None:
         """Update ``self._z = [phi, omega, s, v, d]`` from the encoders (scalar arithmetic: 5 states).
@@ -1476,14 +1622,15 @@ class MPC(Controller):
         self._brake[:] = (y0, k0, dy, w)
         return min(max(-self.info.J_eq * w / _BRAKE_TIME, -self._umax), self._umax) + 0.0  # + 0.0: never -0.0
 
-    def _planned_load_friction(self, i: int) -> float:
+    def _planned_load_friction(self, i: int, rd: NDArray[np.float64] | None = None) -> float:
         """The load's Coulomb friction over the horizon [N m] (see *Friction*): the mean of ``-T_c2 sgn`` over the
         previewed reference ``r'_{i+1..i+N}``, where ``sgn`` is the sign of ``r'`` or, where the reference rests, of
         its last motion (the friction that held the load when it stopped). Also sets the friction the observer
-        predicts the next sample with, that of ``r'_i``."""
+        predicts the next sample with, that of ``r'_i``. ``rd``: the governed speeds from sample ``i`` on (default:
+        the reference's)."""
         if self._tc2 == 0.0:
             return 0.0
-        rd = self._Rd
+        rd = self._Rd if rd is None else rd
         d = self._dir = (1.0 if rd[i] > 0.0 else -1.0) if rd[i] != 0.0 else self._dir
         self._f2 = -self._tc2 * d
         total = 0.0
@@ -1500,7 +1647,7 @@ class MPC(Controller):
         w1 = float(z[1]) + self.model.kappa1 * float(z[3])
         return -self._tc1 * min(max(w1 / self._w_friction, -1.0), 1.0)
 
-    def _holding(self, i: int, z: NDArray[np.float64]) -> bool:
+    def _holding(self, i: int, z: NDArray[np.float64], gov: tuple[NDArray, NDArray, NDArray] | None = None) -> bool:
         """Whether the plan holds at standstill (see *Standstill* in the module docstring).
 
         True while the previewed reference rests, the load is slow (its speed would not take it a deadband
@@ -1508,10 +1655,15 @@ class MPC(Controller):
         :data:`_STANDSTILL_RELEASE` deadbands. A hold does not start during a landing planned in motion (its
         landing-speed bound would shrink under it). Updates the hold flag.
         """
-        win = self._win[i]
         n = self.N
-        r = self._R[i]
-        if win[n] != 0.0 or not (win[:n] == r).all():
+        if gov is None:
+            win = self._win[i]
+            r = self._R[i]
+            moves = win[n] != 0.0 or not (win[:n] == r).all()
+        else:  # the governed reference (see *Large steps*)
+            r = gov[0][0]
+            moves = gov[1][n] != 0.0 or not (gov[0][1:] == r).all()
+        if moves:
             self._held = False
             return False
         if not self._held and self._land is not None:  # a landing under way is finished first
@@ -1655,16 +1807,23 @@ class MPC(Controller):
             return u
         z = self._z
         assert z is not None  # _observe set it (a latched fault returned above)
-        tau = self._tau_load + float(z[4]) + self._planned_load_friction(i)
+        gov = self._governed(i, z)  # the reference the plan is given (see *Large steps*)
+        tau = self._tau_load + float(z[4]) + self._planned_load_friction(*((i,) if gov is None else (0, gov[1])))
         # the QP sees angles from an origin, the reference at t: its data do not grow with the absolute angle
         # (at 1e4 rad a double's spacing is 1.8e-12 rad; the QP's gradient would otherwise sum terms of the size of
         # the angle times the tracking weight, which cancel), so a run at any offset equals the run at zero
-        origin = float(self._R[i])
+        origin = float(self._R[i]) if gov is None else float(gov[0][0])
         p = self._p
         p[:4] = z[:4]
         p[0] = float(z[0]) - self._ratio * origin
         p[4] = tau
-        p[6:7 + 2 * n] = self._win[i]  # r_1..r_N, r'_N, FF_0..FF_{N-1}
+        if gov is None:
+            p[6:7 + 2 * n] = self._win[i]  # r_1..r_N, r'_N, FF_0..FF_{N-1}
+        else:
+            gr, gd, gdd = gov
+            p[6:6 + n] = gr[1:]
+            p[6 + n] = gd[n]
+            p[7 + n:7 + 2 * n] = self._ratio * (self.info.J_eq * gdd + self.info.d_eq * gd[:n])
         p[6:6 + n] -= origin
         qp = self._qp
         qp.x0[:-1] = self._plan[1:]  # warm start: the previous plan, shifted
@@ -1687,7 +1846,7 @@ class MPC(Controller):
                 side, self._overdue = sig, 0
         else:
             self._overdue = 0
-        hold = not self._rigid and self._holding(i, z)
+        hold = not self._rigid and self._holding(i, z, gov)
         # the QP plans the torque that acts on the motor, the drive's plus the model's Coulomb friction there
         # (constant over the horizon; see *Friction*): its bounds, and the last torque, move with the friction
         f1 = 0.0 if hold else self._motor_friction(z)
@@ -1816,5 +1975,8 @@ class MPC(Controller):
         return {"name": self.name, "kind": "mpc", "Ts": self.Ts, "preview": self.preview, **d,
                 "qp_solver": self._qp.plugin, "compiled": self._qp.compiled, "solver_note": self._qp.note,
                 "crossing_samples": self.n_cross, "patterns": len(self._patterns),
+                "governor": ({"acceleration": self._a_gov, "max_speed": self._v_gov if math.isfinite(self._v_gov)
+                              else None, "jump": self._dp_pass, "speed_jump": self._dv_pass}
+                             if self._gov_on else None),
                 "gap_model": "rigid" if self._rigid else "gap", "rigid_reason": self.rigid_reason,
                 "design_notes": list(self.design_notes)}

@@ -71,11 +71,12 @@ _struct("gcx_ada_p", [("inv", "gcx_inv_p"), ("rb1", "double"), ("rb2", "double")
         + [("converged_measurements", "int")])
 _struct("gcx_mpc_p", [
     ("n_pat", "int"), ("n_p", "int"), ("all_contact", "int"), ("rigid", "int"), ("uses_load", "int"),
-    ("n_cross", "int"), ("n_lead", "int"), ("bound_landing", "int"),
+    ("n_cross", "int"), ("n_lead", "int"), ("bound_landing", "int"), ("gov_on", "int"),
     *[(f, "double") for f in ("Ts", "b", "tol", "umax", "tau_load", "rb1", "rb2", "kappa1", "kappa2", "ratio",
                               "J_eq", "d_eq", "impact_innovation", "flicker_innovation", "flicker_return", "a_max",
                               "v_land", "f_land", "deadband", "cross_share", "learn_below", "tc1", "w_friction", "tc2",
-                              "gap_limit", "gate_motor", "gate_load", "c_centre")],
+                              "gap_limit", "gate_motor", "gate_load", "c_centre", "a_net", "a_gov", "dp_pass",
+                              "dv_pass", "v_gov")],
     ("gap_rows", "double[12]"), ("centre_rows", "double[7]"), ("Lc", "double[3]"), ("Lg_small", "double[2]"),
     ("Lg_big", "double[2]"),
     ("pat_index", "const int16_t *"), ("has_landing", "const int8_t *"), ("land_row", "const int16_t *"),

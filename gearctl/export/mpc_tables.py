@@ -112,6 +112,8 @@ def mpc_values(c: MPC) -> tuple[dict[str, Any], dict[str, int]]:
         "learn_below": getattr(c, "_learn_below", c._b - c._tol), "tc1": c._tc1, "w_friction": c._w_friction,
         "tc2": c._tc2, "gap_limit": c.gap_limit,
         "gate_motor": c.reading_gate[0], "gate_load": c.reading_gate[1], "c_centre": c._c_centre,
+        "gov_on": int(c._gov_on), "a_net": c._a_net, "a_gov": c._a_gov, "dp_pass": c._dp_pass, "dv_pass": c._dv_pass,
+        "v_gov": c._v_gov,
         "gap_rows": list(c._gap_rows), "centre_rows": list(c._centre_rows), "Lc": list(c._Lc),
         "Lg_small": list(c._Lg[0]), "Lg_big": list(c._Lg[1]),
         "pat_index": CArray("gcx_pat_index", "int16_t", pat_index),

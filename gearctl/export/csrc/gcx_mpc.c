@@ -388,6 +388,80 @@ GCX_FN double gcx_mpc_planned_load_friction(const gcx_mpc_p *P, gcx_mpc_s *S, co
     return -P->tc2 * total / n;
 }
 
+/* mpc.py: _governor_step -- one sample of the reference governor's profile off the reference: with the reference's
+ * own speed change (at most a_net - a_gov of it), and closing on r1, which moves on at rd1, at a_gov (the discrete
+ * time-optimal profile that can always stop on the moving reference), at most v_gov fast */
+GCX_FN void gcx_mpc_governor_step(const gcx_mpc_p *P, double *g, double *w, double rd0, double r1, double rd1) {
+    double Ts = P->Ts;
+    double E = r1 - *g - Ts * rd1; /* how far the reference leads, in the frame moving with it */
+    double aT = P->a_gov * Ts;
+    double e = fabs(E);
+    double m = 0.5 * (sqrt(1.0 + 8.0 * e / (aT * Ts)) - 1.0);
+    double y = copysign(gcx_min(aT * m, e / Ts), E); /* the closing speed that still stops on the reference */
+    double fT = (P->a_net - P->a_gov) * Ts;
+    double y0 = *w + gcx_min(gcx_max(rd1 - rd0, -fT), fT) - rd1; /* the closing speed moving with the reference */
+    double y1 = y0 + gcx_min(gcx_max(y - y0, -aT), aT);
+    double w1 = gcx_min(gcx_max(rd1 + y1, -P->v_gov), P->v_gov);
+    *g = *g + Ts * w1;
+    *w = w1;
+}
+
+/* mpc.py: the reference governor's test of a sample k -> k + 1 of the reference (MPC._preview's _gov_ok): a jump of
+ * the angle beyond what the speeds explain, or of the speed, that the plan stops alone within its horizon, and an
+ * acceleration the torque limit gives */
+GCX_FN int gcx_mpc_governor_ok(const gcx_mpc_p *P, const double *r0, const double *r1) {
+    return fabs(r1[0] - r0[0] - 0.5 * P->Ts * (r0[1] + r1[1])) <= P->dp_pass && fabs(r1[1] - r0[1]) <= P->dv_pass &&
+           fabs(r1[2]) <= P->a_net;
+}
+
+/* MPC._governed: the reference the plan is given over the preview, ref itself or S->gref (laid out as ref: angle,
+ * speed, acceleration per sample); advances the governor by one sample */
+GCX_FN const double *gcx_mpc_govern(const gcx_mpc_p *P, gcx_mpc_s *S, const double *ref) {
+    const int n = GCX_MPC_N;
+    if (!P->gov_on) return ref;
+    double Ts = P->Ts;
+    if (!S->gov_set) { /* the first sample: on the reference if the plan can take its angle from the load's estimate */
+        double th2 = S->z[0] / P->ratio - P->kappa2 * S->z[2];
+        double om2 = S->z[1] / P->ratio - P->kappa2 * S->z[3];
+        int on = fabs(ref[0] - th2) <= P->dp_pass && fabs(ref[2]) <= P->a_net; /* a start in motion: the plan's */
+        S->gov_set = 1, S->gov_on = on;
+        S->gov_g = on ? ref[0] : th2, S->gov_w = on ? ref[1] : om2;
+    }
+    int on = S->gov_on;
+    double g = S->gov_g, w = S->gov_w;
+    if (on) {
+        int all = 1;
+        for (int k = 0; k < n && all; k++) all = gcx_mpc_governor_ok(P, ref + 3 * k, ref + 3 * (k + 1));
+        if (all) return ref; /* the reference as it is over the whole preview */
+        g = ref[0], w = ref[1];
+    } else { /* off the reference: at most what the plan stops within its horizon ahead of the load's estimate */
+        double th2 = S->z[0] / P->ratio - P->kappa2 * S->z[2];
+        double om2 = S->z[1] / P->ratio - P->kappa2 * S->z[3];
+        g = gcx_min(gcx_max(g, th2 - P->dp_pass), th2 + P->dp_pass);
+        w = gcx_min(gcx_max(w, om2 - P->dv_pass), om2 + P->dv_pass);
+    }
+    double aTT = P->a_net * Ts * Ts, aT = P->a_net * Ts; /* back on the reference: what the plan takes in a sample */
+    double *G = S->gref;
+    G[0] = g, G[1] = w;
+    for (int k = 0; k < n; k++) {
+        const double *r0 = ref + 3 * k, *r1 = ref + 3 * (k + 1);
+        double w0 = w;
+        if (on && gcx_mpc_governor_ok(P, r0, r1)) {
+            g = r1[0], w = r1[1];
+            G[3 * k + 2] = r0[2];
+        } else {
+            gcx_mpc_governor_step(P, &g, &w, r0[1], r1[0], r1[1]);
+            on = fabs(g - r1[0]) <= aTT && fabs(w - r1[1]) <= aT && fabs(r1[2]) <= P->a_net;
+            if (on) g = r1[0], w = r1[1]; /* back on the reference */
+            G[3 * k + 2] = (w - w0) / Ts;
+        }
+        G[3 * (k + 1)] = g, G[3 * (k + 1) + 1] = w;
+        if (k == 0) S->gov_g = g, S->gov_w = w, S->gov_on = on;
+    }
+    G[3 * n + 2] = 0.0; /* (not read: the feedforward runs to sample N - 1) */
+    return G;
+}
+
 /* MPC.step; returns 1 when the solve failed and the previous plan's next input was applied, or a reading
  * was missing or rejected (the plan ran on the prediction) */
 GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double y[2], const double *ref,
@@ -404,6 +478,7 @@ GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double
         return 3; /* GEARCTL_STEP_FAULT */
     }
     double *z = S->z, *p = S->p;
+    ref = gcx_mpc_govern(P, S, ref); /* the reference the plan is given (mpc.py: *Large steps*) */
     double tau = P->tau_load + z[4] + gcx_mpc_planned_load_friction(P, S, ref);
     double origin = ref[0]; /* the QP's angles from the reference at t: the same data at any offset */
     p[0] = z[0] - P->ratio * origin, p[1] = z[1], p[2] = z[2], p[3] = z[3];

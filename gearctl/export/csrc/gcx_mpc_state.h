@@ -29,6 +29,9 @@ typedef struct {
     int fault;              /* latched: the motor braked, then zero torque (MPC.fault) */
     double brake_y, brake_dy, brake_w; /* after a fault: last motor reading, its step, the speed (MPC._brake) */
     int64_t brake_k;        /* the sample of the last motor reading's change */
+    int gov_set, gov_on;    /* the reference governor (MPC._gov): started; on the reference */
+    double gov_g, gov_w;    /* ... the governed angle [rad] and speed [rad/s] at the step's sample */
+    double gref[3 * (GCX_MPC_N + 1)]; /* the governed reference over the preview, laid out as the step's ref */
     /* QP buffers */
     double g[GCX_MPC_N], lbx[GCX_MPC_N], ubx[GCX_MPC_N], lba[GCX_MPC_N + 2], uba[GCX_MPC_N + 2];
     double x[GCX_MPC_N], lam_x[GCX_MPC_N], lam_a[GCX_MPC_N + 2], cost;
