@@ -180,6 +180,27 @@ def test_a_reference_the_plan_can_follow_reaches_it_as_it_is(kind: str) -> None:
     np.testing.assert_array_equal(on.command, off.command)
 
 
+def test_a_ramp_faster_than_the_plan_stops_is_left_to_the_plan() -> None:
+    # a jump of the reference's speed alone is the plan's: a profile off the reference would brake a 20 rad/s ramp's
+    # end at a quarter of the drive's acceleration (2.6 rad past it) where the plan brakes at the limit (0.37 rad)
+    m, sp, c = _loop("shing1993_servo")
+    ref = Reference(kind="ramp", amplitude=20.0, rate=20.0)
+    on = simulate_closed_loop(sp, c, ref, 1.5, sensors=m.sensors)
+    c._gov_on = False
+    off = simulate_closed_loop(sp, c, ref, 1.5, sensors=m.sensors)
+    np.testing.assert_array_equal(on.command, off.command)
+    assert _load_angle(on).max() - 20.0 <= 0.5
+
+
+def test_a_move_beyond_the_drive_is_governed() -> None:
+    # 1e4 rad/s^2 against the 296 the drive gives the load: the plan chased it and went 10.4 rad past its end
+    m, sp, c = _loop("shing1993_servo")
+    ref = Reference(kind="move", amplitude=20.0, rate=50.0, accel=1e4, profile="trapezoid")
+    run = simulate_closed_loop(sp, c, ref, 1.5, sensors=m.sensors)
+    y = _load_angle(run)
+    assert y.max() <= 20.0 + 1e-3 and abs(y[-1] - 20.0) <= 1e-3
+
+
 def test_describe_states_the_governor_as_json() -> None:
     d = _loop("shing1993_servo")[2].describe()["governor"]
     json.dumps(d, allow_nan=False)
