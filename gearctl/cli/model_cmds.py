@@ -104,7 +104,7 @@ def _print_stage(s: dict[str, Any], indent: str = "  ") -> None:
         ("eq 38, consistent form" + (", on the equivalent mass with the shafts" if with_shafts else ""))
     print(f"{indent}damping coefficient    {s['damping_coefficient']:.5g} N s/m ({how})")
     print(f"{indent}Yang-Sun stiffness     {s['yang_sun_stiffness']:.5g} N/m (eq 39)")
-    print(f"{indent}backlash                {s['backlash'] * 1e6:.4g} um along the line of action")
+    print(f"{indent}backlash               {s['backlash'] * 1e6:.4g} um along the line of action")
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
@@ -311,7 +311,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
               f"omega1 {f['omega1']:.6g} rad/s, omega2 {f['omega2']:.6g} rad/s, {summary['final_mode']}")
     else:
         for i, c in enumerate(summary["impacts"], start=1):
-            print(f"  stage {i} impacts       front {c['front']}, back {c['back']}, "
+            print(f"  stage {i} impacts        front {c['front']}, back {c['back']}, "
                   f"final {summary['final_mode'][i - 1]}")
         print(f"  fastest impact         {summary['max_impact_velocity']:.4g} m/s; max penetration "
               f"{res.max_penetration * 1e6:.4g} um (|s| - b)")
