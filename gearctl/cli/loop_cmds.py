@@ -38,9 +38,24 @@ from .common import (
 __all__ = ["register"]
 
 
+def _refuse_backlash_twice(args: argparse.Namespace) -> None:
+    """``--backlash`` beside ``--set backlash=...`` (or a stage's): two values for one key, refused by name.
+
+    ``--backlash`` sets the plant's backlash after the ``--set`` keys, so the ``--set`` value was dropped without a
+    word (``track ... --backlash 1e-5 --set backlash=2e-5`` ran the 10 um plant).
+    """
+    keys = [k for k, _ in args.set if k == "backlash" or k.endswith(".backlash")]
+    if args.backlash is not None and keys:
+        raise InputError(f"--backlash {args.backlash:g} and --set {keys[0]}=...: both set the true plant's backlash "
+                         "(--backlash the model's, design included; --set the true plant's alone): give one; for a "
+                         "design estimate other than the true backlash use --estimate B with --set backlash=...",
+                         field="backlash")
+
+
 def _cmd_track(args: argparse.Namespace) -> int:
     from ..runs import design_controller, execute, make_run, unholdable_load_step
 
+    _refuse_backlash_twice(args)
     if args.exported is not None and args.estimate is not None:
         raise InputError("--estimate and --exported: an exported controller runs with the numbers it was exported "
                          "with; export it again with `gearctl export ... --estimate B`", field="estimate")
@@ -141,6 +156,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     from ..precision import precision_health, precision_test
     from ..runs import true_model as true_model_of
 
+    _refuse_backlash_twice(args)
     model = load_model(args.model)
     true_model = true_model_of(args.model, model, dict(args.set), args.plant) if args.set else model
     nominal = build_plant(model, backlash=args.backlash)
