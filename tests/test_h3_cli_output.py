@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 
@@ -70,3 +71,69 @@ def test_set_backlash_alone_still_changes_the_plant(capsys: pytest.CaptureFixtur
     assert main(["track", "shing1993_servo", "pid", "--backlash", "2e-5", "--set", "load_inertia=1.1x",
                  "--duration", "0.5", "--json"]) == 0  # --set of another key beside --backlash is fine
     assert json.loads(capsys.readouterr().out)["backlash"] == 2e-5
+
+
+# ---- outputs that cannot be written are refused before the work --------------------------------------------------
+
+def _blocked(tmp_path: Path, name: str) -> str:
+    """A path under a plain file: no folder can be made there, on any system and for any user (root included)."""
+    (tmp_path / "a_file").write_text("x")
+    return str(tmp_path / "a_file" / name)
+
+
+def test_write_model_into_missing_folder_refused_before_identifying(tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "log.csv"
+    assert main(["excite", "shing1993_servo_friction", "--out", str(log)]) == 0
+    capsys.readouterr()
+    # identified first (results printed, 1.5 s here, minutes on a long log), then "does not exist (create it first)"
+    rc = main(["identify", str(log), "--model", "shing1993_servo_friction",
+               "--write-model", str(tmp_path / "no_such_folder" / "mine.toml")])
+    out, err = capsys.readouterr()
+    assert rc == 2 and out == ""
+    assert err.count("\n") == 1 and "--write-model" in err and "does not exist" in err
+    assert not (tmp_path / "no_such_folder").exists()
+    # into a folder that exists it writes, as before
+    assert main(["identify", str(log), "--model", "shing1993_servo_friction",
+                 "--write-model", str(tmp_path / "mine.toml")]) == 0
+    assert (tmp_path / "mine.toml").is_file()
+
+
+#: per command, the function that does its work: the test makes it fail, so a refusal must come before it
+_WORK = {"track": "gearctl.runs.execute", "precision": "gearctl.precision.precision_test",
+         "simulate": "gearctl.simulate.report_case", "linearize": "gearctl.modes.linearize_modes",
+         "export": "gearctl.export.export_controller", "excite": "gearctl.excite.record_excitation"}
+
+
+@pytest.mark.parametrize("argv", [
+    ["track", "shing1993_servo", "pid", "--plot", "{blocked}"],
+    ["track", "shing1993_servo", "pid", "--csv", "{blocked}"],
+    ["precision", "shing1993_servo", "pid", "--cycles", "1", "--plot", "{blocked}"],
+    ["simulate", "shing1993", "--csv", "{blocked}"],
+    ["linearize", "shing1993_servo", "--bode", "{blocked}"],
+    ["export", "shing1993_servo", "pid", "--out", "{blocked}"],
+    ["excite", "shing1993_servo_friction", "--out", "{blocked}"],
+])
+def test_unwritable_output_refused_before_the_run(argv: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    # each ran its whole work (a precision test, an export's recorded vectors, a long track) and only then found it
+    # could not write (a traceback-free line, exit 2, but the run was lost)
+    def started(*a: object, **k: object) -> None:
+        raise AssertionError("the work started before the output was checked")
+
+    monkeypatch.setattr(_WORK[argv[0]], started)
+    blocked = _blocked(tmp_path, "x.png" if "--plot" in argv or "--bode" in argv else "x.csv")
+    rc = main([a.replace("{blocked}", blocked) for a in argv])
+    out, err = capsys.readouterr()
+    assert rc == 2 and out == ""
+    assert err.count("\n") == 1 and "Traceback" not in err and "cannot write" in err
+
+
+def test_excite_out_is_a_file_and_export_out_a_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # excite --out names the log (an existing one is replaced), export --out a folder (made, with the ones above it)
+    log = tmp_path / "log.csv"
+    log.write_text("old")
+    assert main(["excite", "shing1993_servo_friction", "--duration", "1", "--out", str(log)]) == 0
+    assert log.read_text().count("\n") > 1000
+    assert main(["export", "shing1993_servo", "pid", "--no-vectors", "--out", str(tmp_path / "a" / "b")]) == 0
+    assert (tmp_path / "a" / "b" / "gearctl_ctrl.h").is_file()

@@ -261,6 +261,28 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
                                  f"to another name", field=k)
 
 
+def check_outputs_writable(args: argparse.Namespace) -> None:
+    """Refuse, before the command's work, every output file or folder it could not write at the end (one line naming
+    the option, exit 2): ``identify --write-model`` into a missing folder, ``track --plot`` under a file, ... were
+    found only after the run, its results printed, then exit 2 (``bench`` and ``sweep`` checked theirs before).
+
+    ``--out`` is a folder but for ``excite`` (its log); ``--write-model``'s folder must exist (it is not created,
+    :func:`gearctl.identify.write_identified_model`); ``-`` (standard output) is not a file.
+    """
+    import os
+
+    for key in OUTPUT_ARGS:
+        out = getattr(args, key, None)
+        if not isinstance(out, str) or out == "-":
+            continue
+        if key == "write_model":
+            parent = Path(os.path.realpath(out)).parent
+            if not parent.is_dir():
+                what = "is not a folder" if parent.exists() else "does not exist (create it first)"
+                raise InputError(f"--write-model {out}: cannot write there: {parent} {what}", field=key)
+        check_writable(out, directory=key == "out" and getattr(args, "command", None) != "excite", key=key)
+
+
 def check_writable(path: str, *, directory: bool = False, key: str = "out", files: Iterable[str] = ()) -> None:
     """Refuse, before a long run, an output path it could not write at its end: one line naming ``--KEY``.
 
