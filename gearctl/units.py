@@ -138,12 +138,15 @@ def describe_range(meta: Mapping[str, Any]) -> str:
     inf = " (or inf: none)" if meta.get("allow_inf") else ""
     if lo is None and hi is None:
         return f"a finite {kind[2:]}" if not meta.get("integer") else kind
+    def num(x: float) -> str:  # a whole-number bound that %g rounds (2**63 - 1 read 9.22337e+18) is written out
+        return str(int(x)) if meta.get("integer") and float(f"{x:g}") != x else f"{x:g}"
+
     parts = []
     if lo is not None:
-        parts.append(f"{lo:g} {'<' if meta['low_open'] else '<='} ")
+        parts.append(f"{num(lo)} {'<' if meta['low_open'] else '<='} ")
     parts.append("value")
     if hi is not None:
-        parts.append(f" {'<' if meta['high_open'] else '<='} {hi:g}")
+        parts.append(f" {'<' if meta['high_open'] else '<='} {num(hi)}")
     prefix = f"{kind} with " if meta.get("integer") else ""
     return f"{prefix}{''.join(parts)}{inf}"
 

@@ -436,6 +436,11 @@ def _set_arg(text: str) -> tuple[str, float | int]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+#: the references' default durations, as the help states them (gearctl.runs.DEFAULT_DURATION, which imports numpy;
+#: tests/test_h3_cli_help.py holds the two equal)
+_DURATIONS = "sine 3 s, step 2 s, ramp 1.5 s, move 1 s"
+
+
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     """Add the closed-loop commands to the subparsers; return name -> function."""
     dur, seed, bl = spec_arg(DURATION), spec_arg(SEED), spec_arg(BACKLASH)
@@ -447,8 +452,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                         "(default deadzone_inverse; with --exported, the exported one)")
     p.add_argument("--plant", choices=plants, default="improved", help="plant (default improved)")
     p.add_argument("--reference", choices=("sine", "step", "ramp", "move"), default="sine",
-                   help="sine: 0.1 rad 1 Hz; step: 0.05 rad + 0.5 N m load step; ramp; move: S-curve (default sine)")
-    p.add_argument("--duration", type=dur, help="simulated time [s] (default per reference)")
+                   help="sine: 0.1 rad, 1 Hz; step: 0.05 rad at 0.1 s, a 0.5 N m load step against it at 1 s; ramp: "
+                        "0.5 rad/s to 0.2 rad; move: 0.2 rad S-curve, 1 rad/s, 10 rad/s^2 (default sine)")
+    p.add_argument("--duration", type=dur, help=f"simulated time [s] (default per reference: {_DURATIONS})")
     p.add_argument("--backlash", type=bl, help="override the plant's backlash [m], every stage (0: none)")
     p.add_argument("--estimate", type=bl, help="the controller's backlash estimate [m] (default: the model's; for "
                                                 "a train, the equivalent half-gap on the last stage's line of action)")
@@ -477,7 +483,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                    help="span of the targets [rad] (default 0.5); value > 0, the whole program at most 100000 s")
     p.add_argument("--dwell", type=positive_float, default=0.3,
                    help="rest before each measurement [s] (default 0.3); value > 0, the whole program at most 100000 s")
-    p.add_argument("--plant", choices=plants, default="improved", help="plant")
+    p.add_argument("--plant", choices=plants, default="improved", help="plant (default improved)")
     p.add_argument("--backlash", type=bl, help="override the model's backlash [m]")
     p.add_argument("--estimate", type=bl, help="the controller's backlash estimate [m] (default: the model's)")
     p.add_argument("--set", action="append", type=_set_arg, default=[], metavar="KEY=VALUE",
@@ -493,7 +499,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                    help="comma-separated plants; the backlash-free plant is always added "
                         "(default improved,yang-sun,tvms)")
     p.add_argument("--references", default="sine,move,step", help="comma-separated references (default sine,move,step)")
-    p.add_argument("--duration", type=dur, help="simulated time of every run [s] (default per reference)")
+    p.add_argument("--duration", type=dur,
+                   help=f"simulated time of every run [s] (default per reference: {_DURATIONS})")
     p.add_argument("--jobs", type=spec_arg(JOBS),
                    help="worker processes of the local Dask cluster (default: all cores; 1: in this process)")
     p.add_argument("--scheduler", metavar="ADDRESS",

@@ -488,7 +488,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                         "separated) (default contact)")
     p.add_argument("--json", action="store_true", help="print A, B, C, D, poles, mesh-mode figures as JSON")
     p.add_argument("--bode", metavar="FILE", help="write the Bode diagram of all modes on common axes")
-    p.add_argument("--step", metavar="FILE", help="write the contact-mode step response (s)")
+    p.add_argument("--step", metavar="FILE", help="write the contact model's step response to a motor torque step: the "
+                                                     "relative displacement s [m]")
 
     p = sub.add_parser("describe", help="describing-function limit cycle of a PID loop vs simulation (models "
                                         "with viscous friction only: Coulomb friction is refused by name)")
