@@ -12,8 +12,10 @@ import argparse
 from pathlib import Path
 
 from gearctl import build_plant, load_model, mesh_stiffness, tooth_deflections
+from gearctl.errors import InputError
 from gearctl.plots import plot_simulation, plot_stiffness, save
 from gearctl.simulate import report_case
+from gearctl.units import DURATION
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -21,6 +23,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=Path, default=Path("out/figures"), help="folder for the PNG files")
     ap.add_argument("--duration", type=float, default=0.01, help="simulated time [s] (report: about 10 ms)")
     args = ap.parse_args(argv)
+    try:  # the arguments are checked before any work: a bad one is a usage error (exit 2) and writes nothing
+        DURATION.check("--duration", args.duration)
+    except InputError as exc:
+        ap.error(str(exc))
 
     # --- model: the report's pair, with the k and c of its simulations --------------------------------
     model = load_model("shing1993_report")

@@ -28,7 +28,9 @@ from gearctl.describe import (
     run_limit_cycle,
     simulate_limit_cycle,
 )
+from gearctl.errors import InputError
 from gearctl.plots import save
+from gearctl.units import DURATION
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -36,6 +38,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=Path, default=Path("out/describing_function"))
     ap.add_argument("--duration", type=float, default=2.0, help="simulated time [s]")
     args = ap.parse_args(argv)
+    try:  # the arguments are checked before any work: a bad one is a usage error (exit 2) and writes nothing
+        DURATION.check("--duration", args.duration)
+    except InputError as exc:
+        ap.error(str(exc))
 
     # --- plant, controller and the element ------------------------------------------------------------
     plant = build_plant(load_model("shing1993_servo"))

@@ -12,7 +12,9 @@ import argparse
 from pathlib import Path
 
 from gearctl.bench import BenchSpec, bench_table, error_traces, run_bench
+from gearctl.errors import InputError
 from gearctl.plots import plot_bench_bars, plot_bench_errors, save
+from gearctl.units import DURATION
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -20,6 +22,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=Path, default=Path("docs/bench"), help="folder for report.md and PNGs")
     ap.add_argument("--duration", type=float, default=None, help="simulated time per run [s] (default per reference)")
     args = ap.parse_args(argv)
+    try:  # the arguments are checked before any work: a bad one is a usage error (exit 2) and writes nothing
+        if args.duration is not None:
+            DURATION.check("--duration", args.duration)
+    except InputError as exc:
+        ap.error(str(exc))
 
     # --- run the default benchmark ----------------------------------------------------------------------
     spec = BenchSpec(duration=args.duration)

@@ -17,10 +17,14 @@ from pathlib import Path
 import numpy as np
 from distributed import Client, LocalCluster
 
+from gearctl.errors import InputError
+from gearctl.parallel import check_local_workers
 from gearctl.plots import plot_sweep_compare, save
-from gearctl.sweep import compare_grids, sweep
+from gearctl.sweep import GRID_POINTS, compare_grids, sweep
+from gearctl.units import DURATION, Spec
 
 MODEL = "shing1993_servo"
+WORKERS = Spec(unit="1", doc="local worker processes", low=1, high=1024, integer=True)
 
 
 def _verdict(x: np.ndarray, ratio: np.ndarray) -> str:
@@ -43,6 +47,15 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     ap.add_argument("--scheduler", default=None, help="a running Dask scheduler (default: a local cluster)")
     args = ap.parse_args(argv)
+    try:  # the arguments are checked before any work: a bad one is a usage error (exit 2) and writes nothing
+        if args.duration is not None:
+            DURATION.check("--duration", args.duration)
+        GRID_POINTS.check("--points", args.points)
+        if args.workers is not None:
+            WORKERS.check("--workers", args.workers)
+            check_local_workers(args.workers)  # a thousand processes would not fit in memory
+    except InputError as exc:
+        ap.error(str(exc))
 
     # --- one Dask client for the three sweeps (a local cluster, or the one at --scheduler) ------------------
     cluster = None if args.scheduler else LocalCluster(n_workers=args.workers, threads_per_worker=1,
