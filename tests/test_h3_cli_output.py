@@ -137,3 +137,19 @@ def test_excite_out_is_a_file_and_export_out_a_folder(tmp_path: Path, capsys: py
     assert log.read_text().count("\n") > 1000
     assert main(["export", "shing1993_servo", "pid", "--no-vectors", "--out", str(tmp_path / "a" / "b")]) == 0
     assert (tmp_path / "a" / "b" / "gearctl_ctrl.h").is_file()
+
+
+# ---- bench --controllers takes every word after it ---------------------------------------------------------------
+
+def test_bench_model_after_controllers_is_named(capsys: pytest.CaptureFixture[str]) -> None:
+    # `gearctl bench --controllers pid shing1993_servo_friction` read the model as a controller: "unknown controller
+    # 'shing1993_servo_friction': expected a catalog name (adaptive_inverse, ...)", with no word of why
+    assert main(["bench", "--controllers", "pid", "shing1993_servo_friction", "--no-precision"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a model" in err and "before --controllers" in err
+
+
+def test_bench_help_says_controllers_are_names_or_files(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--controllers CONTROLLER [CONTROLLER ...]" in text and "catalog names or TOML files" in text

@@ -218,12 +218,26 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     return 0
 
 
+def _refuse_models_among_controllers(names: list[str]) -> None:
+    """``--controllers`` takes every word after it: a model named after the list was read as a controller and refused
+    as an unknown one, without a word of why. Say so."""
+    from ..catalog import controller_names, model_names
+
+    models, ctrls = set(model_names()), set(controller_names())
+    for name in names:
+        if name in models and name not in ctrls and not Path(name).exists():
+            raise InputError(f"--controllers {' '.join(names)}: {name!r} is a model, not a controller: give the "
+                             f"models before --controllers (gearctl bench MODEL ... --controllers CONTROLLER ...)",
+                             field="controllers")
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from ..bench import BenchSpec, bench_table, error_traces, run_bench
 
     if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.jobs:  # as sweep's --workers
         warn("bench", ["--jobs sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the cluster's "
                        "own workers run the bench"])
+    _refuse_models_among_controllers(args.controllers or [])
     plants = tuple(p.strip() for p in args.plants.split(",") if p.strip())
     refs = tuple(r.strip() for r in args.references.split(",") if r.strip())
     spec = BenchSpec(models=tuple(args.models) or ("shing1993_servo",), controllers=tuple(args.controllers or ()),
@@ -494,7 +508,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
 
     p = sub.add_parser("bench", help="the tracking benchmark: every controller on every plant (the main job)")
     p.add_argument("models", nargs="*", help="models (default shing1993_servo)")
-    p.add_argument("--controllers", nargs="+", metavar="FILE", help="controllers (default: every catalog entry)")
+    p.add_argument("--controllers", nargs="+", metavar="CONTROLLER",
+                   help="catalog names or TOML files (default: every catalog entry); the models go before it")
     p.add_argument("--plants", default="improved,yang-sun,tvms",
                    help="comma-separated plants; the backlash-free plant is always added "
                         "(default improved,yang-sun,tvms)")
