@@ -145,3 +145,18 @@ def test_two_stage_train_positioning(capsys: pytest.CaptureFixture[str]) -> None
     phrase = (f"ISO A {a['deadzone_inverse']:.1f} mrad for the inverse and {a['mpc']:.1f} for the MPC against the "
               f"PID's {a['pid']:.1f}")
     assert phrase in _readme_flat()
+
+
+@pytest.mark.slow
+def test_perf_simulator_errors() -> None:
+    # the `gearctl perf` block's accuracy figures (not its speeds, which are the machine's): each simulator's error
+    # against the tight solve_ivp reference, as a fraction of b, printed with two digits (perf's `:.1e`)
+    from gearctl.perf import sim_speed
+
+    block = README.read_text().split("free vibration (shing1993):", 1)[1].split("```", 1)[0]
+    shown = re.findall(r"error (\S+) b", block)
+    printed = []
+    for scenario in ("free", "pd"):
+        r = sim_speed(scenario)
+        printed += [f"{r[k]:.1e}" for k in ("gearctl_error", "python_control_error", "python_control_tight_error")]
+    assert shown == printed
