@@ -153,3 +153,31 @@ def test_bench_help_says_controllers_are_names_or_files(capsys: pytest.CaptureFi
     assert main(["bench", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "--controllers CONTROLLER [CONTROLLER ...]" in text and "catalog names or TOML files" in text
+
+
+# ---- a model and a controller given the other way round ----------------------------------------------------------
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize(("argv", "said"), [
+    (["track", "pid"], "'pid' is a controller, not a model"),
+    (["precision", "mpc"], "'mpc' is a controller, not a model"),
+    (["track", "shing1993_servo", "shing1993_servo_friction"],
+     "'shing1993_servo_friction' is a model, not a controller"),
+    (["export", "deadzone_inverse", "shing1993_servo", "--out", "x"], "is a controller, not a model"),
+    (["track", str(REPO / "controllers" / "pid.toml")], "a controller file (kind = 'pid'), not a model"),
+    (["sweep", "shing1993_servo", str(REPO / "models" / "shing1993_servo.toml")], "a model file, not a controller"),
+    (["excite", "shing1993_servo", "--controller", "shing1993_servo", "--out", "x.csv"],
+     "--controller 'shing1993_servo' is a model, not a controller"),
+])
+def test_model_and_controller_swapped_are_named(argv: list[str], said: str, tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    # `gearctl track pid` said "unknown model 'pid': expected a catalog name (detc1992_21x29_25deg, ...)", the
+    # controller file as the model "unknown section [kind]", a model file as the controller "missing key kind"
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and said in err and "Traceback" not in err
+    assert "first" in err or "--controller names the position loop" in err  # and says the order

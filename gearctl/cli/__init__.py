@@ -96,7 +96,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(argv: Sequence[str] | None) -> int:
     from . import common
-    from .common import check_outputs_writable, refuse_writing_over_inputs
+    from .common import check_outputs_writable, refuse_swapped_model_controller, refuse_writing_over_inputs
 
     parser, commands = _parser()
     try:
@@ -107,6 +107,7 @@ def _main(argv: Sequence[str] | None) -> int:
         return int(exc.code or 0)
     try:
         refuse_writing_over_inputs(args)
+        refuse_swapped_model_controller(args)
         check_outputs_writable(args)
         if getattr(args, "csv", None) == "-":  # the CSV on standard output, everything else the command says on stderr
             if getattr(args, "json", False):

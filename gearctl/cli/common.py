@@ -261,6 +261,63 @@ def refuse_writing_over_inputs(args: argparse.Namespace) -> None:
                                  f"to another name", field=k)
 
 
+def _file_kind(path: str) -> str | None:
+    """``"controller"`` or ``"model"`` for a readable TOML file that is plainly one (a top-level ``kind``; a
+    ``[gear1]`` or ``[[stage]]`` table), else None (the loaders then say what is wrong with it)."""
+    p = Path(path)
+    if p.suffix.lower() != ".toml" or not p.is_file():
+        return None
+    try:
+        import tomllib
+
+        if p.stat().st_size > 1_000_000:
+            return None
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if isinstance(data.get("kind"), str):
+        return "controller"
+    if isinstance(data.get("gear1"), dict) or isinstance(data.get("stage"), list):
+        return "model"
+    return None
+
+
+def refuse_swapped_model_controller(args: argparse.Namespace) -> None:
+    """A controller given where the model goes, or a model where the controller goes (``gearctl track pid``; the
+    model's file as the controller): one line saying which is which and the order, where the loaders said "unknown
+    model 'pid': expected a catalog name (detc1992_21x29_25deg, ...)", "unknown section [kind]", "missing key kind".
+    """
+    from ..catalog import controller_names, model_names
+
+    cmd = getattr(args, "command", "")
+    model, ctrl = getattr(args, "model", None), getattr(args, "controller", None)
+    if not hasattr(args, "controller") or not isinstance(model, str):
+        return
+    models, ctrls = set(model_names()), set(controller_names())
+    if cmd == "excite":  # its controller is an option (the position loop of the recorded motion)
+        label = "--controller"
+        order = "--controller names the position loop (e.g. gearctl excite MODEL --controller pid)"
+    else:
+        label = "CONTROLLER"
+        order = f"the model comes first: gearctl {cmd} MODEL CONTROLLER (e.g. gearctl {cmd} shing1993_servo pid)"
+    if not Path(model).exists() and model in ctrls and model not in models:
+        raise InputError(f"MODEL {model!r} is a controller, not a model; {order}", field="model")
+    if _file_kind(model) == "controller":
+        raise InputError(f"MODEL {model}: a controller file (kind = {_kind_of(model)!r}), not a model; {order}",
+                         field="model")
+    if isinstance(ctrl, str):
+        if not Path(ctrl).exists() and ctrl in models and ctrl not in ctrls:
+            raise InputError(f"{label} {ctrl!r} is a model, not a controller; {order}", field="controller")
+        if _file_kind(ctrl) == "model":
+            raise InputError(f"{label} {ctrl}: a model file, not a controller; {order}", field="controller")
+
+
+def _kind_of(path: str) -> str:
+    import tomllib
+
+    return str(tomllib.loads(Path(path).read_text(encoding="utf-8"))["kind"])
+
+
 def check_outputs_writable(args: argparse.Namespace) -> None:
     """Refuse, before the command's work, every output file or folder it could not write at the end (one line naming
     the option, exit 2): ``identify --write-model`` into a missing folder, ``track --plot`` under a file, ... were
