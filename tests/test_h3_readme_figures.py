@@ -160,3 +160,28 @@ def test_perf_simulator_errors() -> None:
         r = sim_speed(scenario)
         printed += [f"{r[k]:.1e}" for k in ("gearctl_error", "python_control_error", "python_control_tight_error")]
     assert shown == printed
+
+
+@pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"), reason="the README's sizes are x86-64")
+def test_exported_state_sizes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # "RAM is sizeof(gearctl_ctrl_t) per instance (x86-64: the PIDs 112 B, the reversal offset 168 B, the dead-zone
+    # inverse 448 B, ...)": compiled here from each export's header
+    import shutil
+    import subprocess
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler")
+    m = re.search(r"x86-64: the PIDs (\d+) B, the reversal offset (\d+) B, the dead-zone inverse (\d+) B",
+                  _readme_flat())
+    assert m is not None
+    src = tmp_path / "size.c"
+    src.write_text('#include <stdio.h>\n#include "gearctl_ctrl.h"\n'
+                   'int main(void) { printf("%zu", sizeof(gearctl_ctrl_t)); return 0; }\n')
+    for ctrl, shown in zip(("pid", "reversal_offset", "deadzone_inverse"), m.groups(), strict=True):
+        out = tmp_path / ctrl
+        assert main(["export", "shing1993_servo", ctrl, "--out", str(out), "--no-vectors"]) == 0
+        capsys.readouterr()
+        exe = tmp_path / f"size_{ctrl}"
+        subprocess.run([cc, "-std=c99", f"-I{out}", str(src), "-o", str(exe)], check=True)
+        assert subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout == shown, ctrl
