@@ -55,3 +55,12 @@ def test_whole_number_ranges_are_exact(capsys: pytest.CaptureFixture[str]) -> No
     # the largest seed the help gives is taken (within the range as printed)
     top = re.search(r"--seed SEED .*?<= (\d+)", text)
     assert top is not None and int(top.group(1)) == 2**63 - 1
+
+
+def test_bench_takes_sweeps_name_for_its_processes(capsys: pytest.CaptureFixture[str]) -> None:
+    # sweep sized its local cluster with --workers and took bench's --jobs too; bench refused --workers
+    # ("unrecognized arguments: --workers")
+    assert main(["bench", "--workers", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "--workers" in err and "out of range" in err and "unrecognized" not in err
+    assert "--jobs JOBS, --workers JOBS" in _help(capsys, "bench")

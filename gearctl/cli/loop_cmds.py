@@ -516,8 +516,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--references", default="sine,move,step", help="comma-separated references (default sine,move,step)")
     p.add_argument("--duration", type=dur,
                    help=f"simulated time of every run [s] (default per reference: {_DURATIONS})")
-    p.add_argument("--jobs", type=spec_arg(JOBS),
-                   help="worker processes of the local Dask cluster (default: all cores; 1: in this process)")
+    p.add_argument("--jobs", "--workers", dest="jobs", type=spec_arg(JOBS),
+                   help="worker processes of the local Dask cluster (default: all cores; 1: in this process; "
+                        "--workers as in sweep)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler, tcp://HOST:PORT (default DASK_SCHEDULER_ADDRESS, else local)")
     p.add_argument("--seed", type=seed, default=0, help="sensor-noise seed (default 0)")
