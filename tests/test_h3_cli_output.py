@@ -181,3 +181,22 @@ def test_model_and_controller_swapped_are_named(argv: list[str], said: str, tmp_
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and said in err and "Traceback" not in err
     assert "first" in err or "--controller names the position loop" in err  # and says the order
+
+
+def test_csv_to_dev_stdout_in_a_pipe_as_a_user(tmp_path: Path) -> None:
+    # `--csv /dev/stdout | ...`: /dev/stdout resolves to /proc/PID/fd/pipe:[N], which is no path, in a folder a user
+    # (not root) cannot write: the check before the work must let a device or a pipe through, as the writer does.
+    # A user's rights are emulated: os.access refuses writing under /proc, as it does for anyone but root.
+    import subprocess
+    import sys
+
+    code = ("import os, sys\n"
+            "real = os.access\n"
+            "os.access = lambda p, m, *a, **k: False if str(p).startswith('/proc/') and m & os.W_OK else real(p, m)\n"
+            "from gearctl.cli import main\n"
+            "sys.exit(main(sys.argv[1:]))\n")
+    r = subprocess.run([sys.executable, "-c", code, "track", "shing1993_servo", "pid", "--duration", "0.05",
+                        "--csv", "/dev/stdout"], capture_output=True, text=True, cwd=tmp_path,
+                       env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("t,reference,theta1")

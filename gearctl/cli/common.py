@@ -352,8 +352,10 @@ def check_writable(path: str, *, directory: bool = False, key: str = "out", file
     """
     import os
 
-    p = Path(os.path.realpath(path))
     flag = f"--{key.replace('_', '-')}"
+    if not directory and os.path.exists(path) and not os.path.isdir(path) and not os.path.isfile(path):
+        return  # a device, a FIFO, a pipe (/dev/stdout in `| ...` resolves to /proc/PID/fd/pipe:[N], no path at all)
+    p = Path(os.path.realpath(path))
     if directory and p.exists() and not p.is_dir():
         raise InputError(f"{flag} {path}: is a file, expected a folder to write into", field=key)
     if directory and p.is_dir():
