@@ -14,6 +14,7 @@ import json
 import math
 import os
 import shutil
+import tempfile
 import tomllib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
@@ -340,7 +341,12 @@ def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,
     to word.
     """
     path = Path(path)
-    if path.is_symlink():
+    # a device, FIFO or pipe, through any links (``/dev/stdout`` into a pipe resolves to ``/proc/PID/fd/pipe:[N]``, no
+    # path a file could be made beside: the temporary file failed there after the whole run)
+    # (and a path under /dev, a descriptor's link, even where it leads to a file: ``> out.json`` opened by the shell,
+    # or ``>> log``, whose end a replaced file would not keep)
+    special = path.exists() and (not path.is_file() or path.absolute().parts[:2] == ("/", "dev"))
+    if path.is_symlink() and not special:
         path = Path(os.path.realpath(path))
 
     def fill(fh: TextIO) -> None:
@@ -349,15 +355,16 @@ def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,
         else:
             write(fh)
 
-    special = path.exists() and not path.is_file()
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    # the temporary file beside the path; a device's (written into, never replaced) in the system's temporary folder
+    folder = Path(tempfile.gettempdir()) if special else path.parent
+    tmp = folder / f".{path.stem}.{os.getpid()}.tmp{path.suffix}"
     try:
         with open(tmp, "w", newline="") as fh:
             fill(fh)
         if check is not None:
             check(tmp)
-        if special:
-            with open(path, "w", newline="") as fh:
+        if special:  # appended: opening /dev/stdout for "w" truncates a file the shell opened with >>
+            with open(path, "a", newline="") as fh:
                 fill(fh)
         else:
             if path.exists():

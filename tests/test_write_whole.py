@@ -51,3 +51,27 @@ def test_text_and_writer_and_the_mode_kept(tmp_path: Path) -> None:
 def test_a_device_is_written_into(tmp_path: Path) -> None:
     write_whole(os.devnull, "{}\n")  # not replaced by a regular file
     assert Path(os.devnull).exists() and not Path(os.devnull).is_file()
+
+
+@pytest.mark.skipif(not Path("/dev/stdout").exists(), reason="needs /dev/stdout")
+@pytest.mark.parametrize("shell", ["| cat", ">> {out}"])
+def test_dev_stdout_into_a_pipe_or_an_appended_file(tmp_path: Path, shell: str) -> None:
+    """``--json /dev/stdout | ...``: /dev/stdout resolves to ``/proc/PID/fd/pipe:[N]``, where no temporary file can be
+    made; it failed after the whole run ("No such file or directory"). Into ``>> file`` it is appended to, not
+    truncated (opening /dev/stdout for "w" truncates the file the shell opened)."""
+    import shlex
+    import subprocess
+    import sys
+
+    out = tmp_path / "out.txt"
+    out.write_text("kept\n")
+    code = "from gearctl.files import write_whole; write_whole('/dev/stdout', '{\"a\": 1}\\n')"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    cmd = f"{shlex.quote(sys.executable)} -c {shlex.quote(code)} {shell.format(out=shlex.quote(str(out)))}"
+    done = subprocess.run(cmd, shell=True, capture_output=True, text=True, env=env, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert list(tmp_path.iterdir()) == [out]  # no temporary left beside it
+    if shell.startswith("|"):
+        assert done.stdout == '{"a": 1}\n'
+    else:
+        assert out.read_text() == 'kept\n{"a": 1}\n'
