@@ -236,7 +236,20 @@ def make_run(model: str | Path, controller: str | Path, *, plant: str = "improve
     overrides : mapping, optional
         Model keys changed on the true plant only (``gearctl track --set KEY=VALUE``): the controller is still
         designed on the unchanged model, as in reality.
+
+    Raises
+    ------
+    InputError
+        ``backlash`` given beside a backlash key in ``overrides`` (two values for one plant); an unknown model,
+        controller, plant or reference, or a bad value (from the loaders).
     """
+    keys = [k for k in (overrides or {}) if k == "backlash" or str(k).endswith(".backlash")]
+    if backlash is not None and keys:
+        # applied after the overrides, backlash dropped theirs without a word (h3's review, as at the command line)
+        raise InputError(f"backlash = {backlash!r} and overrides[{keys[0]!r}]: both set the true plant's backlash "
+                         "(backlash the model's, the design's included; overrides the true plant's alone): give one; "
+                         "for a design estimate other than the true backlash use estimate= with overrides",
+                         field="backlash")
     m = load_model(model)
     m_true = true_model(model, m, overrides, plant) if overrides else m
     true = build_plant(m_true, plant, backlash=backlash)

@@ -114,3 +114,16 @@ def test_metrics_unknown_key_is_named_and_still_a_key_error(servo) -> None:  # n
     with pytest.raises(KeyError):
         m["rms"]
     assert m.get("rms") is None and m["rms_error"] == m.rms_error and "rms" not in m.keys()
+
+
+@pytest.mark.parametrize("key", ["backlash", "stage1.backlash"])
+def test_make_run_refuses_backlash_beside_a_backlash_override(key: str) -> None:
+    """``make_run(backlash=1e-5, overrides={"backlash": 2e-5})`` built the 10 um plant: the backlash, applied after the
+    overrides, dropped theirs without a word (the command line refuses the same pair of options)."""
+    from gearctl.runs import make_run
+
+    with pytest.raises(InputError, match=r"backlash = 1e-05 and overrides\[.*backlash"):
+        make_run("shing1993_servo", "pid", backlash=1e-5, overrides={key: 2e-5})
+    # either alone is taken
+    assert make_run("shing1993_servo", "pid", backlash=1e-5).plant.backlash == 1e-5
+    assert make_run("shing1993_servo", "pid", overrides={"backlash": 2e-5}).plant.backlash == 2e-5

@@ -157,7 +157,7 @@ def test_usage_errors_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]
 
 @pytest.mark.parametrize(("argv", "fragment"), [
     (["track", "shing1993_servo", "pid", "--backlash", "-1e-5"], "--backlash: -1e-5 is out of range"),
-    (["simulate", "shing1993_servo", "--dt", "-1e-6"], "--dt: '-1e-6' must be > 0"),
+    (["simulate", "shing1993_servo", "--dt", "-1e-6"], "--dt: -1e-6 is out of range: expected a number > 0 [s]"),
 ])
 def test_a_negative_number_in_exponent_form_is_a_value(argv: list[str], fragment: str,
                                                        capsys: pytest.CaptureFixture[str]) -> None:

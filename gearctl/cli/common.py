@@ -20,9 +20,9 @@ from ..errors import InputError
 from ..files import write_whole
 from ..units import POINTS, Spec
 
-__all__ = ["spec_arg", "positive_float", "finite_float", "nonnegative_float", "dump_json", "write_csv_stream",
-           "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE", "TARGETS", "CYCLES",
-           "STAGE", "JOBS", "WHOLE", "write_whole", "iter_json", "write_json", "earlier_plots",
+__all__ = ["spec_arg", "positive_float", "positive_quantity", "finite_float", "nonnegative_float", "dump_json",
+           "write_csv_stream", "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE",
+           "TARGETS", "CYCLES", "STAGE", "JOBS", "WHOLE", "write_whole", "iter_json", "write_json", "earlier_plots",
            "remove_earlier_plots"]
 
 #: command-line quantities not in a model file (POINTS is the schema's: the Python API checks the same range)
@@ -69,7 +69,7 @@ def finite_float(text: str) -> float:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"{text!r} must be finite")
+        raise argparse.ArgumentTypeError(f"{text} is out of range: expected a finite number")
     return v
 
 
@@ -77,15 +77,29 @@ def positive_float(text: str) -> float:
     """A finite number > 0."""
     v = finite_float(text)
     if v <= 0:
-        raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
+        raise argparse.ArgumentTypeError(f"{text} is out of range: expected a number > 0")
     return v
+
+
+def positive_quantity(unit: str) -> Callable[[str], float]:
+    """A parser of a finite number > 0 whose range error states ``unit`` (``--dwell -1``: "-1 is out of range: expected
+    a number > 0 [s]")."""
+
+    def parse(text: str) -> float:
+        try:
+            return positive_float(text)
+        except argparse.ArgumentTypeError as err:
+            raise argparse.ArgumentTypeError(f"{err} [{unit}]") from None
+
+    parse.__name__ = f"positive_quantity_{unit}"
+    return parse
 
 
 def nonnegative_float(text: str) -> float:
     """A finite number >= 0."""
     v = finite_float(text)
     if v < 0:
-        raise argparse.ArgumentTypeError(f"{text!r} must be >= 0")
+        raise argparse.ArgumentTypeError(f"{text} is out of range: expected a number >= 0")
     return v
 
 

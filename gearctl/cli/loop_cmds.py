@@ -21,7 +21,7 @@ from .common import (
     dump_json,
     earlier_plots,
     format_rate,
-    positive_float,
+    positive_quantity,
     progress_bar,
     ratio_changed,
     remove_earlier_plots,
@@ -493,9 +493,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     # whole numbers here; their ranges are checked by the test itself (one line naming the key)
     p.add_argument("--targets", type=spec_arg(TARGETS), default=5, help="target positions, 2..50 (default 5)")
     p.add_argument("--cycles", type=spec_arg(CYCLES), default=5, help="cycles, 1..50 (default 5, as ISO 230-2)")
-    p.add_argument("--travel", type=positive_float, default=0.5,
+    p.add_argument("--travel", type=positive_quantity("rad"), default=0.5,
                    help="span of the targets [rad] (default 0.5); value > 0, the whole program at most 100000 s")
-    p.add_argument("--dwell", type=positive_float, default=0.3,
+    p.add_argument("--dwell", type=positive_quantity("s"), default=0.3,
                    help="rest before each measurement [s] (default 0.3); value > 0, the whole program at most 100000 s")
     p.add_argument("--plant", choices=plants, default="improved", help="plant (default improved)")
     p.add_argument("--backlash", type=bl, help="override the model's backlash [m]")

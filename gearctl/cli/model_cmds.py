@@ -20,7 +20,7 @@ from .common import (
     STAGE,
     TORQUE,
     dump_json,
-    positive_float,
+    positive_quantity,
     progress_bar,
     save_figure,
     say_written,
@@ -469,7 +469,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved",
                    help="mesh law (default improved)")
     p.add_argument("--duration", type=dur, default=0.02, help="simulated time [s] (default 0.02)")
-    p.add_argument("--dt", type=positive_float, default=None,
+    p.add_argument("--dt", type=positive_quantity("s"), default=None,
                    help="output interval [s] (default: 1 us up to 20 ms, then about 20 000 rows); value > 0, the "
                         "output at most 4 GB")
     p.add_argument("--omega1", type=spec_arg(OMEGA), help="initial velocity of the motor shaft [rad/s]")

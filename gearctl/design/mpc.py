@@ -622,7 +622,7 @@ def build_mpc(path: Path, spec: dict[str, Any], info: LoopInfo, *, Ts: float, na
         mpc.design_notes = (*mpc.design_notes, (
             f"train: the intermediate shafts carry {share:.0%} of the motor side's inertia (reflected), which the "
             f"one-gap plan does not see; on the four catalog and test trains above {INTERMEDIATE_SHARE:.0%} where it "
-            f"plans the gap, the MPC gained at most 1.5x over the PID on the sine (1.1-1.25x on "
+            f"plans the gap, the MPC gained at most 1.5x over the PID on the sine (1.07-1.25x, by machine, on "
             f"servo_2stage_phm09) and lost 5x on one, and it rattles at rest: the deadzone_inverse is the "
             f"controller for such a train"))
     elif (up := upstream_gap_share(info.nominal)) >= 0.01 and not mpc.rigid_reason:  # (under 1 %: no word)
