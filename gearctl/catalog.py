@@ -236,6 +236,10 @@ def load_model(name_or_path: str | Path, **overrides: Any) -> GearModel:
                                  f"[pair] or one [[stage]]", field=table)
             close = difflib.get_close_matches(table, known, n=1)
             hint = f"; did you mean [{close[0]}]?" if close else ""
+            if not isinstance(data[table], dict | list):  # a key above every table (h3's review: "unknown section")
+                raise InputError(f"{path}: key {table} = {data[table]!r} outside any section: every key belongs in "
+                                 f"one of {', '.join(f'[{s}]' for s in known)} (a key typed above the first table "
+                                 f"header){hint}", field=table)
             raise InputError(f"{path}: unknown section [{table}]: expected one of "
                              f"{', '.join(f'[{s}]' for s in known)}{hint}", field=table)
     if "source" not in data:

@@ -259,6 +259,9 @@ FILE_CASES = [
      ["[source] citaton", "did you mean 'citation'"]),
     ("missing_citation", [("citation = ", "doi = ")], ["missing key [source] citation"]),
     ("misspelt_source", [("[source]", "[sauce]")], ["unknown section [sauce]", "did you mean [source]"]),
+    # a key typed above the first table header is no section (it read "unknown section [backlash]")
+    ("key_outside_sections", [("[source]", "backlash = 5e-5\n[source]")],
+     ["key backlash = 5e-05 outside any section", "[pair]", "above the first table header"]),
     ("missing_section", [(MATERIAL, "")], ["missing section [material]"]),
     # physical floors and relative checks (issue 11): each names the key the file has, never a plant quantity
     ("module_floor", [("module = 0.002", "module = 1e-300")], ["[pair] module = 1e-300", "1e-05 <= value <= 0.1 [m]"]),
