@@ -281,10 +281,10 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
     if chattering:
         warnings.append(f"chattering torque: on {chatter:.0%} of the samples after {t0:.3g} s the torque turns back by "
                         f"more than {lim['chatter_step']:.0%} of its {torque_lim:g} N m limit each way (a "
-                        f"sample-to-sample sawtooth): the loop's gains amplify the encoders' counts or noise, or "
-                        f"dynamics its model leaves out (a train's intermediate shafts); compare with the PID. For "
-                        f"the MPC, raise its [observer] measurement_noise to a few encoder counts, or use finer "
-                        f"encoders")
+                        f"sample-to-sample sawtooth): the loop's gains are too high for its encoders' counts and "
+                        f"noise, or for dynamics its model leaves out (a train's intermediate shafts); compare with "
+                        f"the PID. For the MPC, raise its [observer] measurement_noise to a few encoder counts, or "
+                        f"use finer encoders")
     if growing:
         beyond = f" and the reference's own change of {explained:.3g} rad" if explained > 0 else ""
         warnings.append(f"growing error: {last:.3g} rad in the last quarter against {early:.3g} rad in the "

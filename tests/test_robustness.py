@@ -502,5 +502,8 @@ def test_capped_runner_sees_a_hang_and_the_memory_cap(forked: bool, server, tmp_
     assert [r["argv"][0] for r in res.results] == ["info"] and res.results[0]["rc"] == 0
     if not forked:  # 100 MB is too little even to import numpy: the runner dies, or the command (which imports it)
         res = run([["info", "shing1993"]], tmp_path / "mem.jsonl", timeout=60, memory=100 * 1024**2)
+        # an allocation refused inside C code can surface as CPython's "SystemError: error return without exception
+        # set" instead of a MemoryError (seen once in four runs beside other jobs): the cap held either way
+        refused = ("MemoryError", "SystemError: error return without exception set")
         assert (res.returncode != 0 and res.results == []) or (
-            [r["rc"] for r in res.results] == [None] and "MemoryError" in res.results[0]["traceback"]), res
+            [r["rc"] for r in res.results] == [None] and any(w in res.results[0]["traceback"] for w in refused)), res

@@ -287,7 +287,7 @@ def _file_kind(path: str) -> str | None:
         if p.stat().st_size > 1_000_000:
             return None
         data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # (arrays nested too deeply: the loader names it)
         return None
     if isinstance(data.get("kind"), str):
         return "controller"
