@@ -1689,14 +1689,16 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         if g2.sum() >= 10:
             noise_l = _noise_cov(((e[1], ld.noise_g[0]), (e[3], ld.noise_g[1])))
             blocks.append((A_l, np.full(int(g2.sum()), p.tl), float(p.Wg + 2), noise_l, np.flatnonzero(g2)))
-            # with a load torque the load's free-flight rows have a right-hand side, T_L, that its Coulomb friction
-            # matches exactly where the load coasts one way (T_L near T_c2: it hardly decelerates, and the raw second
-            # difference of its encoder reads 0 counts). The robust scale then fell onto those rows, every row with a
-            # count of acceleration was cut as an outlier, J2 went to its bound and T_c2 to T_L with a tight interval
-            # (T_L = 0.045, T_c2 = 0.05 N m, the model's own excitation; the log was then refused for want of a rest
-            # on a flank). The block's noise is held at least at what the encoder's noise puts into its rows at the
-            # model's values, sqrt(theta0^T E theta0) (without a load torque the block is left as it was)
-            floors.append(math.sqrt(max(float(mean @ noise_l @ mean), 0.0)) if p.tl != 0.0 else 0.0)
+            # the load's free-flight rows are raw second differences of its encoder: where the load coasts at a steady
+            # speed most of them read 0 counts, and the robust scale of the block's residuals falls onto those rows.
+            # Every row with a count of acceleration was then cut as an outlier (beyond five times that scale), J2 went
+            # to its bound and T_c2 to T_L with a tight interval (T_L = 0.045, T_c2 = 0.05 N m: the load coasted one
+            # way where T_c2 matched T_L exactly), and without a load torque the rows left said d2 theta2' + T_c2 sgn =
+            # 0: an outside user's heavy viscous load (J2 / d2 = 11.5 s) gave d2 6.9e-9 N m s/rad [0, 4.1e-7] against a
+            # true 1e-3, unflagged, the total viscous torque 4x low and traded against Coulomb friction where there is
+            # none. The block's noise is held at least at what the encoder's noise (quantisation included) puts into
+            # its rows at the model's values, sqrt(theta0^T E theta0)
+            floors.append(math.sqrt(max(float(mean @ noise_l @ mean), 0.0)))
         theta, cov = _regress(blocks, mean, sd, lower, floors)
         cov = _with_prior_pull(blocks, mean, sd, lower, theta, cov, floors)
         # an inertia at its bound leaves the other holding J1 + J2/N^2, and the torque the mesh takes from the motor,
