@@ -631,6 +631,11 @@ class _Problem:
         self.uc = self.uf + self.tl / self.N
         self.ug = _smooth(self.ubar, _hann(self.Wg))
         self.m = _Encoder(log.theta1, Ts, self.W, self.Wg)
+        #: viscous friction too small to be seen [N m s/rad, motor and load shaft]: its torque at the RMS motor speed
+        #: 0.1 % of the RMS torque (as for the Coulomb friction; a frictionless pair's excite log gave d1 9.5e-12
+        #: [3.9e-12, 1.5e-11] N m s/rad, the truth 0 outside a purely relative floor)
+        d_floor = 1e-3 * u_rms / max(float(np.sqrt(np.mean(self.m.w**2))), 1e-9)
+        self.d_floor = (d_floor, d_floor * self.N**2)
         theta2 = log.theta2 if encoders == "motor+load" else None  # (identify refuses motor+load without the column)
         self.l = _Encoder(theta2, Ts, self.W, self.Wg) if theta2 is not None else None
         self.before = max(1, int(round(WINDOW_BEFORE / Ts)))
@@ -1582,11 +1587,12 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
     resting between two counts reads the same one at every visit); the friction and inertias take the larger
     of the model-based and a cluster-robust sandwich covariance (clusters: runs of consecutive samples, i.e.
     one motion in contact, one free flight), and a floor for what the idealised laws cannot represent
-    (:data:`SYSTEMATIC_FLOOR`). The re-simulated crossings' RMS misfit, as a displacement along the line of
-    action, is the gate (calibrated against b, not against the noise: what matters is whether the misfit
-    could move b): with the motor encoder alone it is added to b's interval as a systematic error, and
-    beyond :data:`MISFIT_SHARE` of b, or with a 95 % half-width beyond :data:`MAX_RELATIVE_HALF_WIDTH` of b,
-    b is *not identified* (its interval 0 to 0.5 module, and ``--write-model`` refuses); with both encoders
+    (:data:`SYSTEMATIC_FLOOR`) plus, for a friction, the level below which the log does not see it (its torque 0.1 %
+    of the log's RMS torque, a viscous one at the RMS motor speed). The re-simulated crossings' RMS misfit, as a
+    displacement along the line of action, is the gate (calibrated against b, not against the noise: what matters
+    is whether the misfit could move b): with the motor encoder alone it is added to b's interval as a systematic
+    error, and beyond :data:`MISFIT_SHARE` of b, or with a 95 % half-width beyond :data:`MAX_RELATIVE_HALF_WIDTH` of
+    b, b is *not identified* (its interval 0 to 0.5 module, and ``--write-model`` refuses); with both encoders
     b does not depend on it, and beyond :data:`MISFIT_SHARE` of b the friction and inertias are not
     identified; nor, where the re-simulated motor misses its encoder inside the gap by more than
     :data:`GAP_MISS_SHARE` of b (:func:`_gap_misfit`: an RMS over windows that are mostly contact hides a motor
@@ -1865,10 +1871,11 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
     val = {names[k]: float(theta[i]) for i, k in enumerate(PARAMS)}
     cis = {names[k]: (max(float(theta[i]) - ci_fr[k], 0.0), float(theta[i]) + ci_fr[k]) for i, k in enumerate(PARAMS)}
     # what the idealised friction and contact laws cannot represent (another friction law, a compliant shaft):
-    # a floor under each interval, relative, and for the Coulomb friction the level below which it is not seen
-    for i, k in enumerate(PARAMS):
+    # a floor under each interval, relative, and for the friction the level below which it is not seen
+    seen = {"d1": p.d_floor[0], "d2": p.d_floor[1], "tc1": p.tc_floor[0], "tc2": p.tc_floor[1]}
+    for k in PARAMS:
         key = names[k]
-        floor = SYSTEMATIC_FLOOR[k] * abs(val[key]) + (p.tc_floor[i - 4] if k in ("tc1", "tc2") else 0.0)
+        floor = SYSTEMATIC_FLOOR[k] * abs(val[key]) + seen.get(k, 0.0)
         cis[key] = (max(min(cis[key][0], val[key] - floor), 0.0), max(cis[key][1], val[key] + floor))
     # what the log does not identify: named, with the reason, and an interval that says so (not a tight one)
     ni: dict[str, str] = {}
