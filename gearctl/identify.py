@@ -1733,7 +1733,10 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
             phis = np.array([_fit_window(p, w, theta, b, free=("phi",), phi=float(theta[4] / teq), offset=centre).phi
                              for w in sub])
             phi = float(np.median(phis))
-            sd_phi = float(phis.std(ddof=1)) / math.sqrt(phis.size) if phis.size > 1 else 0.5
+            # the spread of a few crossings' shares: a 95 % half-width of 1.96 sd_phi is the Student t interval's
+            # for phis.size - 1 degrees of freedom once sd_phi is scaled by t95 / 1.96 (3.18 / 1.96 for 4 crossings)
+            sd_phi = (float(phis.std(ddof=1)) / math.sqrt(phis.size) * _t95(phis.size - 1) / 1.96 if phis.size > 1
+                      else 0.5)
             # the crossings are refitted with the motor's inertia held: in free flight J1 theta1'' and tc1 sgn
             # trade against each other, so J1's own uncertainty moves the split too (h3's simulator: a PD loop
             # crossing at a steady acceleration, J1 not identified, gave the motor's Coulomb friction 1.46 mN m
