@@ -30,7 +30,8 @@ from .references import DEFAULT_DURATION, REFERENCES, reference
 from .runs import Design, Run, controller_spec, design_controller, execute, unholdable_load_step
 from .units import DURATION, SEED
 
-__all__ = ["BenchSpec", "run_bench", "bench_table", "DEFAULT_DURATION", "FREE", "ISO_SETTINGS"]
+__all__ = ["BenchSpec", "run_bench", "bench_table", "bench_notes", "bench_warnings", "grouped_warnings",
+           "DEFAULT_DURATION", "FREE", "ISO_SETTINGS"]
 
 #: Label of the backlash-free plant (the physical limit).
 FREE = "backlash-free"
@@ -322,6 +323,71 @@ def _warn_tracks_worse_than_pid(rows: Sequence[dict[str, Any]]) -> None:
                 f"tracks worse than the pid: RMS error {r['rms_error']:.3g} rad against the pid's "
                 f"{ref['rms_error']:.3g} rad ({r['rms_error'] / ref['rms_error']:.3g}x) on the same plant and "
                 f"reference")]
+
+
+def grouped_warnings(rows: Sequence[dict[str, Any]], *, iso: bool = False) -> list[str]:
+    """One line per kind of loop warning (limit cycle, impact rate, ...) naming the runs that have it.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Rows of :func:`run_bench`'s ``runs`` (or, ``iso``, its ``precision`` rows).
+    iso : bool
+        The rows are ISO 230-2 rows (labelled so).
+
+    Returns
+    -------
+    list of str
+        ``"<kind> in <n> run(s): <run>, <run> (figures: --json FILE)"``.
+    """
+    import re
+
+    groups: dict[str, list[str]] = {}
+    several = len({r.get("model") for r in rows}) > 1
+    for r in rows:
+        design = "" if r.get("design", r["plant"]) in ("improved", r["plant"]) else f", designed on {r['design']}"
+        model = f"{r.get('model')}: " if several else ""
+        label = f"{model}{r['controller']} on {r['plant']}{design} ({'ISO 230-2' if iso else r['reference']})"
+        for wmsg in r.get("warnings", ()):
+            base = re.sub(r"\s*\(stage 1:.*\)$", "", wmsg)  # a train's rates per stage
+            if ":" in base:  # "sustained limit cycle: 56 impacts ..."
+                kind = base.split(":")[0]
+            else:  # "impact rate 112 per s, above 100 per s" -> "impact rate above 100 per s"
+                kind = re.split(r"\s[-+]?\d", base)[0] + (f" {base.rsplit(', ', 1)[1]}" if ", " in base else "")
+            if label not in groups.setdefault(kind.strip(), []):
+                groups[kind.strip()].append(label)
+    return [f"{kind} in {len(labels)} run(s): {', '.join(labels)} (figures: --json FILE)"
+            for kind, labels in groups.items()]
+
+
+def bench_warnings(result: dict[str, Any]) -> list[str]:
+    """The bench's warnings, grouped per kind: the tracking runs', then the ISO rows' (see :func:`grouped_warnings`).
+
+    ``gearctl bench`` prints them on standard error and writes them into ``report.md``: a report that left them out
+    showed a 0.5 N m load step no controller could hold as figures of 156 rad, and an inverse positioning 1.8x
+    worse than the PID, without a word.
+    """
+    return grouped_warnings(result["runs"]) + grouped_warnings(result.get("precision") or [], iso=True)
+
+
+def bench_notes(result: dict[str, Any]) -> list[str]:
+    """The design notes of the bench's controllers, one line per model and note naming the controllers that have it,
+    and a note where ``--controllers`` left out the PID every comparison is made against.
+
+    Four controllers of the PID family share their loop's design note; it came four times, 400 characters each.
+    """
+    groups: dict[tuple[str, str], list[str]] = {}
+    for r in result["runs"]:
+        for n in r.get("design_notes", ()):
+            ctrls = groups.setdefault((r["model"], n), [])
+            if r["controller"] not in ctrls:
+                ctrls.append(r["controller"])
+    out = [f"{m}, {', '.join(c)}: {n}" for (m, n), c in groups.items()]
+    ctrls = (result.get("spec") or {}).get("controllers") or ()
+    if ctrls and "pid" not in ctrls:  # the baseline every comparison is made against
+        out.append("--controllers without pid: no PID baseline, so no ratios over the PID, no backlash-free ISO "
+                   "row and no 'worse than the pid' warnings; add pid to --controllers to compare with it")
+    return out
 
 
 def _ratios(results: Sequence[dict[str, Any]], iso: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:

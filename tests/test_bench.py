@@ -235,7 +235,7 @@ def test_cli_bench_unknown_plant(capsys: pytest.CaptureFixture[str]) -> None:
 def test_bench_warnings_come_one_line_per_kind() -> None:
     """The bench's loop warnings: one stderr line per kind, naming every run that has it (a long table of runs
     with the same warning would bury the result)."""
-    from gearctl.cli.loop_cmds import _grouped_warnings
+    from gearctl.bench import grouped_warnings as _grouped_warnings
 
     runs = [
         {"controller": "pid_load", "plant": "improved", "reference": "sine",

@@ -232,7 +232,7 @@ def _refuse_models_among_controllers(names: list[str]) -> None:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from ..bench import BenchSpec, bench_table, error_traces, run_bench
+    from ..bench import BenchSpec, bench_notes, bench_table, bench_warnings, error_traces, run_bench
 
     if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.jobs:  # as sweep's --workers
         warn("bench", ["--jobs sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the cluster's "
@@ -288,6 +288,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     # the processes the runs had: never more than the runs (bench --jobs 256 with 2 runs started 2)
     result["jobs"] = None if where else local_processes(result["tasks"], args.jobs)
     text = bench_table(result)
+    notes, warnings = bench_notes(result), bench_warnings(result)
     tables = sys.stderr if to_stdout else sys.stdout
     # the files first, what is printed after: a reader that closed standard output early (`| head`) ends the
     # command quietly at the first print, and the JSON file and the --out report written after it were lost
@@ -312,7 +313,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         on = where or f"{result['jobs']} process(es)"
         md = ["# gearctl bench", "", f"{n} runs, {wall:.1f} s on {on}; models "
               f"{', '.join(spec.models)}; plants {', '.join(spec.plants)} and the backlash-free limit.", "",
-              bench_table(result, markdown=True), "![RMS error by controller and plant](rms_by_controller.png)", ""]
+              bench_table(result, markdown=True)]
+        # what the command says on standard error belongs to the figures: a report without it showed runs that no
+        # controller could hold, and compensators worse than the PID, as plain figures
+        for title, items in (("Warnings", warnings), ("Notes", notes)):
+            if items:
+                md += [f"## {title}", "", *(f"- {w}" for w in items), ""]
+        md += ["![RMS error by controller and plant](rms_by_controller.png)", ""]
         md += [f"![errors, {ref}](errors_{ref}.png)" for ref in spec.references]
         try:
             (out / "report.md").write_text("\n".join(md) + "\n")
@@ -324,14 +331,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     print(text, end="", file=tables)
     print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
                                           f"on {result['jobs']} process(es)"), file=tables)
-    warn("bench", dict.fromkeys(f"{r['model']}, {r['controller']}: {n}" for r in result["runs"]
-                                for n in r.get("design_notes", ())), kind="note")
-    if spec.controllers and "pid" not in spec.controllers:  # the baseline every comparison is made against
-        warn("bench", ["--controllers without pid: no PID baseline, so no ratios over the PID, no backlash-free ISO "
-                       "row and no 'worse than the pid' warnings; add pid to --controllers to compare with it"],
-             kind="note")
-    warn("bench", _grouped_warnings(result["runs"]))
-    warn("bench", _grouped_warnings(result.get("precision") or [], iso=True))
+    warn("bench", notes, kind="note")
+    warn("bench", warnings)
     if gone:
         warn("bench", [f"--out {args.out}: removed {', '.join(gone)}, which an earlier bench wrote there and this "
                        f"one does not (its references differ)"], kind="note")
@@ -415,29 +416,6 @@ def _cmd_perf(args: argparse.Namespace) -> int:
 
 
 SWEEP_RUNS = Spec(unit="1", doc="runs per controller", low=10, high=100_000, integer=True)
-
-
-def _grouped_warnings(runs: list[dict[str, Any]], *, iso: bool = False) -> list[str]:
-    """One line per kind of loop warning (limit cycle, impact rate, ...) naming the runs (``iso``: the ISO 230-2
-    rows) that have it."""
-    import re
-
-    groups: dict[str, list[str]] = {}
-    several = len({r.get("model") for r in runs}) > 1
-    for r in runs:
-        design = "" if r.get("design", r["plant"]) in ("improved", r["plant"]) else f", designed on {r['design']}"
-        model = f"{r.get('model')}: " if several else ""
-        label = f"{model}{r['controller']} on {r['plant']}{design} ({'ISO 230-2' if iso else r['reference']})"
-        for wmsg in r.get("warnings", ()):
-            base = re.sub(r"\s*\(stage 1:.*\)$", "", wmsg)  # a train's rates per stage
-            if ":" in base:  # "sustained limit cycle: 56 impacts ..."
-                kind = base.split(":")[0]
-            else:  # "impact rate 112 per s, above 100 per s" -> "impact rate above 100 per s"
-                kind = re.split(r"\s[-+]?\d", base)[0] + (f" {base.rsplit(', ', 1)[1]}" if ", " in base else "")
-            if label not in groups.setdefault(kind.strip(), []):
-                groups[kind.strip()].append(label)
-    return [f"{kind} in {len(labels)} run(s): {', '.join(labels)} (figures: --json FILE)"
-            for kind, labels in groups.items()]
 
 
 def _set_arg(text: str) -> tuple[str, float | int]:
