@@ -192,6 +192,7 @@ def _row(run: Run) -> dict[str, Any]:
                     "preview": res.controller.get("preview", 1), **m, "warnings": list(health["warnings"]),
                     "design_notes": list(res.controller.get("design_notes", ()))})
     too_large = unholdable_load_step(run.plant, run.reference)  # the likely cause of a failure: say it
+    out["unholdable_load_step"] = too_large  # the tables mark the row: its figures measure the load running away
     if too_large:
         out["warnings"] = [*out.get("warnings", ()), too_large]
         if not res.ok:
@@ -461,6 +462,15 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
             lines.extend("  ".join(x.ljust(n) for x, n in zip(r, w, strict=True)) for r in body)
         lines.append("")
 
+    def runaway(m: str, c: str, ref: str, p: str) -> str:  # the mark of a load step no controller can hold
+        return " *" if (cell.get((m, c, ref, p)) or {}).get("unholdable_load_step") else ""
+
+    # under the tables that mark a cell: such figures are the same for every controller, and a ratio of 1 over the
+    # PID reads as a tie (an instrument servo's step: 156 rad RMS everywhere, every ratio '1 / 1')
+    held = sorted({r["unholdable_load_step"].split(":")[0] for r in runs if r.get("unholdable_load_step")})
+    footnote = (("\\* " if markdown else "* ") + "; ".join(held) + ": no controller can hold it, the load runs away, "
+                "and the marked figures measure that, not the controller" if held else "")
+
     lines.append("Load-angle error, RMS / max [urad], impacts (controller designed on the improved plant):")
     lines.append("")
     body = []
@@ -471,9 +481,9 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
             if r is None:
                 row.append("—")
             elif not r.get("ok"):
-                row.append("FAILED")
+                row.append("FAILED" + runaway(m, c, ref, p))
             else:
-                row.append(f"{_fmt(r['rms_error'])} / {_fmt(r['max_error'])}, {r['impacts']}")
+                row.append(f"{_fmt(r['rms_error'])} / {_fmt(r['max_error'])}, {r['impacts']}{runaway(m, c, ref, p)}")
         ok = [cell[(m, c, ref, p)] for p in plants if cell.get((m, c, ref, p), {}).get("solve_time")]
         p99 = max((r["solve_time"]["p99"] for r in ok), default=None)  # the worst plant's
         row.append(f"{p99 * 1e6:.0f} / {ok[0]['Ts'] * 1e6:.0f}" if p99 is not None else "—")
@@ -481,6 +491,8 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
         row.append(str(prev[0]) if prev else "1")
         body.append(row)
     table([*mhead, "controller", "reference", *plants, "solve p99 (worst plant) / Ts [us]", "preview"], body)
+    if footnote:
+        lines.extend([footnote, ""])
 
     lines.append("Ratios of RMS error, per plant: over the PID's on the same plant / over the backlash-free plant's "
                  "under the same controller:")
@@ -494,10 +506,13 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
                 continue
             a = ratios["over_pid"].get(key, {}).get(p)
             b = ratios["over_backlash_free"].get(key, {}).get(p)
-            row.append(f"{_fmt(a, 1, 3)} / {_fmt(b, 1, 3)}")
-        row.append(_fmt(ratios["improved_over_yang_sun"].get(key), 1, 3))
+            row.append(f"{_fmt(a, 1, 3)} / {_fmt(b, 1, 3)}{runaway(m, c, ref, p)}")
+        q = ratios["improved_over_yang_sun"].get(key)
+        row.append(_fmt(q, 1, 3) + (runaway(m, c, ref, "improved") if q is not None else ""))
         body.append(row)
     table([*mhead, "controller", "reference", *[p for p in plants if p != FREE], "improved / yang-sun"], body)
+    if footnote:
+        lines.extend([footnote, ""])
     if ratios["cross_design"]:
         lines.append("Designed on one plant, run on another (sine, RMS [urad]):")
         lines.append("")

@@ -47,3 +47,24 @@ def test_a_design_note_shared_by_several_controllers_comes_once(capsys: pytest.C
     assert len(lowered) == 1
     assert lowered[0].startswith(f"{JOINT}, pid, deadzone_inverse: ") or \
         lowered[0].startswith(f"{JOINT}, deadzone_inverse, pid: ")
+
+
+def test_the_tables_mark_the_rows_of_a_load_step_no_controller_can_hold() -> None:
+    # the instrument's step rows read '1.562e+08 / 4.018e+08' urad and '1 / 1' over the PID and the backlash-free
+    # plant for every controller: a tie, to a reader, where the load ran 156 rad away under each; the joint (3 N m x 4)
+    # holds the 0.5 N m step and is not marked
+    from gearctl.bench import BenchSpec, bench_table, run_bench
+
+    res = run_bench(BenchSpec(models=(INSTRUMENT, JOINT), controllers=("pid",), plants=("improved",),
+                              references=("step",), duration=1.5, precision=False), jobs=1)
+    held = {r["model"]: r["unholdable_load_step"] for r in res["runs"]}
+    assert held[JOINT] is None and "2 times the torque the motor can put on the load" in held[INSTRUMENT]
+    for markdown in (False, True):
+        text = bench_table(res, markdown=markdown)
+        rows = [line for line in text.splitlines() if " step " in line or "| step |" in line]
+        assert len(rows) == 4  # the error table's and the ratio table's row of each model
+        for line in rows:
+            assert (" *" in line) is (INSTRUMENT in line), line
+        star = "\\* " if markdown else "* "
+        assert f"\n{star}the reference's load step, 0.5 N m, is 2 times" in text
+        assert text.count("no controller can hold it, the load runs away") == 2  # under each table that marks
