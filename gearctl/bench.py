@@ -250,7 +250,8 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     -------
     dict
         ``runs`` (every run's figures), ``precision`` (the ISO rows), ``ratios`` {``over_pid``,
-        ``over_backlash_free``, ``improved_over_yang_sun``, ``cross_design``, ``iso_over_backlash_free``},
+        ``over_backlash_free``, ``improved_over_yang_sun``, ``cross_design``, ``iso_over_backlash_free``,
+        ``iso_over_pid`` (A, B, R over the PID's on the improved plant)},
         ``spec``, ``skipped`` (:meth:`BenchSpec.skipped`).
     """
     skipped = spec.skipped()
@@ -326,6 +327,17 @@ def _warn_tracks_worse_than_pid(rows: Sequence[dict[str, Any]]) -> None:
                 f"reference")]
 
 
+def _warning_kind(message: str) -> str:
+    """A warning's kind, without its figures: ``"sustained limit cycle: 56 impacts ..."`` -> ``"sustained limit
+    cycle"``, ``"impact rate 112 per s, above 100 per s"`` -> ``"impact rate above 100 per s"``."""
+    import re
+
+    base = re.sub(r"\s*\(stage 1:.*\)$", "", message)  # a train's rates per stage
+    if ":" in base:
+        return base.split(":")[0].strip()
+    return (re.split(r"\s[-+]?\d", base)[0] + (f" {base.rsplit(', ', 1)[1]}" if ", " in base else "")).strip()
+
+
 def grouped_warnings(rows: Sequence[dict[str, Any]], *, iso: bool = False) -> list[str]:
     """One line per kind of loop warning (limit cycle, impact rate, ...) naming the runs that have it.
 
@@ -341,8 +353,6 @@ def grouped_warnings(rows: Sequence[dict[str, Any]], *, iso: bool = False) -> li
     list of str
         ``"<kind> in <n> run(s): <run>, <run> (figures: --json FILE)"``.
     """
-    import re
-
     groups: dict[str, list[str]] = {}
     several = len({r.get("model") for r in rows}) > 1
     for r in rows:
@@ -350,13 +360,9 @@ def grouped_warnings(rows: Sequence[dict[str, Any]], *, iso: bool = False) -> li
         model = f"{r.get('model')}: " if several else ""
         label = f"{model}{r['controller']} on {r['plant']}{design} ({'ISO 230-2' if iso else r['reference']})"
         for wmsg in r.get("warnings", ()):
-            base = re.sub(r"\s*\(stage 1:.*\)$", "", wmsg)  # a train's rates per stage
-            if ":" in base:  # "sustained limit cycle: 56 impacts ..."
-                kind = base.split(":")[0]
-            else:  # "impact rate 112 per s, above 100 per s" -> "impact rate above 100 per s"
-                kind = re.split(r"\s[-+]?\d", base)[0] + (f" {base.rsplit(', ', 1)[1]}" if ", " in base else "")
-            if label not in groups.setdefault(kind.strip(), []):
-                groups[kind.strip()].append(label)
+            kind = _warning_kind(wmsg)
+            if label not in groups.setdefault(kind, []):
+                groups[kind].append(label)
     return [f"{kind} in {len(labels)} run(s): {', '.join(labels)} (figures: --json FILE)"
             for kind, labels in groups.items()]
 
@@ -429,8 +435,17 @@ def _ratios(results: Sequence[dict[str, Any]], iso: Sequence[dict[str, Any]] = (
         f = iso_free[r["model"]]
         iso_ratios[f"{r['model']}/{r['controller']}"] = {
             k: ratio(r[k], f[k]) for k in ("accuracy", "reversal_value", "repeatability")}
+    # over the PID on the same (improved) plant: what a compensator gains in positioning, as over_pid in tracking
+    iso_pid = {r["model"]: r for r in iso if r["plant"] == "improved" and r["controller"] == "pid" and r.get("ok")}
+    iso_over_pid: dict[str, Any] = {}
+    for r in iso:
+        if r["plant"] == FREE or not r.get("ok") or r["model"] not in iso_pid:
+            continue
+        f = iso_pid[r["model"]]
+        iso_over_pid[f"{r['model']}/{r['controller']}"] = {
+            k: ratio(r[k], f[k]) for k in ("accuracy", "reversal_value", "repeatability")}
     return {"over_pid": over_pid, "over_backlash_free": over_free, "improved_over_yang_sun": imp_ys,
-            "cross_design": cross, "iso_over_backlash_free": iso_ratios}
+            "cross_design": cross, "iso_over_backlash_free": iso_ratios, "iso_over_pid": iso_over_pid}
 
 
 def _fmt(v: float | None, scale: float = 1e6, digits: int = 4) -> str:
@@ -438,7 +453,8 @@ def _fmt(v: float | None, scale: float = 1e6, digits: int = 4) -> str:
 
 
 def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
-    """The benchmark's tables as text (or Markdown): errors per cell, the ratios, the ISO rows."""
+    """The benchmark's tables as text (or Markdown): errors per cell, the ratios, the ISO rows, and the best
+    controller per reference on the improved plant (its gain over the PID, the runner-up, its warnings)."""
     runs = [r for r in result["runs"] if r["design"] == "improved"]
     plants = list(dict.fromkeys(r["plant"] for r in runs))
     rows = list(dict.fromkeys((r["model"], r["controller"], r["reference"]) for r in runs))
@@ -523,28 +539,78 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
     iso = result.get("precision") or []
     if iso:
         lines.append("ISO 230-2 positioning on the improved plant (5 targets, 5 cycles; load angle [urad]); ratios "
-                     "over the backlash-free PID's:")
+                     "over the PID's on the same plant and over the backlash-free PID's:")
         lines.append("")
         body = []
         for r in iso:
             key = f"{r['model']}/{r['controller']}"
             if not r.get("ok"):
-                body.append([*named(r["model"], r["controller"]), r["plant"], "FAILED", "", "", ""])
+                body.append([*named(r["model"], r["controller"]), r["plant"], "FAILED", "", "", "", ""])
                 continue
             q = ratios.get("iso_over_backlash_free", {}).get(key, {})
+            qp = ratios.get("iso_over_pid", {}).get(key, {})
+            abr = ("accuracy", "reversal_value", "repeatability")
             body.append([*named(r["model"], r["controller"]), r["plant"], _fmt(r["accuracy"]),
                          _fmt(r["reversal_value"]), _fmt(r["repeatability"]),
-                         "—" if r["plant"] == FREE else " / ".join(_fmt(q.get(k), 1, 3) for k in
-                                                                  ("accuracy", "reversal_value", "repeatability"))])
-        table([*mhead, "controller", "plant", "A", "B", "R", "A / B / R over backlash-free PID"], body)
+                         "—" if r["plant"] == FREE else " / ".join(_fmt(qp.get(k), 1, 3) for k in abr),
+                         "—" if r["plant"] == FREE else " / ".join(_fmt(q.get(k), 1, 3) for k in abr)])
+        table([*mhead, "controller", "plant", "A", "B", "R", "A / B / R over the pid's",
+               "A / B / R over backlash-free PID"], body)
+    best = _best(result)
+    if best:
+        lines.append("Best on the improved plant (lowest RMS error per reference; ISO 230-2: lowest A), load angle "
+                     "[urad]; against the pid and the runner-up, with the best run's warnings:")
+        lines.append("")
+        body = [[*([b["model"]] if several else []), *(b[k] for k in ("reference", "best", "error", "over_pid",
+                                                                       "runner_up", "warnings"))] for b in best]
+        table([*mhead, "reference", "best", "RMS or A", "over the pid", "runner-up", "its warnings"], body)
     failed = [r for r in result["runs"] if not r.get("ok")]
     for r in failed:
         how = "" if r["design"] == "improved" else f", designed on {r['design']}"
         model = f"{r['model']}, " if several else ""
         lines.append(f"FAILED: {r['controller']} on {model}{r['plant']} ({r['reference']}{how}): {r['message']}")
+    for r in result.get("precision") or ():  # the ISO row's FAILED had no reason anywhere but --json
+        if not r.get("ok"):
+            model = f"{r['model']}, " if several else ""
+            lines.append(f"FAILED: {r['controller']} on {model}{r['plant']} (ISO 230-2): {r.get('message')}")
     for s in result.get("skipped", ()):
         lines.append(f"not run: {s['controller']} on {s['model']}: {s['reason']}")
     return "\n".join(lines).rstrip() + "\n"
+
+
+def _best(result: dict[str, Any]) -> list[dict[str, str]]:
+    """Per model and reference (and ISO 230-2), the controller with the lowest error on the improved plant, its
+    figure [urad], its ratio over the pid's, the runner-up and the best run's warnings, as table cells.
+
+    The tables held every figure but not the answer a machine builder reads them for: which compensator, by how much,
+    and whether its figure can be trusted. A reference whose load step no controller can hold has no best.
+    """
+    out: list[dict[str, str]] = []
+
+    def entry(model: str, ref: str, rows: list[dict[str, Any]], key: str) -> None:
+        ranked = sorted((r for r in rows if r.get("ok") and r.get(key) is not None and math.isfinite(r[key])),
+                        key=lambda r: r[key])
+        if not ranked:
+            return
+        if any(r.get("unholdable_load_step") for r in ranked):
+            out.append({"model": model, "reference": ref, "best": "— *", "error": "—", "over_pid": "—",
+                        "runner_up": "—", "warnings": "no controller can hold the load step"})
+            return
+        b = ranked[0]
+        pid = next((r for r in ranked if r["controller"] == "pid"), None)
+        ratio = f"{b[key] / pid[key]:.3g}x" if pid is not None and pid[key] > 0 else "—"
+        runner = f"{ranked[1]['controller']} {_fmt(ranked[1][key])}" if len(ranked) > 1 else "—"
+        kinds = list(dict.fromkeys(_warning_kind(w) for w in b.get("warnings", ())))
+        out.append({"model": model, "reference": ref, "best": b["controller"], "error": _fmt(b[key]),
+                    "over_pid": ratio, "runner_up": runner, "warnings": "; ".join(kinds) or "none"})
+
+    runs = [r for r in result["runs"] if r["design"] == "improved" and r["plant"] == "improved"]
+    for m, ref in dict.fromkeys((r["model"], r["reference"]) for r in runs):
+        entry(m, ref, [r for r in runs if r["model"] == m and r["reference"] == ref], "rms_error")
+    iso = [r for r in result.get("precision") or () if r["plant"] == "improved"]
+    for m in dict.fromkeys(r["model"] for r in iso):
+        entry(m, "ISO 230-2", [r for r in iso if r["model"] == m], "accuracy")
+    return out
 
 
 def error_traces(result: dict[str, Any]) -> dict[tuple[str, str], dict[str, tuple[Any, Any]]]:

@@ -186,7 +186,9 @@ def test_bench_failed_cell_is_a_result(tmp_path: Path) -> None:
     assert all(v is None for v in ratios["over_pid"][key].values())
     assert all(v is None for v in ratios["over_backlash_free"][key].values())
     table = bench_table(res)
-    assert table.count("FAILED: ") == 2 and "diverged" in table
+    assert table.count("FAILED: ") == 3 and "diverged" in table  # the two runs, and the ISO row with its reason
+    iso = next(r for r in res["precision"] if r["controller"].endswith("wild.toml"))
+    assert not iso["ok"] and f"(ISO 230-2): {iso['message']}" in table
 
 
 # --- the CLI ----------------------------------------------------------------------------------------------
