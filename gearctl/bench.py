@@ -593,7 +593,7 @@ def _best(result: dict[str, Any]) -> list[dict[str, str]]:
         if not ranked:
             return
         if any(r.get("unholdable_load_step") for r in ranked):
-            out.append({"model": model, "reference": ref, "best": "— *", "error": "—", "over_pid": "—",
+            out.append({"model": model, "reference": ref, "best": "—", "error": "—", "over_pid": "—",
                         "runner_up": "—", "warnings": "no controller can hold the load step"})
             return
         b = ranked[0]
@@ -610,7 +610,8 @@ def _best(result: dict[str, Any]) -> list[dict[str, str]]:
     iso = [r for r in result.get("precision") or () if r["plant"] == "improved"]
     for m in dict.fromkeys(r["model"] for r in iso):
         entry(m, "ISO 230-2", [r for r in iso if r["model"] == m], "accuracy")
-    return out
+    order = list(dict.fromkeys(b["model"] for b in out))
+    return sorted(out, key=lambda b: order.index(b["model"]))  # each model's rows together, its ISO row last
 
 
 def error_traces(result: dict[str, Any]) -> dict[tuple[str, str], dict[str, tuple[Any, Any]]]:

@@ -130,7 +130,7 @@ def test_no_best_where_no_controller_can_hold_the_load_step() -> None:
 
     res = run_bench(BenchSpec(models=(INSTRUMENT,), controllers=("pid", "deadzone_inverse"), plants=("improved",),
                               references=("step",), duration=1.5, precision=False), jobs=1)
-    row = next(line for line in bench_table(res).splitlines() if line.startswith("step ") and "— *" in line)
+    row = next(line for line in bench_table(res).splitlines() if line.split()[:2] == ["step", "—"])
     assert "no controller can hold the load step" in row
 
 
@@ -143,3 +143,14 @@ def test_a_failed_iso_row_says_why(capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     line = next(line for line in out.splitlines() if line.startswith("FAILED: mpc on improved (ISO 230-2): "))
     assert "horizon" in line
+
+
+def test_the_best_table_keeps_each_models_rows_together() -> None:
+    from gearctl.bench import BenchSpec, bench_table, run_bench
+
+    res = run_bench(BenchSpec(models=(INSTRUMENT, JOINT), controllers=("pid", "reversal_offset"), plants=("improved",),
+                              references=("sine",), duration=0.6), jobs=1)
+    text = bench_table(res)
+    best = text.split("Best on the improved plant")[1].splitlines()[3:]
+    models = [line.split()[0] for line in best if line.strip() and not line.startswith(("FAILED", "not run"))]
+    assert models == [INSTRUMENT, INSTRUMENT, JOINT, JOINT]  # sine, then ISO 230-2, per model
