@@ -392,8 +392,8 @@ def bench_notes(result: dict[str, Any]) -> list[str]:
             if r["controller"] not in ctrls:
                 ctrls.append(r["controller"])
     out = [f"{m}, {', '.join(c)}: {n}" for (m, n), c in groups.items()]
-    ctrls = (result.get("spec") or {}).get("controllers") or ()
-    if ctrls and "pid" not in ctrls:  # the baseline every comparison is made against
+    chosen = (result.get("spec") or {}).get("controllers") or ()
+    if chosen and "pid" not in chosen:  # the baseline every comparison is made against
         out.append("--controllers without pid: no PID baseline, so no ratios over the PID, no backlash-free ISO "
                    "row and no 'worse than the pid' warnings; add pid to --controllers to compare with it")
     return out
