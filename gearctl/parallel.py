@@ -293,18 +293,12 @@ class Engine:
         elif address:
             try:
                 probe_scheduler(address)
+                self.client = _open_client(address)
                 try:
-                    self.client = distributed.Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-                except (OSError, TimeoutError) as exc:
-                    raise InputError(f"cannot reach the Dask scheduler at {address}: {exc}",
-                                     field="scheduler") from None
-                try:
-                    self.client.wait_for_workers(1, timeout=WORKER_TIMEOUT)
-                except TimeoutError:
-                    self.client.close()
-                    raise InputError(f"no worker joined the Dask scheduler at {address} within {WORKER_TIMEOUT:g} "
-                                     f"s: start one with `dask worker {address} --nthreads 1`",
-                                     field="scheduler") from None
+                    _wait_for_a_worker(self.client, address)
+                except InputError:
+                    _close_client(self.client)
+                    raise
             except InputError as exc:
                 if scheduler:
                     raise
@@ -326,8 +320,11 @@ class Engine:
             # the scheduler unpickles the tasks (Dask's graph, gearctl's functions by name): one that could not import
             # gearctl, or whose gearctl lacked a function, ended the sweep in Dask's traceback and exit 1 after the
             # workers had passed their check
-            try:
-                theirs = self.client.run_on_scheduler(code_id)
+            try:  # within CONNECT_TIMEOUT: a scheduler stopped or hung since it was reached held it for good
+                theirs = self.client.run_on_scheduler(code_id, callback_timeout=CONNECT_TIMEOUT)
+            except TimeoutError:
+                self.close()
+                raise _no_answer(self.where, CONNECT_TIMEOUT) from None
             except Exception as exc:
                 self.close()
                 raise InputError(f"the scheduler at {self.where} cannot run gearctl ({type(exc).__name__}: "
@@ -343,6 +340,9 @@ class Engine:
                 # with it, for good
                 ids = self.client.run(code_id, on_error="return", callback_timeout=WORKER_TIMEOUT)
             except TimeoutError:
+                if _scheduler_workers(self.client, CONNECT_TIMEOUT) is None:  # the scheduler, not its workers
+                    self.close()
+                    raise _no_answer(self.where, CONNECT_TIMEOUT) from None
                 quiet = self._silent_workers()
                 self.close()
                 raise InputError(f"the workers of {self.where} did not all answer within {WORKER_TIMEOUT:g} s "
@@ -383,12 +383,16 @@ class Engine:
 
     @property
     def workers(self) -> int:
-        """Workers the scheduler knows now."""
-        return max(1, len(self.client.scheduler_info(n_workers=-1)["workers"]))
+        """Workers the scheduler knows now; an :class:`~gearctl.InputError` if it does not answer within
+        :data:`CONNECT_TIMEOUT` (``client.scheduler_info()`` waited for good)."""
+        workers = _scheduler_workers(self.client, CONNECT_TIMEOUT)
+        if workers is None:
+            raise _no_answer(self.where, CONNECT_TIMEOUT)
+        return max(1, len(workers))
 
     def close(self) -> None:
         if self.own:
-            self.client.close()
+            _close_client(self.client)
             if self.cluster is not None:
                 self.cluster.close()
 
@@ -405,16 +409,87 @@ POLL = 1.0
 ANSWER_TIMEOUT = 5.0
 
 
-def _scheduler_workers(client: Any) -> dict | None:
-    """The scheduler's workers (address: its info), or None without an answer within :data:`ANSWER_TIMEOUT`.
+def _scheduler_workers(client: Any, timeout: float | None = None) -> dict | None:
+    """The scheduler's workers (address: its info), or None without an answer within ``timeout`` seconds (default
+    :data:`ANSWER_TIMEOUT`).
 
     ``client.scheduler_info()`` waits for the answer without end: a scheduler stopped mid-sweep (SIGSTOP, a paused
     VM, a link cut without the connection closing) hung the sweep for good."""
     try:
-        info = client.sync(client.scheduler.identity, n_workers=-1, callback_timeout=ANSWER_TIMEOUT)
+        info = client.sync(client.scheduler.identity, n_workers=-1,
+                           callback_timeout=ANSWER_TIMEOUT if timeout is None else timeout)
     except (TimeoutError, OSError):
         return None
     return dict(info.get("workers") or {})
+
+
+def _no_answer(address: str, timeout: float) -> InputError:
+    """The refusal of a scheduler that was reached but gives no answer within ``timeout`` seconds."""
+    return InputError(f"the Dask scheduler at {address} did not answer within {timeout:g} s (stopped, hung, or cut "
+                      f"off from this machine): run again when it answers", field="scheduler")
+
+
+def _open_client(address: str) -> Any:
+    """``distributed.Client(address)``, or an :class:`~gearctl.InputError` within :data:`CONNECT_TIMEOUT` (and
+    :data:`ANSWER_TIMEOUT` to spare).
+
+    Dask's timeout covers the TCP connect only: its handshake then waits for the scheduler's reply without end, so
+    a scheduler stopped (``kill -STOP``) or hung after :func:`probe_scheduler` had its answer hung the command for
+    good (still waiting after 150 s). The client opens in a thread of its own; one that gives up on it leaves the
+    thread to end, or to close the client it gets, whenever the scheduler answers."""
+    import distributed
+
+    lock, box = threading.Lock(), {}
+
+    def open_() -> None:
+        try:
+            client = distributed.Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except BaseException as exc:  # noqa: BLE001 (handed to the waiting thread, which raises it)
+            box["error"] = exc
+            return
+        with lock:
+            if "gave up" not in box:
+                box["client"] = client
+                return
+        _close_client(client)
+
+    t = threading.Thread(target=open_, name="gearctl-client-open", daemon=True)
+    t.start()
+    t.join(CONNECT_TIMEOUT + ANSWER_TIMEOUT)
+    with lock:
+        if "client" in box:
+            return box["client"]
+        box["gave up"] = True
+    exc = box.get("error")
+    if exc is None:  # still waiting for the scheduler's handshake
+        raise _no_answer(address, CONNECT_TIMEOUT + ANSWER_TIMEOUT)
+    if isinstance(exc, (OSError, TimeoutError)):
+        raise InputError(f"cannot reach the Dask scheduler at {address}: {exc}", field="scheduler") from None
+    raise exc
+
+
+def _wait_for_a_worker(client: Any, address: str) -> None:
+    """Wait until the scheduler has a worker: an :class:`~gearctl.InputError` if none joined within
+    :data:`WORKER_TIMEOUT`, or if the scheduler gives no answer within :data:`CONNECT_TIMEOUT`
+    (``client.wait_for_workers`` asks it first without a timeout: a scheduler stopped then waited for good)."""
+    deadline = time.monotonic() + WORKER_TIMEOUT
+    while True:
+        workers = _scheduler_workers(client, CONNECT_TIMEOUT)
+        if workers is None:
+            raise _no_answer(address, CONNECT_TIMEOUT)
+        if workers:
+            return
+        if time.monotonic() > deadline:
+            raise InputError(f"no worker joined the Dask scheduler at {address} within {WORKER_TIMEOUT:g} s: start "
+                             f"one with `dask worker {address} --nthreads 1`", field="scheduler")
+        time.sleep(0.1)
+
+
+def _close_client(client: Any) -> None:
+    """Close ``client`` within :data:`ANSWER_TIMEOUT`: Dask's own close waits up to twice its connect timeout for a
+    scheduler that does not answer, then raises ``TimeoutError`` (a traceback where a one-line error was due)."""
+    with contextlib.suppress(TimeoutError, OSError):
+        client.close(timeout=ANSWER_TIMEOUT)
 
 
 def completed(client: Any, futures: Sequence[Any], *,

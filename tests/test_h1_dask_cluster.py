@@ -1,0 +1,131 @@
+"""Sweeps on a running Dask cluster whose scheduler or workers stop answering (``kill -STOP``: a paused VM, a hung
+process, a link cut without the connection closing), as an outsider's real cluster does.
+
+Every question gearctl asks the cluster must end within a stated time, with one line naming the address. Each test
+runs the call under test in a thread and gives it a bounded time, so a hang fails the test instead of hanging it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import gearctl
+import gearctl.parallel
+import gearctl.sweep
+from gearctl.cli import main
+
+
+@contextlib.contextmanager
+def _cluster(tmp_path: Path, workers: int = 1) -> Iterator[tuple[str, list[subprocess.Popen]]]:
+    """A ``dask scheduler`` and ``workers`` ``dask worker`` processes (no nanny), each in its own process group:
+    the address and [scheduler, worker, ...]. Their gearctl is this one (PYTHONPATH as this process's)."""
+    sched_file = tmp_path / "scheduler.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(gearctl.__file__).parents[1]),
+                                                                      os.environ.get("PYTHONPATH")]))}
+    common = {"cwd": tmp_path, "env": env, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL,
+              "start_new_session": True}
+    procs = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+                               "--no-dashboard", "--scheduler-file", str(sched_file)], **common)]
+    try:
+        deadline = time.monotonic() + 60
+        address = None
+        while address is None and time.monotonic() < deadline:
+            with contextlib.suppress(OSError, ValueError, KeyError):
+                address = json.loads(sched_file.read_text())["address"]
+            time.sleep(0.1)
+        assert address, "the dask scheduler did not start"
+        for k in range(workers):
+            procs.append(subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
+                                           "--no-nanny", "--no-dashboard", "--host", "127.0.0.1", "--name", f"w{k}",
+                                           "--local-directory", str(tmp_path / f"w{k}")], **common))
+        from distributed import Client
+
+        if workers:
+            with Client(address, timeout=30, set_as_default=False) as c:
+                c.wait_for_workers(workers, timeout=90)
+        yield address, procs
+    finally:
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
+
+
+def _within(seconds: float, fn: Callable[[], Any]) -> BaseException | Any:
+    """``fn()`` in a thread: its result or its exception; a failed test if it has not ended within ``seconds``."""
+    box: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            box["out"] = fn()
+        except BaseException as exc:  # noqa: BLE001 (handed to the test)
+            box["out"] = exc
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(seconds)
+    assert not t.is_alive(), f"still waiting after {seconds:g} s"
+    return box["out"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("after", ["probe_scheduler", "run_on_scheduler", "run"])
+def test_a_scheduler_stopped_during_the_start_up_is_one_line_within_the_timeout(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, after: str) -> None:
+    # a scheduler that stops answering once reached: Dask's handshake after the probe (Client() still waiting after
+    # 150 s), client.scheduler_info() after the workers' check (still waiting after 150 s) waited for it for good, and
+    # after the scheduler's check the workers were blamed ("the workers ... did not all answer ... stopped or hung")
+    import distributed
+
+    monkeypatch.setattr(gearctl.parallel, "CONNECT_TIMEOUT", 2.0)
+    monkeypatch.setattr(gearctl.parallel, "ANSWER_TIMEOUT", 1.0)
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 3.0)
+    with _cluster(tmp_path) as (address, procs):
+        def stop_after(owner: Any, name: str) -> None:
+            original = getattr(owner, name)
+
+            def call(*args: Any, **kwargs: Any) -> Any:
+                out = original(*args, **kwargs)
+                os.killpg(procs[0].pid, signal.SIGSTOP)
+                return out
+
+            monkeypatch.setattr(owner, name, call)
+
+        stop_after(gearctl.parallel if after == "probe_scheduler" else distributed.Client, after)
+        err = io.StringIO()
+        t0 = time.monotonic()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            rc = _within(40, lambda: main(["sweep", "shing1993_servo", "pid", "--runs", "2", "--duration", "0.2",
+                                           "--scheduler", address, "--quiet"]))
+        took = time.monotonic() - t0
+    assert rc == 2, err.getvalue()
+    assert err.getvalue().count("\n") == 1 and "Traceback" not in err.getvalue()
+    assert f"the Dask scheduler at {address} did not answer within" in err.getvalue()
+    assert took < 20  # the timeouts here add up to 3 s at start-up, 3 s + 2 s after the scheduler's check
+
+
+def test_a_scheduler_without_workers_is_one_line_after_the_worker_timeout(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 1.0)
+    with _cluster(tmp_path, workers=0) as (address, _):
+        t0 = time.monotonic()
+        out = _within(30, lambda: gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2,
+                                                      scheduler=address))
+        took = time.monotonic() - t0
+    assert isinstance(out, gearctl.InputError) and out.field == "scheduler"
+    assert str(out) == (f"no worker joined the Dask scheduler at {address} within 1 s: start one with `dask worker "
+                        f"{address} --nthreads 1`")
+    assert 1.0 <= took < 15
