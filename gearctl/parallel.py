@@ -499,14 +499,18 @@ def completed(client: Any, futures: Sequence[Any], *,
     :data:`WORKER_TIMEOUT` seconds is an :class:`~gearctl.InputError`: with every worker killed a sweep waited
     forever, for the tasks left and for a finished task's result that only the dead worker held. While nothing
     arrives, the cluster's workers are counted every :data:`POLL` seconds; a scheduler that gives no answer for
-    :data:`WORKER_TIMEOUT` seconds (each question waits :data:`ANSWER_TIMEOUT`) is an ``InputError`` too."""
+    :data:`WORKER_TIMEOUT` seconds (each question waits :data:`ANSWER_TIMEOUT`) is an ``InputError`` too, and so
+    is a worker the scheduler has not heard from for :data:`WORKER_TIMEOUT` seconds that holds some of the tasks
+    (:func:`_held_by_silent`)."""
     from distributed import as_completed
     from distributed.comm.core import CommClosedError
 
     ac = as_completed(list(futures), loop=client.loop)
+    keys = {f.key for f in futures}
     checked = time.monotonic()
     alone_since: float | None = None
     silent_since: float | None = None
+    heard: dict[str, tuple[Any, float]] = {}  # worker: (its last heartbeat by the scheduler's clock, when it changed)
 
     def watch(left: int) -> None:
         nonlocal checked, alone_since, silent_since
@@ -524,6 +528,14 @@ def completed(client: Any, futures: Sequence[Any], *,
                                  f"it answers", field="scheduler")
             return
         silent_since = None
+        held = _held_by_silent(client, workers, heard, keys, now)
+        if held:
+            raise InputError(f"{where}: the worker{'s' if len(held) > 1 else ''} {', '.join(sorted(held))} "
+                             f"{'have' if len(held) > 1 else 'has'} not been heard from for {WORKER_TIMEOUT:g} s "
+                             f"(stopped, hung, or cut off from the scheduler) and hold{'' if len(held) > 1 else 's'} "
+                             f"{sum(held.values())} of the {left} unfinished task(s): Dask takes them back only "
+                             f"after its worker-ttl (5 min by default), if at all; restart or stop "
+                             f"{'them' if len(held) > 1 else 'it'} and run again", field="scheduler")
         if workers:
             alone_since = None
         elif alone_since is None:
@@ -560,6 +572,35 @@ def completed(client: Any, futures: Sequence[Any], *,
                     yield fut, got, None
                 break
             alone_since = None
+
+
+def _held_by_silent(client: Any, workers: dict, heard: dict[str, tuple[Any, float]], keys: set,
+                    now: float) -> dict[str, int]:
+    """The workers silent for :data:`WORKER_TIMEOUT` seconds that hold some of ``keys`` (running them, or their
+    results), with how many; ``heard`` is updated with ``workers``' heartbeats as of ``now``.
+
+    A worker is silent when the scheduler's record of its last heartbeat (``last_seen``; a worker sends one every
+    0.5 to a few seconds, from its event loop, even while its tasks run) has not changed for that long by this
+    machine's clock, so the two clocks need not agree. A worker stopped with ``kill -STOP`` (or hung, or cut off
+    without its connection closing) stays on the scheduler's list with the tasks it was given until Dask's
+    ``worker-ttl`` (5 min): a sweep on two workers, one of them stopped, was still waiting after 6.5 min."""
+    for w, info in workers.items():
+        seen = info.get("last_seen")
+        if w not in heard or heard[w][0] != seen:
+            heard[w] = (seen, now)
+    silent = sorted(w for w, (_, since) in heard.items() if w in workers and now - since > WORKER_TIMEOUT)
+    if not silent:
+        return {}
+    held: dict[str, int] = {}
+    try:
+        for ask in (client.scheduler.processing, client.scheduler.has_what):
+            for w, ks in client.sync(ask, workers=silent, callback_timeout=ANSWER_TIMEOUT).items():
+                n = len(keys.intersection(ks))
+                if n:
+                    held[w] = held.get(w, 0) + n
+    except (TimeoutError, OSError):  # the scheduler's own silence is watched apart
+        return {}
+    return held
 
 
 def killed_worker_text(exc: BaseException) -> str:

@@ -129,3 +129,33 @@ def test_a_scheduler_without_workers_is_one_line_after_the_worker_timeout(tmp_pa
     assert str(out) == (f"no worker joined the Dask scheduler at {address} within 1 s: start one with `dask worker "
                         f"{address} --nthreads 1`")
     assert 1.0 <= took < 15
+
+
+@pytest.mark.slow
+def test_a_worker_stopped_mid_sweep_is_named_after_the_worker_timeout(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    # two workers, one stopped (SIGSTOP) after the first results: it stays on the scheduler's list with the task it
+    # was given until Dask's worker-ttl (5 min), and the sweep was still waiting after 6.5 min. Now a worker the
+    # scheduler has not heard from for WORKER_TIMEOUT (60 s; 3 s here) that holds tasks of the sweep ends it, named
+    from distributed import Client
+
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 3.0)
+    with _cluster(tmp_path, workers=2) as (address, procs):
+        with Client(address, timeout=30, set_as_default=False) as c:
+            by_name = {d["name"]: w for w, d in c.scheduler_info(n_workers=-1)["workers"].items()}
+        stopped = by_name["w1"]
+
+        def progress(done: int, total: int) -> None:  # noqa: ARG001
+            if done == 2:
+                os.killpg(procs[2].pid, signal.SIGSTOP)
+
+        t0 = time.monotonic()
+        out = _within(60, lambda: gearctl.sweep.sweep("shing1993_servo", "pid", vary=["backlash=0.5x:2x"], runs=40,
+                                                      duration=0.3, scheduler=address, batch=1, progress=progress))
+        took = time.monotonic() - t0
+    assert isinstance(out, gearctl.InputError), out
+    assert out.field == "scheduler"
+    assert str(out).startswith(f"{address}: the worker {stopped} has not been heard from for 3 s (stopped, hung, or "
+                               f"cut off from the scheduler) and holds "), str(out)
+    assert by_name["w0"] not in str(out)
+    assert 3.0 < took < 40
