@@ -390,6 +390,15 @@ class Engine:
             raise _no_answer(self.where, CONNECT_TIMEOUT)
         return max(1, len(workers))
 
+    @property
+    def threads(self) -> int:
+        """Threads of the scheduler's workers now, in all (``dask worker`` starts one per core unless told
+        ``--nthreads``); an :class:`~gearctl.InputError` as :attr:`workers`."""
+        workers = _scheduler_workers(self.client, CONNECT_TIMEOUT)
+        if workers is None:
+            raise _no_answer(self.where, CONNECT_TIMEOUT)
+        return max(1, sum(int(d.get("nthreads") or 1) for d in workers.values()))
+
     def close(self) -> None:
         if self.own:
             _close_client(self.client)

@@ -965,12 +965,12 @@ def sweep_task(ctx: SweepContext, jobs: Sequence[Job]) -> list[dict[str, Any]]:
 # --- the engine -----------------------------------------------------------------------------------------
 
 def batch_size(n: int, workers: int, duration: float, cost_per_s: float = 0.015) -> int:
-    """Runs per task: about half a second of work, and at least four tasks per worker; 1 to 256.
+    """Runs per task: about half a second of work, and at least four tasks per worker thread; 1 to 256.
 
     A task costs about 5 ms of CPU in the client and the scheduler (measured on the two-core machine;
     shipping the context by value or scattered once made no difference there). ``cost_per_s`` is the CPU
     time of one simulated second of a run (:func:`run_cost`): half a second of work per task keeps Dask's
-    share near 1 %, four tasks per worker keep the workers evenly loaded to the end and make a lost worker
+    share near 1 %, four tasks per worker thread keep the workers evenly loaded to the end and make a lost worker
     cost little.
 
     Parameters
@@ -978,7 +978,7 @@ def batch_size(n: int, workers: int, duration: float, cost_per_s: float = 0.015)
     n : int
         Runs of the sweep.
     workers : int
-        Worker processes.
+        Worker threads in all (a process of the local cluster has one; ``dask worker`` starts one per core).
     duration : float
         Simulated time of each run [s].
     cost_per_s : float
@@ -1028,9 +1028,11 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         workers = local_processes(n, workers)  # a local cluster of no more processes than runs (3 runs: 3, not 8)
     eng = Engine(workers=workers, scheduler=scheduler, client=client)
     try:
-        w = eng.workers
-        size = batch or batch_size(n, w, plan.context.duration, run_cost(plan.context))
-        info.update(workers=w, where=eng.where, batch=size)
+        w, threads = eng.workers, eng.threads
+        # four tasks per thread: sized per worker, a cluster of `dask worker` (a thread per core) left most of its
+        # threads idle (2 workers of 16 threads, 1000 runs: 8 tasks for 32 threads)
+        size = batch or batch_size(n, threads, plan.context.duration, run_cost(plan.context))
+        info.update(workers=w, threads=threads, where=eng.where, batch=size)
         tag = uuid.uuid4().hex[:12]
         futures = {}
         mine = code_id()  # each task checks it on its worker: one may join mid-sweep (parallel.checked)
@@ -1087,7 +1089,8 @@ class SweepResult:
     summary : dict
         :func:`summarize`.
     engine : dict
-        ``engine``, ``workers``, ``where``, ``batch`` (runs per task), ``wall_time`` [s].
+        ``engine``, ``workers``, ``threads`` (theirs in all; on Dask), ``where``, ``batch`` (runs per task),
+        ``wall_time`` [s].
     """
 
     settings: dict[str, Any]

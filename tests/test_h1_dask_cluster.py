@@ -159,3 +159,17 @@ def test_a_worker_stopped_mid_sweep_is_named_after_the_worker_timeout(tmp_path: 
                                f"cut off from the scheduler) and holds "), str(out)
     assert by_name["w0"] not in str(out)
     assert 3.0 < took < 40
+
+
+def test_a_sweep_gives_each_worker_thread_four_tasks() -> None:
+    # `dask worker ADDRESS` starts a thread per core: the batches were sized by the workers, four tasks each, and a
+    # worker of 4 threads got 64 runs in 4 tasks of 16, one thread each, the other three idle
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=4, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster, set_as_default=False) as client:
+        r = gearctl.sweep.sweep("shing1993_servo", "pid", vary=["backlash=0.5x:2x"], runs=64, duration=0.2,
+                                client=client)
+    assert -(-64 // r.engine["batch"]) >= 4 * 4  # tasks
+    assert r.engine["workers"] == 1 and r.engine["threads"] == 4
+    assert [row["index"] for row in r.runs] == list(range(64))
