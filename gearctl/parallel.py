@@ -123,8 +123,18 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
         except OSError as exc:
             raise refuse(f"cannot connect: {exc}") from None
 
+    from distributed.security import Security
+
+    # the client's TLS settings from Dask's configuration, as distributed.Client takes them: without them a tls://
+    # scheduler set up by the book was refused ("does not answer as a Dask scheduler (TypeError: TLS expects a
+    # `ssl_context` ...)") while Dask's own client reached it
+    args = Security().get_connection_args("client")
+    if scheme == "tls" and args.get("ssl_context") is None:
+        raise refuse("a tls:// address needs this machine's TLS certificates in Dask's configuration "
+                     "(distributed.comm.tls.ca-file, distributed.comm.tls.client.cert and .key); none are set")
+
     async def identity() -> Any:
-        comm = await connect(address, timeout=timeout)
+        comm = await connect(address, timeout=timeout, **args)
         try:
             await comm.write({"op": "identity", "reply": True})
             return await comm.read()

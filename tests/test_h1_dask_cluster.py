@@ -173,3 +173,30 @@ def test_a_sweep_gives_each_worker_thread_four_tasks() -> None:
     assert -(-64 // r.engine["batch"]) >= 4 * 4  # tasks
     assert r.engine["workers"] == 1 and r.engine["threads"] == 4
     assert [row["index"] for row in r.runs] == list(range(64))
+
+
+def test_a_tls_scheduler_is_reached_with_dasks_tls_configuration(tmp_path: Path) -> None:
+    # a tls:// scheduler, its certificates in Dask's configuration as Dask documents: distributed.Client reached it,
+    # but gearctl's check of the address connected without them and refused it ("does not answer as a Dask
+    # scheduler (TypeError: TLS expects a `ssl_context` ...)"); without any certificates that was the message too
+    import dask
+    from distributed import LocalCluster
+    from distributed.security import Security
+
+    pytest.importorskip("cryptography")  # Security.temporary() makes its certificates with it
+    sec = Security.temporary()
+    files = {}
+    for key, pem in [("ca-file", sec.tls_ca_file), ("client.cert", sec.tls_client_cert),
+                     ("client.key", sec.tls_client_key)]:
+        files[f"distributed.comm.tls.{key}"] = str(tmp_path / f"{key}.pem")
+        Path(files[f"distributed.comm.tls.{key}"]).write_text(pem)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, security=sec, protocol="tls://",
+                      dashboard_address=None) as cluster:
+        address = cluster.scheduler_address
+        assert address.startswith("tls://")
+        with pytest.raises(gearctl.InputError, match=r"tls:// address needs this machine's TLS certificates in "
+                                                     r"Dask's configuration \(distributed.comm.tls.ca-file"):
+            gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2, scheduler=address)
+        with dask.config.set(files):
+            r = gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2, scheduler=address)
+    assert r.engine["where"] == address and r.summary["ok"] == 2
