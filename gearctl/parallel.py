@@ -345,15 +345,20 @@ class Engine:
                 raise InputError(f"the scheduler at {self.where} runs gearctl {theirs}, this is {code_id()} "
                                  f"(version+code hash): Dask's scheduler reads the tasks, install the same gearctl "
                                  f"where it runs (and restart one started before an edit)", field="scheduler")
+            before = _scheduler_workers(self.client, CONNECT_TIMEOUT)  # their heartbeats, to name the silent
+            if before is None:
+                self.close()
+                raise _no_answer(self.where, CONNECT_TIMEOUT)
             try:  # each worker's answer, or its exception: the refusal names the workers at fault
                 # within WORKER_TIMEOUT: a worker stopped or hung (kill -STOP) held the answer back, and the sweep
                 # with it, for good
                 ids = self.client.run(code_id, on_error="return", callback_timeout=WORKER_TIMEOUT)
             except TimeoutError:
-                if _scheduler_workers(self.client, CONNECT_TIMEOUT) is None:  # the scheduler, not its workers
+                after = _scheduler_workers(self.client, CONNECT_TIMEOUT)
+                if after is None:  # the scheduler, not its workers
                     self.close()
                     raise _no_answer(self.where, CONNECT_TIMEOUT) from None
-                quiet = self._silent_workers()
+                quiet = _silent_workers(before, after)
                 self.close()
                 raise InputError(f"the workers of {self.where} did not all answer within {WORKER_TIMEOUT:g} s "
                                  f"(stopped or hung{': ' + ', '.join(quiet) if quiet else ''}): restart them, or "
@@ -379,17 +384,6 @@ class Engine:
                                  f"{self.where} run{'' if len(other) > 1 else 's'} gearctl {theirs}, this is "
                                  f"{code_id()} (version+code hash): install the same gearctl on every worker, and "
                                  f"restart workers started before an edit", field="scheduler")
-
-    def _silent_workers(self) -> list[str]:
-        """The workers the scheduler has not heard from for 10 s while others spoke (its heartbeats, by its clock),
-        as far as it answers: those that did not answer, likely."""
-        try:
-            workers = _scheduler_workers(self.client)
-        except Exception:  # (a hint only)
-            return []
-        seen = {w: float(d.get("last_seen") or 0.0) for w, d in (workers or {}).items()}
-        latest = max(seen.values(), default=0.0)
-        return sorted(w for w, t in seen.items() if latest - t > 10.0)
 
     @property
     def workers(self) -> int:
@@ -440,6 +434,16 @@ def _scheduler_workers(client: Any, timeout: float | None = None) -> dict | None
     except (TimeoutError, OSError):
         return None
     return dict(info.get("workers") or {})
+
+
+def _silent_workers(before: dict, after: dict) -> list[str]:
+    """The workers of ``after`` (the scheduler's, as :func:`_scheduler_workers` gives them) whose last heartbeat is
+    the one they had in ``before``, or 10 s behind the latest of the others (by the scheduler's clock): those that
+    did not answer, likely. Compared with the others alone, a lone worker stopped before the sweep went unnamed."""
+    seen = {w: float(d.get("last_seen") or 0.0) for w, d in after.items()}
+    latest = max(seen.values(), default=0.0)
+    return sorted(w for w, t in seen.items()
+                  if latest - t > 10.0 or (w in before and before[w].get("last_seen") == after[w].get("last_seen")))
 
 
 def _no_answer(address: str, timeout: float) -> InputError:

@@ -200,3 +200,20 @@ def test_a_tls_scheduler_is_reached_with_dasks_tls_configuration(tmp_path: Path)
         with dask.config.set(files):
             r = gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2, scheduler=address)
     assert r.engine["where"] == address and r.summary["ok"] == 2
+
+
+@pytest.mark.slow
+def test_a_lone_worker_stopped_before_the_sweep_is_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # the workers' check named a silent worker only by its heartbeat 10 s behind the others': a cluster whose one
+    # worker was stopped got "did not all answer within 60 s (stopped or hung)", no address
+    from distributed import Client
+
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 3.0)
+    with _cluster(tmp_path) as (address, procs):
+        with Client(address, timeout=30, set_as_default=False) as c:
+            (worker,) = c.scheduler_info(n_workers=-1)["workers"]
+        os.killpg(procs[1].pid, signal.SIGSTOP)
+        out = _within(40, lambda: gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2,
+                                                      scheduler=address))
+    assert isinstance(out, gearctl.InputError), out
+    assert str(out).startswith(f"the workers of {address} did not all answer within 3 s (stopped or hung: {worker})")
