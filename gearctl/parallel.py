@@ -478,7 +478,15 @@ def _open_client(address: str) -> Any:
 
     t = threading.Thread(target=open_, name="gearctl-client-open", daemon=True)
     t.start()
-    t.join(CONNECT_TIMEOUT + ANSWER_TIMEOUT)
+    try:
+        t.join(CONNECT_TIMEOUT + ANSWER_TIMEOUT)
+    except BaseException:  # a Ctrl-C while it waits: the client, now or when it opens, is closed
+        with lock:
+            box["gave up"] = True
+            client = box.pop("client", None)
+        if client is not None:
+            _close_client(client)
+        raise
     with lock:
         if "client" in box:
             return box["client"]

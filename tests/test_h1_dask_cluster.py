@@ -217,3 +217,34 @@ def test_a_lone_worker_stopped_before_the_sweep_is_named(tmp_path: Path, monkeyp
                                                       scheduler=address))
     assert isinstance(out, gearctl.InputError), out
     assert str(out).startswith(f"the workers of {address} did not all answer within 3 s (stopped or hung: {worker})")
+
+
+def test_a_client_that_opens_after_a_ctrl_c_is_closed(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a Ctrl-C while the client waited for the scheduler's handshake left it to open later, never closed (in a
+    # notebook or a script that catches KeyboardInterrupt, a client and its threads for good)
+    import distributed
+
+    release, made = threading.Event(), []
+
+    class SlowClient:
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            release.wait(30)
+            self.closed = False
+            made.append(self)
+
+        def close(self, timeout: float | None = None) -> None:  # noqa: ARG002
+            self.closed = True
+
+    def interrupted(self: threading.Thread, timeout: float | None = None) -> None:  # noqa: ARG001
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(distributed, "Client", SlowClient)
+    with monkeypatch.context() as m:
+        m.setattr(threading.Thread, "join", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            gearctl.parallel._open_client("tcp://127.0.0.1:8786")
+    release.set()
+    deadline = time.monotonic() + 10
+    while not (made and made[0].closed) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert made and made[0].closed
