@@ -24,7 +24,7 @@ import numpy as np
 from .catalog import controller_names, load_model, resolve
 from .errors import GearctlError, InputError
 from .kernel import compiled_available
-from .parallel import map_tasks
+from .parallel import check_one_cluster, map_tasks
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, reference
 from .runs import Design, Run, controller_spec, design_controller, execute, unholdable_load_step
@@ -254,6 +254,7 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
         ``iso_over_pid`` (A, B, R over the PID's on the improved plant)},
         ``spec``, ``skipped`` (:meth:`BenchSpec.skipped`).
     """
+    check_one_cluster(None, scheduler)  # an empty address, before the designs
     skipped = spec.skipped()
     runs = list(runs if runs is not None else spec.runs(skipped))
     iso = spec.precision_runs(skipped)

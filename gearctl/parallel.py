@@ -256,7 +256,12 @@ def _sigint_held() -> Iterator[Callable[[], bool]]:
 
 def check_one_cluster(client: Any, scheduler: str | None) -> None:
     """Refuse a ``client`` given with a ``scheduler`` address: the client's cluster ran the work and the address
-    was dropped without a word (a sweep given a closed port and a working client ran, as if the port answered)."""
+    was dropped without a word (a sweep given a closed port and a working client ran, as if the port answered).
+    An empty ``scheduler`` is refused too: ``--scheduler "$ADDR"`` with the variable unset ran on a local cluster
+    without a word, as if the option had not been given."""
+    if scheduler is not None and not str(scheduler).strip():
+        raise InputError(f"scheduler = {scheduler!r}: an empty address; expected tcp://HOST:PORT of a running Dask "
+                         f"scheduler, or no scheduler for a local cluster", field="scheduler")
     if client is not None and scheduler:
         where = getattr(getattr(client, "scheduler", None), "address", None) or "another"
         raise InputError(f"scheduler = {scheduler!r} and a client: give one of them (the client's own scheduler is "
@@ -677,6 +682,7 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     list
         The results, in the order of ``items``. An exception in a task is raised here.
     """
+    check_one_cluster(None, scheduler)
     n = len(items)
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
     if n == 0:

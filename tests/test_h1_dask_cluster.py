@@ -248,3 +248,16 @@ def test_a_client_that_opens_after_a_ctrl_c_is_closed(monkeypatch: pytest.Monkey
     while not (made and made[0].closed) and time.monotonic() < deadline:
         time.sleep(0.01)
     assert made and made[0].closed
+
+
+@pytest.mark.parametrize("command", [["sweep", "shing1993_servo", "pid", "--runs", "2"],
+                                     ["bench", "shing1993_servo", "--controllers", "pid", "--plants", "improved",
+                                      "--references", "sine", "--no-precision"]])
+def test_an_empty_scheduler_address_is_refused(command: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    # `--scheduler "$ADDR"` with the variable unset ran on a local cluster without a word
+    assert main([*command, "--duration", "0.2", "--quiet", "--scheduler", ""]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "scheduler = '': an empty address; expected tcp://HOST:PORT" in err
+    with pytest.raises(gearctl.InputError, match="scheduler = ' ': an empty address") as e:
+        gearctl.parallel.map_tasks(abs, [1, 2], scheduler=" ")
+    assert e.value.field == "scheduler"
