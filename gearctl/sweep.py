@@ -1025,7 +1025,8 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     from distributed import KilledWorker
 
     if client is None and not (scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")):
-        workers = local_processes(n, workers)  # a local cluster of no more processes than runs (3 runs: 3, not 8)
+        # a local cluster of no more processes than tasks (3 runs: 3, not 8; 2 runs in one --batch 1000 task: 1)
+        workers = local_processes(math.ceil(n / batch) if batch else n, workers)
     eng = Engine(workers=workers, scheduler=scheduler, client=client)
     try:
         w, threads = eng.workers, eng.threads

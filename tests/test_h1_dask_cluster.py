@@ -261,3 +261,9 @@ def test_an_empty_scheduler_address_is_refused(command: list[str], capsys: pytes
     with pytest.raises(gearctl.InputError, match="scheduler = ' ': an empty address") as e:
         gearctl.parallel.map_tasks(abs, [1, 2], scheduler=" ")
     assert e.value.field == "scheduler"
+
+
+def test_a_local_cluster_has_no_more_processes_than_tasks() -> None:
+    # `--batch 1000` with 2 runs: one task, and a local cluster of 2 processes (one started for nothing)
+    r = gearctl.sweep.sweep("shing1993_servo", "pid", runs=4, duration=0.2, workers=2, batch=4)
+    assert r.engine["batch"] == 4 and r.engine["workers"] == 1 and r.engine["where"] == "local cluster (1 process)"
