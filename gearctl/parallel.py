@@ -447,8 +447,8 @@ def _silent_workers(before: dict, after: dict) -> list[str]:
     did not answer, likely. Compared with the others alone, a lone worker stopped before the sweep went unnamed."""
     seen = {w: float(d.get("last_seen") or 0.0) for w, d in after.items()}
     latest = max(seen.values(), default=0.0)
-    return sorted(w for w, t in seen.items()
-                  if latest - t > 10.0 or (w in before and before[w].get("last_seen") == after[w].get("last_seen")))
+    return sorted(w for w, t in seen.items() if after[w].get("last_seen") is not None and (
+        latest - t > 10.0 or (w in before and before[w].get("last_seen") == after[w].get("last_seen"))))
 
 
 def _no_answer(address: str, timeout: float) -> InputError:
@@ -622,7 +622,9 @@ def _held_by_silent(client: Any, workers: dict, heard: dict[str, tuple[Any, floa
     ``worker-ttl`` (5 min): a sweep on two workers, one of them stopped, was still waiting after 6.5 min."""
     for w, info in workers.items():
         seen = info.get("last_seen")
-        if w not in heard or heard[w][0] != seen:
+        if seen is None:  # a Dask that does not say: never taken for silent
+            heard.pop(w, None)
+        elif w not in heard or heard[w][0] != seen:
             heard[w] = (seen, now)
     silent = sorted(w for w, (_, since) in heard.items() if w in workers and now - since > WORKER_TIMEOUT)
     if not silent:

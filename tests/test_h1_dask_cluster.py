@@ -267,3 +267,19 @@ def test_a_local_cluster_has_no_more_processes_than_tasks() -> None:
     # `--batch 1000` with 2 runs: one task, and a local cluster of 2 processes (one started for nothing)
     r = gearctl.sweep.sweep("shing1993_servo", "pid", runs=4, duration=0.2, workers=2, batch=4)
     assert r.engine["batch"] == 4 and r.engine["workers"] == 1 and r.engine["where"] == "local cluster (1 process)"
+
+
+def test_a_worker_without_a_heartbeat_record_is_never_taken_for_silent() -> None:
+    # a Dask whose worker info has no `last_seen` would have made every worker "silent" after WORKER_TIMEOUT
+    # without a result (a sweep of long MPC batches ended, its workers named as stopped)
+    from gearctl.parallel import WORKER_TIMEOUT, _held_by_silent, _silent_workers
+
+    heard: dict = {}
+    workers = {"tcp://10.0.0.1:1": {"nthreads": 1}}
+    assert _held_by_silent(None, workers, heard, {"k"}, 0.0) == {}
+    assert _held_by_silent(None, workers, heard, {"k"}, 10 * WORKER_TIMEOUT) == {}  # (None: no question asked)
+    assert _silent_workers(workers, workers) == []
+    # and with the record, one unchanged through the check is named
+    seen = {"tcp://10.0.0.1:1": {"last_seen": 5.0}, "tcp://10.0.0.2:1": {"last_seen": 5.0}}
+    later = {"tcp://10.0.0.1:1": {"last_seen": 5.0}, "tcp://10.0.0.2:1": {"last_seen": 9.0}}
+    assert _silent_workers(seen, later) == ["tcp://10.0.0.1:1"]
