@@ -467,7 +467,8 @@ def _open_client(address: str) -> Any:
     thread to end, or to close the client it gets, whenever the scheduler answers."""
     import distributed
 
-    lock, box = threading.Lock(), {}
+    lock = threading.Lock()
+    box: dict[str, Any] = {}  # "client", "error" (what opening raised), "gave up" (the waiting thread's)
 
     def open_() -> None:
         try:
