@@ -119,7 +119,7 @@ KEY_BYTES, PRECISION_BYTES = 400, 1536
 METRICS = ("rms_error", "max_error", "final_error", "impacts", "max_impact_velocity", "torque_rms",
            "saturated_fraction", "fallbacks")
 #: Health flags of each run (:class:`~gearctl.metrics.LoopHealth`).
-FLAGS = ("limit_cycle", "saturated", "impact_rate_high", "growing", "not_following", "falling_back")
+FLAGS = ("limit_cycle", "saturated", "impact_rate_high", "growing", "not_following", "falling_back", "chattering")
 #: Seconds to wait for a scheduler to answer, then for its first worker.
 #: ISO 230-2 figures of each run with ``precision=True``.
 ISO_FIGURES = ("reversal_value", "repeatability", "accuracy")
@@ -1159,12 +1159,12 @@ def summarize(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[st
     dict
         ``runs``, ``ok``, ``failed`` (counts); ``rms_error`` and ``max_error``: {min, p5, median, p95,
         p99, max, mean} over the runs that ran to their end [rad]; ``fractions`` of all runs with a
-        ``limit_cycle``, ``saturated`` actuator, ``impact_rate_high``, ``growing`` error, ``failed``, and
-        ``diverged`` (failed or growing); ``worst``: the run of largest RMS error (index, params, figures,
-        command); ``failures``: the first ten failed runs (index, params, message, command);
-        ``sensitivity`` {key: {``rank_correlation``: Spearman's rho of the key with the RMS error,
-        ``elasticity``: d ln(RMS) / d ln(key) from a joint least-squares fit of ln RMS on the ln of every
-        positive varied key (None where a key takes non-positive values)}}.
+        ``limit_cycle``, ``saturated`` actuator, ``impact_rate_high``, ``growing`` error, ``not_following``,
+        ``falling_back``, ``chattering`` torque, ``failed``, and ``diverged`` (failed or growing); ``worst``: the
+        run of largest RMS error (index, params, figures, command); ``failures``: the first ten failed runs
+        (index, params, message, command); ``sensitivity`` {key: {``rank_correlation``: Spearman's rho of the
+        key with the RMS error, ``elasticity``: d ln(RMS) / d ln(key) from a joint least-squares fit of ln RMS on
+        the ln of every positive varied key (None where a key takes non-positive values)}}.
     """
     from scipy.stats import rankdata
 

@@ -69,7 +69,8 @@ def _text(result: Any) -> list[str]:
     f = s["fractions"]
     lines.append(f"  loop health            limit cycle {f['limit_cycle']:.1%}, saturated {f['saturated']:.1%}, "
                  f"impact rate high {f['impact_rate_high']:.1%}, not following {f['not_following']:.1%}, "
-                 f"falling back {f['falling_back']:.1%}, diverged {f['diverged']:.1%} "
+                 f"falling back {f['falling_back']:.1%}, chattering {f['chattering']:.1%}, "
+                 f"diverged {f['diverged']:.1%} "
                  f"(failed {s['failed']})")
     w = s["worst"]
     if w is not None:
