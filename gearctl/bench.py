@@ -430,23 +430,16 @@ def _ratios(results: Sequence[dict[str, Any]], iso: Sequence[dict[str, Any]] = (
                 "designed_improved_on_yang_sun": rms(m, c, ref, "yang-sun"),
                 "designed_yang_sun_on_improved": rms(m, c, ref, "improved", "yang-sun"),
             }
-    iso_free = {(r["model"]): r for r in iso if r["plant"] == FREE and r.get("ok")}
-    iso_ratios: dict[str, Any] = {}
-    for r in iso:
-        if r["plant"] == FREE or not r.get("ok") or r["model"] not in iso_free:
-            continue
-        f = iso_free[r["model"]]
-        iso_ratios[f"{r['model']}/{r['controller']}"] = {
-            k: ratio(r[k], f[k]) for k in ("accuracy", "reversal_value", "repeatability")}
+    def iso_over(base: dict[str, Any]) -> dict[str, Any]:
+        """Each ISO row's A, B and R over its model's row in ``base`` (the backlash-free rows are no compensator's)."""
+        return {f"{r['model']}/{r['controller']}": {k: ratio(r[k], base[r["model"]][k])
+                                                     for k in ("accuracy", "reversal_value", "repeatability")}
+                for r in iso if r["plant"] != FREE and r.get("ok") and r["model"] in base}
+
+    iso_ratios = iso_over({r["model"]: r for r in iso if r["plant"] == FREE and r.get("ok")})
     # over the PID on the same (improved) plant: what a compensator gains in positioning, as over_pid in tracking
-    iso_pid = {r["model"]: r for r in iso if r["plant"] == "improved" and r["controller"] == "pid" and r.get("ok")}
-    iso_over_pid: dict[str, Any] = {}
-    for r in iso:
-        if r["plant"] == FREE or not r.get("ok") or r["model"] not in iso_pid:
-            continue
-        f = iso_pid[r["model"]]
-        iso_over_pid[f"{r['model']}/{r['controller']}"] = {
-            k: ratio(r[k], f[k]) for k in ("accuracy", "reversal_value", "repeatability")}
+    iso_over_pid = iso_over({r["model"]: r for r in iso
+                             if r["plant"] == "improved" and r["controller"] == "pid" and r.get("ok")})
     return {"over_pid": over_pid, "over_backlash_free": over_free, "improved_over_yang_sun": imp_ys,
             "cross_design": cross, "iso_over_backlash_free": iso_ratios, "iso_over_pid": iso_over_pid}
 

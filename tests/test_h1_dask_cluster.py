@@ -9,59 +9,21 @@ from __future__ import annotations
 
 import contextlib
 import io
-import json
 import os
 import signal
-import subprocess
-import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
+from support import subprocess_cluster
 
 import gearctl
 import gearctl.parallel
 import gearctl.sweep
 from gearctl.cli import main
-
-
-@contextlib.contextmanager
-def _cluster(tmp_path: Path, workers: int = 1) -> Iterator[tuple[str, list[subprocess.Popen]]]:
-    """A ``dask scheduler`` and ``workers`` ``dask worker`` processes (no nanny), each in its own process group:
-    the address and [scheduler, worker, ...]. Their gearctl is this one (PYTHONPATH as this process's)."""
-    sched_file = tmp_path / "scheduler.json"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(gearctl.__file__).parents[1]),
-                                                                      os.environ.get("PYTHONPATH")]))}
-    common = {"cwd": tmp_path, "env": env, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL,
-              "start_new_session": True}
-    procs = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
-                               "--no-dashboard", "--scheduler-file", str(sched_file)], **common)]
-    try:
-        deadline = time.monotonic() + 60
-        address = None
-        while address is None and time.monotonic() < deadline:
-            with contextlib.suppress(OSError, ValueError, KeyError):
-                address = json.loads(sched_file.read_text())["address"]
-            time.sleep(0.1)
-        assert address, "the dask scheduler did not start"
-        for k in range(workers):
-            procs.append(subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
-                                           "--no-nanny", "--no-dashboard", "--host", "127.0.0.1", "--name", f"w{k}",
-                                           "--local-directory", str(tmp_path / f"w{k}")], **common))
-        from distributed import Client
-
-        if workers:
-            with Client(address, timeout=30, set_as_default=False) as c:
-                c.wait_for_workers(workers, timeout=90)
-        yield address, procs
-    finally:
-        for p in procs:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(p.pid, signal.SIGKILL)
-            p.wait(timeout=30)
 
 
 def _within(seconds: float, fn: Callable[[], Any]) -> BaseException | Any:
@@ -93,7 +55,7 @@ def test_a_scheduler_stopped_during_the_start_up_is_one_line_within_the_timeout(
     monkeypatch.setattr(gearctl.parallel, "CONNECT_TIMEOUT", 2.0)
     monkeypatch.setattr(gearctl.parallel, "ANSWER_TIMEOUT", 1.0)
     monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 3.0)
-    with _cluster(tmp_path) as (address, procs):
+    with subprocess_cluster(tmp_path) as (address, procs):
         def stop_after(owner: Any, name: str) -> None:
             original = getattr(owner, name)
 
@@ -120,7 +82,7 @@ def test_a_scheduler_stopped_during_the_start_up_is_one_line_within_the_timeout(
 def test_a_scheduler_without_workers_is_one_line_after_the_worker_timeout(tmp_path: Path,
                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 1.0)
-    with _cluster(tmp_path, workers=0) as (address, _):
+    with subprocess_cluster(tmp_path, workers=0) as (address, _):
         t0 = time.monotonic()
         out = _within(30, lambda: gearctl.sweep.sweep("shing1993_servo", "pid", runs=2, duration=0.2,
                                                       scheduler=address))
@@ -140,7 +102,7 @@ def test_a_worker_stopped_mid_sweep_is_named_after_the_worker_timeout(tmp_path: 
     from distributed import Client
 
     monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 3.0)
-    with _cluster(tmp_path, workers=2) as (address, procs):
+    with subprocess_cluster(tmp_path, workers=2) as (address, procs):
         with Client(address, timeout=30, set_as_default=False) as c:
             by_name = {d["name"]: w for w, d in c.scheduler_info(n_workers=-1)["workers"].items()}
         stopped = by_name["w1"]
@@ -209,7 +171,7 @@ def test_a_lone_worker_stopped_before_the_sweep_is_named(tmp_path: Path, monkeyp
     from distributed import Client
 
     monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 3.0)
-    with _cluster(tmp_path) as (address, procs):
+    with subprocess_cluster(tmp_path) as (address, procs):
         with Client(address, timeout=30, set_as_default=False) as c:
             (worker,) = c.scheduler_info(n_workers=-1)["workers"]
         os.killpg(procs[1].pid, signal.SIGSTOP)

@@ -10,20 +10,13 @@ reversals (0 updates, t = 0 s), final 0.7500 b": a run too short to converge rep
 
 from __future__ import annotations
 
-import importlib.util
 import re
 from pathlib import Path
 
 import pytest
+from support import example_main
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
-
-def _main(name: str):  # noqa: ANN202
-    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-    spec.loader.exec_module(mod)  # type: ignore[union-attr]
-    return mod.main
+_main = example_main
 
 
 @pytest.mark.parametrize(("name", "args", "field"), [

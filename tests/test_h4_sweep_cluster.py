@@ -13,13 +13,11 @@ import io
 import json
 import os
 import signal
-import subprocess
-import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from support import subprocess_cluster
 
 import gearctl
 import gearctl.sweep
@@ -234,37 +232,6 @@ def test_bench_tables_to_a_closed_pipe_still_write_the_json_file_and_the_report(
     assert (out / "report.md").read_text().startswith("# gearctl bench")
 
 
-@contextlib.contextmanager
-def _subprocess_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen]]]:
-    """A ``dask scheduler`` and one ``dask worker`` process (no nanny): the address and [scheduler, worker]."""
-    sched_file = tmp_path / "scheduler.json"
-    procs = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
-                               "--no-dashboard", "--scheduler-file", str(sched_file)], cwd=tmp_path,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)]
-    try:
-        deadline = time.monotonic() + 60
-        address = None
-        while address is None and time.monotonic() < deadline:
-            with contextlib.suppress(OSError, ValueError, KeyError):
-                address = json.loads(sched_file.read_text())["address"]
-            time.sleep(0.1)
-        assert address, "the dask scheduler did not start"
-        procs.append(subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
-                                       "--no-nanny", "--no-dashboard", "--host", "127.0.0.1",
-                                       "--local-directory", str(tmp_path / "w")], cwd=tmp_path,
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
-        from distributed import Client
-
-        with Client(address, timeout=30, set_as_default=False) as c:
-            c.wait_for_workers(1, timeout=90)
-        yield address, procs
-    finally:
-        for p in procs:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(p.pid, signal.SIGKILL)
-            p.wait(timeout=30)
-
-
 @pytest.mark.slow
 def test_a_scheduler_that_stops_answering_mid_sweep_ends_with_one_line(tmp_path: Path,
                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
@@ -276,7 +243,7 @@ def test_a_scheduler_that_stops_answering_mid_sweep_ends_with_one_line(tmp_path:
     monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 2.0)
     monkeypatch.setattr(gearctl.parallel, "POLL", 0.2)
     monkeypatch.setattr(gearctl.parallel, "ANSWER_TIMEOUT", 0.5)
-    with _subprocess_cluster(tmp_path) as (address, procs):
+    with subprocess_cluster(tmp_path) as (address, procs):
         def progress(done: int, total: int) -> None:
             if done == 1:
                 os.killpg(procs[0].pid, signal.SIGSTOP)
@@ -297,7 +264,7 @@ def test_a_worker_stopped_before_the_sweep_is_named_within_the_timeout(tmp_path:
     import gearctl.parallel
 
     monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 2.0)
-    with _subprocess_cluster(tmp_path) as (address, procs):
+    with subprocess_cluster(tmp_path) as (address, procs):
         os.killpg(procs[1].pid, signal.SIGSTOP)
         t0 = time.monotonic()
         with pytest.raises(gearctl.InputError, match=rf"the workers of {address} did not all answer within 2 s "

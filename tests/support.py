@@ -1,0 +1,64 @@
+"""Helpers several test modules share (not itself a test module): a real Dask cluster of ``dask scheduler`` and
+``dask worker`` processes, as an outsider starts them, and an example script's ``main``."""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import gearctl
+
+
+@contextlib.contextmanager
+def subprocess_cluster(tmp_path: Path, workers: int = 1) -> Iterator[tuple[str, list[subprocess.Popen]]]:
+    """A ``dask scheduler`` and ``workers`` ``dask worker`` processes (no nanny), each in its own process group:
+    the address and [scheduler, worker, ...]. Their gearctl is this one (PYTHONPATH as this process's)."""
+    sched_file = tmp_path / "scheduler.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(gearctl.__file__).parents[1]),
+                                                                      os.environ.get("PYTHONPATH")]))}
+    common = {"cwd": tmp_path, "env": env, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL,
+              "start_new_session": True}
+    procs = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+                               "--no-dashboard", "--scheduler-file", str(sched_file)], **common)]
+    try:
+        deadline = time.monotonic() + 60
+        address = None
+        while address is None and time.monotonic() < deadline:
+            with contextlib.suppress(OSError, ValueError, KeyError):
+                address = json.loads(sched_file.read_text())["address"]
+            time.sleep(0.1)
+        assert address, "the dask scheduler did not start"
+        for k in range(workers):
+            procs.append(subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
+                                           "--no-nanny", "--no-dashboard", "--host", "127.0.0.1", "--name", f"w{k}",
+                                           "--local-directory", str(tmp_path / f"w{k}")], **common))
+        from distributed import Client
+
+        if workers:
+            with Client(address, timeout=30, set_as_default=False) as c:
+                c.wait_for_workers(workers, timeout=90)
+        yield address, procs
+    finally:
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
+
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def example_main(name: str) -> Callable[..., object]:
+    """``main`` of ``examples/<name>.py``, loaded from its file (the examples are scripts, not a package)."""
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    spec.loader.exec_module(mod)  # type: ignore[union-attr]
+    return mod.main
