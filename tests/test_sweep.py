@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy import stats
+from support import subprocess_cluster
 
 from gearctl import InputError, load_model
 from gearctl.cli import main
@@ -584,57 +585,11 @@ def test_the_command_line_on_a_local_cluster_of_one_worker(tmp_path: Path) -> No
     assert "gearctl track" in (o / "summary.md").read_text()
 
 
-def _free_scheduler(tmp_path: Path) -> tuple[subprocess.Popen, str]:
-    sched_file = tmp_path / "scheduler.json"
-    proc = subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
-                             "--no-dashboard", "--scheduler-file", str(sched_file)], cwd=tmp_path,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        if sched_file.exists():
-            with contextlib.suppress(json.JSONDecodeError):
-                return proc, json.loads(sched_file.read_text())["address"]
-        if proc.poll() is not None:
-            break
-        time.sleep(0.1)
-    raise RuntimeError("the dask scheduler did not start")
-
-
-def _worker(tmp_path: Path, address: str, name: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nworkers", "1", "--nthreads", "1",
-                             "--no-nanny", "--no-dashboard", "--host", "127.0.0.1", "--name", name,
-                             "--local-directory", str(tmp_path / name)], cwd=tmp_path,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-
-
-@contextlib.contextmanager
-def _cluster(tmp_path: Path, workers: int) -> Iterator[tuple[str, list[subprocess.Popen]]]:
-    """A scheduler and ``workers`` worker processes: the address and the workers (the scheduler process is
-    ``_cluster.scheduler``, for a test that kills it)."""
-    procs: list[subprocess.Popen] = []
-    try:
-        sched, address = _free_scheduler(tmp_path)
-        procs.append(sched)
-        _cluster.scheduler = sched  # type: ignore[attr-defined]
-        ws = [_worker(tmp_path, address, f"w{k}") for k in range(workers)]
-        procs += ws
-        from distributed import Client
-
-        with Client(address, timeout=30, set_as_default=False) as c:
-            c.wait_for_workers(workers, timeout=90)
-        yield address, ws
-    finally:
-        for p in procs:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(p.pid, signal.SIGKILL)
-            p.wait(timeout=30)
-
-
 def test_a_sweep_through_a_running_scheduler_equals_the_local_one(tmp_path: Path) -> None:
     kw = ["--vary", "backlash=0.5x:2x", "--vary", "coulomb_friction2=0:0.01", "--runs", "6", "--duration", "0.3"]
     local = sweep(MODEL, "pid", vary=["backlash=0.5x:2x", "coulomb_friction2=0:0.01"], runs=6, duration=0.3,
                   engine="serial")
-    with _cluster(tmp_path, 1) as (address, _):
+    with subprocess_cluster(tmp_path, 1) as (address, _):
         rc, out, err = _cli(["sweep", MODEL, "pid", *kw, "--scheduler", address, "--quiet", "--json",
                              str(tmp_path / "remote.json")])
     assert rc == 0, err
@@ -648,7 +603,8 @@ def test_every_result_arrives_once_after_a_worker_is_killed(tmp_path: Path) -> N
     kw = {"vary": ["backlash=0.5x:2x"], "runs": 16, "duration": 0.4, "seed": 2}
     local = sweep(MODEL, "deadzone_inverse", engine="serial", **kw)
     seen: list[int] = []
-    with _cluster(tmp_path, 2) as (address, workers):
+    with subprocess_cluster(tmp_path, 2) as (address, procs):
+        workers = procs[1:]
         def progress(done: int, total: int) -> None:
             seen.append(done)
             if len(seen) == 1:  # the first result is in: the other worker is busy with a batch; kill one
@@ -765,7 +721,8 @@ def test_a_cluster_left_without_workers_ends_with_one_line(monkeypatch: pytest.M
 
     monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 2.0)
     monkeypatch.setattr(gearctl.parallel, "POLL", 0.2)
-    with _cluster(tmp_path, 1) as (address, workers):
+    with subprocess_cluster(tmp_path, 1) as (address, procs):
+        workers = procs[1:]
         def progress(done: int, total: int) -> None:
             if done == 1:
                 os.killpg(workers[0].pid, signal.SIGKILL)
@@ -781,8 +738,8 @@ def test_a_cluster_left_without_workers_ends_with_one_line(monkeypatch: pytest.M
 def test_a_scheduler_lost_mid_sweep_ends_with_one_line(tmp_path: Path) -> None:
     # a review killed the scheduler during a sweep: the sweep ended at once, but in a traceback
     # (FutureCancelledError: scheduler-connection-lost) and exit 1. Now: one line, the tasks left, InputError (exit 2)
-    with _cluster(tmp_path, 1) as (address, _):
-        sched = _cluster.scheduler  # type: ignore[attr-defined]
+    with subprocess_cluster(tmp_path, 1) as (address, procs):
+        sched = procs[0]
 
         def progress(done: int, total: int) -> None:
             if done == 1:
