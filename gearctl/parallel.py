@@ -104,9 +104,26 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
                           f"Dask scheduler, tcp://HOST:PORT", field="scheduler")
 
     try:
-        scheme, loc = parse_address(address, strict=True)
+        scheme, loc = (parse_address(address, strict=True) if not address.startswith("inproc://")
+                       else ("inproc", address[len("inproc://"):]))  # (its own parse fails on a foreign form)
         if scheme not in _SCHEMES:
             raise ValueError(f"unknown scheme {scheme!r}")
+        if scheme == "inproc":  # a scheduler inside one process: reachable from that process alone
+            from distributed.comm.inproc import global_manager
+
+            try:
+                listening = global_manager.get_listener_for(loc) is not None
+            except (ValueError, TypeError):  # not even an inproc address of this machine's form
+                listening = False
+            if not listening:
+                raise ValueError("no scheduler listens at this inproc:// address in this process (an inproc:// "
+                                 "scheduler is reachable only from the Python process that runs it: pass its "
+                                 "Client, sweep(..., client=...), or give the cluster a tcp:// address)")
+        if scheme == "ucx":
+            import importlib.util
+
+            if importlib.util.find_spec("ucp") is None and importlib.util.find_spec("distributed_ucxx") is None:
+                raise ValueError("ucx:// needs UCX for Dask (ucx-py or distributed-ucxx), which is not installed here")
         if scheme in ("tcp", "tls", "ws", "wss"):
             port = parse_host_port(loc)[1]
             if not 0 < port < 65536:

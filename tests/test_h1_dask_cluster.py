@@ -245,3 +245,31 @@ def test_a_worker_without_a_heartbeat_record_is_never_taken_for_silent() -> None
     seen = {"tcp://10.0.0.1:1": {"last_seen": 5.0}, "tcp://10.0.0.2:1": {"last_seen": 5.0}}
     later = {"tcp://10.0.0.1:1": {"last_seen": 5.0}, "tcp://10.0.0.2:1": {"last_seen": 9.0}}
     assert _silent_workers(seen, later) == ["tcp://10.0.0.1:1"]
+
+
+def test_inproc_and_ucx_addresses_are_refused_with_their_reason(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--scheduler inproc://x`` read "not enough values to unpack (expected 3, got 1)", and ``ucx://`` without UCX
+    "Can't instantiate abstract class UCXConnector" (h1's review): each now says why (one line, exit 2)."""
+    import importlib.util
+
+    cases = [("inproc://x", "no scheduler listens at this inproc:// address in this process")]
+    if importlib.util.find_spec("ucp") is None and importlib.util.find_spec("distributed_ucxx") is None:
+        cases.append(("ucx://127.0.0.1:8786", "ucx:// needs UCX for Dask"))
+    for address, why in cases:
+        rc = main(["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs", "2", "--scheduler",
+                   address])
+        err = capsys.readouterr().err
+        assert rc == 2 and why in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_an_inproc_scheduler_of_this_process_is_reached() -> None:
+    """The same check lets through an inproc:// scheduler that runs in this process (a threads-only LocalCluster
+    from Python): its sweep equals the serial one."""
+    from distributed import LocalCluster
+
+    kw = {"vary": ["backlash=0.5x:2x"], "runs": 2, "duration": 0.2}
+    serial = gearctl.sweep.sweep("shing1993_servo", "pid", engine="serial", **kw)
+    with LocalCluster(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as lc:
+        assert lc.scheduler_address.startswith("inproc://")
+        remote = gearctl.sweep.sweep("shing1993_servo", "pid", scheduler=lc.scheduler_address, **kw)
+    assert remote.runs == serial.runs
