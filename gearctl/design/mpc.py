@@ -1393,7 +1393,8 @@ class MPC(Controller):
         self._ref, self._blk_t0 = ref, t
         self._blk_len = 512 + n + 2
         tt = t + self.Ts * np.arange(self._blk_len)
-        r, rd, rdd = (np.asarray(v, dtype=float) for v in ref.at(tt))
+        # (a ReferenceLike may give a constant as a scalar, as the other controllers, which read one sample, allow)
+        r, rd, rdd = (np.broadcast_to(np.asarray(v, dtype=float), tt.shape) for v in ref.at(tt))
         info = self.info
         self._R, self._Rd, self._Rdd = r, rd, rdd
         self._FF = FF = self._ratio * (info.J_eq * rdd + info.d_eq * rd)  # rigid-train torque, without the load

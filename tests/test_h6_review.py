@@ -1,0 +1,41 @@
+"""h6's review of the session's changes: each test failed before its fix.
+
+Oracles: the same run with the reference given two equivalent ways; the documented behaviour of the functions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gearctl.catalog import load_controller, load_model
+from gearctl.closedloop import simulate_closed_loop
+from gearctl.plant import build_plant
+
+
+class _Step:
+    """A 2 rad step at 50 ms; ``scalar``: its (zero) speed and acceleration given as scalars."""
+
+    def __init__(self, scalar: bool) -> None:
+        self.scalar = scalar
+
+    def at(self, t):
+        t = np.asarray(t, dtype=float)
+        r = np.where(t >= 0.05, 2.0, 0.0)
+        if self.scalar:
+            return r, 0.0, 0.0
+        return r, np.zeros_like(t), np.zeros_like(t)
+
+    def load_disturbance(self, t: float) -> float:
+        return 0.0
+
+
+def test_mpc_takes_a_reference_whose_constant_parts_are_scalars() -> None:
+    # the governor's test indexed r'' sample by sample: a ReferenceLike whose at() gives 0.0 for a resting
+    # reference's speed and acceleration (as PID and inverse take it, and the MPC did before the governor) raised
+    # IndexError: too many indices for array
+    m = load_model("shing1993_servo")
+    sp = build_plant(m)
+    c = load_controller("mpc", sp, sensors=m.sensors)
+    a = simulate_closed_loop(sp, c, _Step(scalar=False), 0.15, sensors=m.sensors)
+    b = simulate_closed_loop(sp, c, _Step(scalar=True), 0.15, sensors=m.sensors)
+    np.testing.assert_array_equal(a.command, b.command)
