@@ -279,8 +279,11 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
                                          for k in range(res.plant.n_stages)) + ")"
         warnings.append(f"impact rate {rate:.4g} per s, above {lim['impact_rate']:g} per s{per_stage}")
     if chattering:
+        # (the scale torque_chatter measured with: without a torque limit, the run's largest torque)
+        scale_words = (f"its {torque_lim:g} N m limit" if np.isfinite(torque_lim) else
+                       f"the run's largest torque, {float(np.max(np.abs(res.torque))):.3g} N m (no torque limit)")
         warnings.append(f"chattering torque: on {chatter:.0%} of the samples after {t0:.3g} s the torque turns back by "
-                        f"more than {lim['chatter_step']:.0%} of its {torque_lim:g} N m limit each way (a "
+                        f"more than {lim['chatter_step']:.0%} of {scale_words} each way (a "
                         f"sample-to-sample sawtooth): the loop's gains are too high for its encoders' counts and "
                         f"noise, or for dynamics its model leaves out (a train's intermediate shafts); compare with "
                         f"the PID. For the MPC, raise its [observer] measurement_noise to a few encoder counts, or "

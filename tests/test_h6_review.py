@@ -39,3 +39,24 @@ def test_mpc_takes_a_reference_whose_constant_parts_are_scalars() -> None:
     a = simulate_closed_loop(sp, c, _Step(scalar=False), 0.15, sensors=m.sensors)
     b = simulate_closed_loop(sp, c, _Step(scalar=True), 0.15, sensors=m.sensors)
     np.testing.assert_array_equal(a.command, b.command)
+
+
+def test_chattering_warning_without_a_torque_limit_names_the_scale_it_used() -> None:
+    # torque_chatter measures a plant without a torque limit against the run's largest torque, but the warning read
+    # "by more than 5% of its inf N m limit each way"
+    import dataclasses
+
+    from gearctl.metrics import loop_health
+    from gearctl.references import reference
+
+    m = load_model("shing1993_servo")
+    sp = build_plant(m)
+    run = simulate_closed_loop(sp, load_controller("pid", sp, sensors=m.sensors), reference("sine"), 0.2,
+                               sensors=m.sensors)
+    saw = run.torque + 0.3 * (-1.0) ** np.arange(run.torque.size)
+    unlimited = dataclasses.replace(sp, torque_limit=np.inf)
+    health = loop_health(dataclasses.replace(run, torque=saw, plant=unlimited))
+    assert health.chattering
+    (line,) = [w for w in health.warnings if w.startswith("chattering")]
+    assert "inf" not in line
+    assert f"{np.max(np.abs(saw)):.3g} N m (no torque limit)" in line
