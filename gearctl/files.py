@@ -328,6 +328,21 @@ def spec_values(path: Path, spec: Mapping[str, Any], layout: Layout, *, kind: st
     return out
 
 
+def _descriptor_link(path: Path) -> bool:
+    """Whether ``path`` is, or links through, an open descriptor's name (``/dev/stdout``, ``/dev/stderr``,
+    ``/dev/fd/N``, ``/proc/PID/fd/N``): what it leads to is the file the descriptor holds open, written into.
+    A regular file elsewhere under /dev (a tmpfs such as /dev/shm) is not one."""
+    for _ in range(40):  # (the kernel's own bound on a chain of links)
+        parts = path.absolute().parts
+        if parts[:3] in (("/", "dev", "stdout"), ("/", "dev", "stderr"), ("/", "dev", "fd")) or (
+                len(parts) >= 5 and parts[1] == "proc" and parts[3] == "fd"):
+            return True
+        if not path.is_symlink():
+            return False
+        path = path.absolute().parent / os.readlink(path)
+    return False
+
+
 def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,
                 check: Callable[[Path], Any] | None = None) -> Path:
     """Write a file whole or not at all; return the path written.
@@ -343,9 +358,9 @@ def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,
     path = Path(path)
     # a device, FIFO or pipe, through any links (``/dev/stdout`` into a pipe resolves to ``/proc/PID/fd/pipe:[N]``, no
     # path a file could be made beside: the temporary file failed there after the whole run)
-    # (and a path under /dev, a descriptor's link, even where it leads to a file: ``> out.json`` opened by the shell,
-    # or ``>> log``, whose end a replaced file would not keep)
-    special = path.exists() and (not path.is_file() or path.absolute().parts[:2] == ("/", "dev"))
+    # (and a descriptor's link, even where it leads to a file: ``> out.json`` opened by the shell, or ``>> log``,
+    # whose end a replaced file would not keep; a file in /dev/shm is a file, replaced)
+    special = path.exists() and (not path.is_file() or _descriptor_link(path))
     if path.is_symlink() and not special:
         path = Path(os.path.realpath(path))
 

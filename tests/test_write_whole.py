@@ -75,3 +75,35 @@ def test_dev_stdout_into_a_pipe_or_an_appended_file(tmp_path: Path, shell: str) 
         assert done.stdout == '{"a": 1}\n'
     else:
         assert out.read_text() == 'kept\n{"a": 1}\n'
+
+
+@pytest.mark.skipif(not (os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK)), reason="needs /dev/shm")
+def test_a_file_in_dev_shm_is_replaced_whole() -> None:
+    """A regular file under /dev (the tmpfs /dev/shm) was taken for a descriptor's link and appended to: writing
+    ``{"a": 2}`` over ``{"a": 1}`` left both, not JSON."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(dir="/dev/shm") as d:
+        p = Path(d) / "out.json"
+        write_whole(p, '{"a": 1}\n')
+        write_whole(p, '{"a": 2}\n')
+        assert p.read_text() == '{"a": 2}\n' and [q.name for q in Path(d).iterdir()] == ["out.json"]
+
+
+@pytest.mark.skipif(not Path("/dev/stdout").exists(), reason="needs /dev/stdout")
+def test_a_link_to_dev_stdout_into_a_file_is_appended_to(tmp_path: Path) -> None:
+    """A link elsewhere to /dev/stdout, whose descriptor the shell opened on a file with >>, is written into."""
+    import shlex
+    import subprocess
+    import sys
+
+    out = tmp_path / "out.txt"
+    out.write_text("kept\n")
+    link = tmp_path / "link.json"
+    link.symlink_to("/dev/stdout")
+    code = f"from gearctl.files import write_whole; write_whole({str(link)!r}, 'new\\n')"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    cmd = f"{shlex.quote(sys.executable)} -c {shlex.quote(code)} >> {shlex.quote(str(out))}"
+    done = subprocess.run(cmd, shell=True, capture_output=True, text=True, env=env, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert out.read_text() == "kept\nnew\n" and link.is_symlink()
