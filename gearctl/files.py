@@ -370,11 +370,15 @@ def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,
         else:
             write(fh)
 
-    # the temporary file beside the path; a device's (written into, never replaced) in the system's temporary folder
-    folder = Path(tempfile.gettempdir()) if special else path.parent
-    tmp = folder / f".{path.stem}.{os.getpid()}.tmp{path.suffix}"
+    # the temporary file beside the path; a device's (written into, never replaced) in the system's temporary folder,
+    # under a name of its own (a fixed name there, shared by every user, could be a link planted to another file)
+    if special:
+        fd, name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}")
+        tmp = Path(name)
+    else:
+        fd, tmp = None, path.parent / f".{path.stem}.{os.getpid()}.tmp{path.suffix}"
     try:
-        with open(tmp, "w", newline="") as fh:
+        with (open(fd, "w", newline="") if fd is not None else open(tmp, "w", newline="")) as fh:
             fill(fh)
         if check is not None:
             check(tmp)

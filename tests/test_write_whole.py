@@ -107,3 +107,18 @@ def test_a_link_to_dev_stdout_into_a_file_is_appended_to(tmp_path: Path) -> None
     done = subprocess.run(cmd, shell=True, capture_output=True, text=True, env=env, timeout=60)
     assert done.returncode == 0, done.stderr
     assert out.read_text() == "kept\nnew\n" and link.is_symlink()
+
+
+def test_a_devices_temporary_file_is_not_a_name_another_could_plant(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """A device's temporary file went to the shared temporary folder under a fixed name (``.null.PID.tmp``): a link
+    planted there was followed, and the file it led to overwritten with the output."""
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    victim = tmp_path / "victim.txt"
+    victim.write_text("kept\n")
+    (tmp_path / f".null.{os.getpid()}.tmp").symlink_to(victim)
+    write_whole(os.devnull, "output\n")
+    assert victim.read_text() == "kept\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([f".null.{os.getpid()}.tmp", "victim.txt"])
