@@ -60,3 +60,21 @@ def test_chattering_warning_without_a_torque_limit_names_the_scale_it_used() -> 
     (line,) = [w for w in health.warnings if w.startswith("chattering")]
     assert "inf" not in line
     assert f"{np.max(np.abs(saw)):.3g} N m (no torque limit)" in line
+
+
+def test_mpc_names_a_reference_whose_parts_have_the_wrong_shape() -> None:
+    # a column (n, 1) where the times are (n,): numpy's 'operands could not be broadcast' escaped from the preview
+    import pytest
+
+    from gearctl.errors import InputError
+
+    class Column(_Step):
+        def at(self, t):
+            r, rd, rdd = super().at(t)
+            return r, rd[:, None], rdd
+
+    m = load_model("shing1993_servo")
+    sp = build_plant(m)
+    c = load_controller("mpc", sp, sensors=m.sensors)
+    with pytest.raises(InputError, match=r"reference: at\(t\) of \d+ times gave .* shapes .*\(\d+, 1\)"):
+        simulate_closed_loop(sp, c, Column(scalar=False), 0.05, sensors=m.sensors)

@@ -1394,7 +1394,13 @@ class MPC(Controller):
         self._blk_len = 512 + n + 2
         tt = t + self.Ts * np.arange(self._blk_len)
         # (a ReferenceLike may give a constant as a scalar, as the other controllers, which read one sample, allow)
-        r, rd, rdd = (np.broadcast_to(np.asarray(v, dtype=float), tt.shape) for v in ref.at(tt))
+        parts = [np.asarray(v, dtype=float) for v in ref.at(tt)]
+        try:
+            r, rd, rdd = (np.broadcast_to(v, tt.shape) for v in parts)
+        except ValueError:
+            raise InputError(f"reference: at(t) of {tt.size} times gave (r, r', r'') of shapes "
+                             f"{', '.join(str(v.shape) for v in parts)}; expected arrays of t's shape ({tt.size},) "
+                             f"or scalars", field="reference") from None
         info = self.info
         self._R, self._Rd, self._Rdd = r, rd, rdd
         self._FF = FF = self._ratio * (info.J_eq * rdd + info.d_eq * rd)  # rigid-train torque, without the load
