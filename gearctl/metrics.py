@@ -285,9 +285,8 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
         warnings.append(f"chattering torque: on {chatter:.0%} of the samples after {t0:.3g} s the torque turns back by "
                         f"more than {lim['chatter_step']:.0%} of {scale_words} each way (a "
                         f"sample-to-sample sawtooth): the loop's gains are too high for its encoders' counts and "
-                        f"noise, or for dynamics its model leaves out (a train's intermediate shafts); compare with "
-                        f"the PID. For the MPC, raise its [observer] measurement_noise to a few encoder counts, or "
-                        f"use finer encoders")
+                        f"noise, or for dynamics its model leaves out (a train's intermediate shafts); "
+                        f"{_chatter_remedy(res.controller)}")
     if growing:
         beyond = f" and the reference's own change of {explained:.3g} rad" if explained > 0 else ""
         warnings.append(f"growing error: {last:.3g} rad in the last quarter against {early:.3g} rad in the "
@@ -301,6 +300,17 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
                       saturated=sat > lim["saturated_fraction"], impact_rate_high=rate > lim["impact_rate"],
                       growing=growing or runaway, impact_rate=rate, tracking_ratio=ratio, fallback_share=share,
                       warnings=tuple(warnings), chattering=chattering, torque_chatter=chatter)
+
+
+def _chatter_remedy(controller: Any) -> str:
+    """What to try against a chattering torque, by the controller's kind (its ``describe()``)."""
+    kind = controller.get("kind") if isinstance(controller, dict) else None
+    if kind == "mpc":
+        return ("compare with the PID; raise the MPC's [observer] measurement_noise to a few encoder counts, or use "
+                "finer encoders")
+    if kind in ("pid", "deadzone_inverse", "adaptive_inverse", "reversal_offset"):
+        return "lower its [design] bandwidth_hz, or use finer encoders"
+    return "lower its gains, or use finer encoders"
 
 
 def torque_chatter(res: ClosedLoopResult, settle: float = 0.0) -> float:

@@ -253,6 +253,8 @@ def test_a_sawtooth_torque_is_chattering(sine_run: ClosedLoopResult) -> None:
         assert h.torque_chatter == pytest.approx(share, abs=0.03)  # the stretches' ends turn back once less
         assert h.chattering is flagged
         assert any(w.startswith("chattering torque") for w in h.warnings) is flagged
+        # the remedy is the PID's (its design bandwidth), not the MPC's observer noise
+        assert any("[design] bandwidth_hz" in w and "measurement_noise" not in w for w in h.warnings) is flagged
 
 
 @pytest.mark.slow
