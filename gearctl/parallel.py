@@ -271,6 +271,20 @@ def _sigint_held() -> Iterator[Callable[[], bool]]:
         signal.signal(signal.SIGINT, old_handler)
 
 
+def env_scheduler() -> str | None:
+    """The ``DASK_SCHEDULER_ADDRESS`` environment variable's address, or None where it is not set; set but empty
+    (``export DASK_SCHEDULER_ADDRESS=$ADDR`` with the variable unset) is refused, as an empty ``--scheduler`` is: it
+    ran on a local cluster without a word."""
+    value = os.environ.get("DASK_SCHEDULER_ADDRESS")
+    if value is None:
+        return None
+    if not value.strip():
+        raise InputError(f"DASK_SCHEDULER_ADDRESS = {value!r}: the environment variable is set but empty; expected "
+                         f"tcp://HOST:PORT of a running Dask scheduler, or unset it for a local cluster",
+                         field="scheduler")
+    return value
+
+
 def check_one_cluster(client: Any, scheduler: str | None) -> None:
     """Refuse a ``client`` given with a ``scheduler`` address: the client's cluster ran the work and the address
     was dropped without a word (a sweep given a closed port and a working client ran, as if the port answered).
@@ -309,7 +323,7 @@ class Engine:
         check_one_cluster(client, scheduler)
         self.cluster = None
         self.own = client is None
-        address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+        address = scheduler or (env_scheduler() if client is None else None)
         if client is None and not address:  # a client the script opened as the default (dask's convention)
             try:
                 client = distributed.default_client()
@@ -704,7 +718,7 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     """
     check_one_cluster(None, scheduler)
     n = len(items)
-    scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    scheduler = scheduler or env_scheduler()
     if n == 0:
         return []
     if scheduler is None and local_processes(n, workers) == 1:

@@ -89,6 +89,7 @@ from .parallel import (
     code_id,
     completed,
     default_workers,
+    env_scheduler,
     killed_worker_text,
     local_cluster,
     local_processes,
@@ -1024,7 +1025,7 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         raise InputError(f"engine = {engine!r}: expected 'dask' or 'serial'", field="engine")
     from distributed import KilledWorker
 
-    if client is None and not (scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")):
+    if client is None and not (scheduler or env_scheduler()):
         # a local cluster of no more processes than tasks (3 runs: 3, not 8; 2 runs in one --batch 1000 task: 1)
         workers = local_processes(math.ceil(n / batch) if batch else n, workers)
     eng = Engine(workers=workers, scheduler=scheduler, client=client)

@@ -273,3 +273,18 @@ def test_an_inproc_scheduler_of_this_process_is_reached() -> None:
         assert lc.scheduler_address.startswith("inproc://")
         remote = gearctl.sweep.sweep("shing1993_servo", "pid", scheduler=lc.scheduler_address, **kw)
     assert remote.runs == serial.runs
+
+
+@pytest.mark.parametrize("command", ["sweep", "bench"])
+def test_an_empty_scheduler_environment_variable_is_refused(command: str, monkeypatch: pytest.MonkeyPatch,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """``export DASK_SCHEDULER_ADDRESS=$ADDR`` with the variable unset: set but empty, it was taken as unset and the
+    work ran on a local cluster without a word (h6's review; an empty --scheduler was refused already)."""
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "")
+    argv = (["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs", "2"] if command == "sweep" else
+            ["bench", "shing1993_servo", "--controllers", "pid", "--references", "sine", "--plants", "improved",
+             "--duration", "0.2", "--no-precision"])
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "DASK_SCHEDULER_ADDRESS = '': the environment variable is set but empty" in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err

@@ -233,8 +233,9 @@ def _refuse_models_among_controllers(names: list[str]) -> None:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from ..bench import BenchSpec, bench_notes, bench_table, bench_warnings, error_traces, run_bench
+    from ..parallel import env_scheduler
 
-    if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.jobs:  # as sweep's --workers
+    if (args.scheduler or env_scheduler()) and args.jobs:  # as sweep's --workers
         warn("bench", ["--jobs sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the cluster's "
                        "own workers run the bench"])
     _refuse_models_among_controllers(args.controllers or [])
