@@ -194,6 +194,33 @@ def check_controller(controller: Any) -> None:
                          "gearctl.load_controller(...) or gearctl.load_exported(...)", field="controller")
 
 
+def _reference_samples(ref: Any, t: NDArray[np.floating]) -> NDArray[np.float64]:
+    """The reference's angle at the loop's samples ``t``, after checking that its angle, speed and acceleration are
+    finite there: a NaN in a user's reference ran the PID on NaN commands (zero torque, each logged as a fallback)
+    and stopped the MPC's QP with "QP data rejected", neither naming the reference."""
+    try:
+        given = [np.asarray(v, dtype=float) for v in ref.at(t)]
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"reference: at(t) gave no numbers ({exc}); expected (r, r', r'') [rad, rad/s, rad/s^2]",
+                         field="reference") from None
+    try:
+        if len(given) != 3:
+            raise ValueError
+        parts = [np.broadcast_to(v, t.shape) for v in given]
+    except ValueError:  # (the MPC's preview words it alike)
+        shapes = ", ".join(str(v.shape) for v in given)
+        raise InputError(f"reference: at(t) of {t.size} times gave (r, r', r'') of shapes {shapes}; expected arrays "
+                         f"of t's shape ({t.size},) or scalars", field="reference") from None
+    ok = np.isfinite(parts[0]) & np.isfinite(parts[1]) & np.isfinite(parts[2])
+    if not ok.all():
+        k = int(np.argmin(ok))
+        r_k, rd_k, rdd_k = (float(v[k]) for v in parts)
+        raise InputError(f"reference: not finite at t = {t[k]:.6g} s: (r, r', r'') = ({r_k:.6g}, {rd_k:.6g}, "
+                         f"{rdd_k:.6g}) [rad, rad/s, rad/s^2] (and at {int(np.count_nonzero(~ok)) - 1} more samples)",
+                         field="reference")
+    return np.array(parts[0])
+
+
 def simulate_closed_loop(
     plant: Plant,
     controller: Controller,
@@ -265,7 +292,7 @@ def simulate_closed_loop(
     controller.reset()
     t = np.arange(n + 1) * Ts
     tl_list = t.tolist()
-    r = ref.at(t)[0]
+    r = _reference_samples(ref, t)
     lim = plant.torque_limit
     tl = plant.load_torque
     use_load = controller.uses_load_encoder

@@ -6,6 +6,7 @@ Oracles: the same run with the reference given two equivalent ways; the document
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from gearctl.catalog import load_controller, load_model
 from gearctl.closedloop import simulate_closed_loop
@@ -78,3 +79,31 @@ def test_mpc_names_a_reference_whose_parts_have_the_wrong_shape() -> None:
     c = load_controller("mpc", sp, sensors=m.sensors)
     with pytest.raises(InputError, match=r"reference: at\(t\) of \d+ times gave .* shapes .*\(\d+, 1\)"):
         simulate_closed_loop(sp, c, Column(scalar=False), 0.05, sensors=m.sensors)
+
+
+@pytest.mark.parametrize("ctrl", ["pid", "mpc"])
+def test_a_reference_not_finite_is_named_before_the_run(ctrl: str) -> None:
+    """A user's reference with NaN from 0.3 s on: the PID ran on NaN commands (zero torque, each a fallback) and the
+    MPC stopped on "QP data rejected", neither naming the reference (h6's review). Now an InputError naming it, the
+    first time and the values, before the run."""
+    from gearctl import InputError, build_plant, load_model
+    from gearctl.catalog import load_controller
+    from gearctl.closedloop import simulate_closed_loop
+    from gearctl.references import reference
+
+    plant = build_plant(load_model("shing1993_servo"))
+    base = reference("sine")
+
+    class Holed:
+        settle = 0.0
+
+        def at(self, t):  # noqa: ANN001, ANN202
+            r, rd, rdd = base.at(t)
+            return np.where(np.asarray(t) > 0.3, np.nan, r), rd, rdd
+
+        def load_disturbance(self, t: float) -> float:
+            return 0.0
+
+    with pytest.raises(InputError, match=r"^reference: not finite at t = 0\.301 s: \(r, r', r''\) = \(nan, ") as err:
+        simulate_closed_loop(plant, load_controller(ctrl, plant), Holed(), 0.5)
+    assert err.value.field == "reference" and "and at 199 more samples" in str(err.value)
