@@ -64,3 +64,13 @@ def test_bench_takes_sweeps_name_for_its_processes(capsys: pytest.CaptureFixture
     err = capsys.readouterr().err
     assert "--workers" in err and "out of range" in err and "unrecognized" not in err
     assert "--jobs JOBS, --workers JOBS" in _help(capsys, "bench")
+
+
+def test_one_range_for_a_local_clusters_processes(capsys) -> None:  # noqa: ANN001
+    """bench and perf took 1..256 worker processes, sweep 1..1024 (h3's review): one range, one message."""
+    from gearctl.cli import main
+
+    for argv in (["bench", "shing1993_servo", "--jobs", "1025"], ["perf", "--jobs", "1025"],
+                 ["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--workers", "1025"]):
+        assert main(argv) == 2
+        assert "1025 is out of range: expected a whole number with 1 <= value <= 1024" in capsys.readouterr().err

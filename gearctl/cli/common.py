@@ -31,7 +31,8 @@ TORQUE = Spec(unit="N m", doc="torque", low=-1e6, high=1e6)
 TARGETS = Spec(unit="1", doc="target positions", low=2, high=50, integer=True)
 CYCLES = Spec(unit="1", doc="cycles", low=1, high=50, integer=True)
 STAGE = Spec(unit="1", doc="stage", low=1, high=6, integer=True)
-JOBS = Spec(unit="1", doc="worker processes", low=1, high=256, integer=True)
+#: a local cluster's worker processes (bench, perf, sweep alike: the memory check refuses what would not fit)
+JOBS = Spec(unit="1", doc="worker processes", low=1, high=1024, integer=True)
 WHOLE = Spec(unit="1", doc="whole number", low=-2**31, high=2**31, integer=True)
 
 

@@ -13,6 +13,7 @@ from typing import Any
 from ..errors import InputError
 from ..units import DURATION, SEED, Spec
 from .common import (
+    JOBS,
     check_writable,
     earlier_plots,
     remove_earlier_plots,
@@ -25,7 +26,6 @@ from .common import (
 
 __all__ = ["register"]
 
-_WORKERS = Spec(unit="1", doc="worker processes", low=1, high=1024, integer=True)
 _COUNT = Spec(unit="1", doc="runs", low=1, high=10_000_000, integer=True)
 
 _EPILOG = """\
@@ -290,7 +290,7 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     p.add_argument("--duration", type=spec_arg(DURATION), help="simulated time of each run [s] (default per "
                                                                "reference: sine 3 s, step 2 s, ramp 1.5 s, move 1 s)")
     p.add_argument("--seed", type=spec_arg(SEED), default=0, help="seed of the draws and the sensor noise (default 0)")
-    p.add_argument("--workers", "--jobs", dest="workers", type=spec_arg(_WORKERS),
+    p.add_argument("--workers", "--jobs", dest="workers", type=spec_arg(JOBS),
                    help="processes of the local cluster (default: all cores; --jobs as in bench)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler, tcp://HOST:PORT (default DASK_SCHEDULER_ADDRESS, else a local "
