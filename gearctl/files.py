@@ -383,8 +383,9 @@ def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,
         if check is not None:
             check(tmp)
         if special:  # appended: opening /dev/stdout for "w" truncates a file the shell opened with >>
-            with open(path, "a", newline="") as fh:
-                fill(fh)
+            # the checked text is copied, not written again: a writer that streams (a generator) runs once
+            with open(tmp, newline="") as src, open(path, "a", newline="") as fh:
+                shutil.copyfileobj(src, fh)
         else:
             if path.exists():
                 shutil.copymode(path, tmp)
