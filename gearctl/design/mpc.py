@@ -1422,6 +1422,11 @@ class MPC(Controller):
         self._win = win
         return 0
 
+    def _load_estimate(self, z: NDArray[np.float64]) -> tuple[float, float]:
+        """The load's angle and speed [rad, rad/s] from the observer's state ``z = [phi, omega, s, v, d]``."""
+        m = self.model
+        return float(z[0]) / m.N - m.kappa2 * float(z[2]), float(z[1]) / m.N - m.kappa2 * float(z[3])
+
     def _governed(self, i: int, z: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray] | None:
         """The reference governor (see *Large steps*): the reference the plan is given over the preview.
 
@@ -1433,12 +1438,11 @@ class MPC(Controller):
         """
         if not self._gov_on:
             return None
-        n, Ts, m = self.N, self.Ts, self.model
+        n, Ts = self.N, self.Ts
         R, Rd, Rdd = self._R, self._Rd, self._Rdd
         if self._gov is None:  # the first sample: on the reference if the plan can take its angle from the load's
             # estimate (a reference that starts in motion, as the sine does, is the plan's to catch)
-            th2 = float(z[0]) / m.N - m.kappa2 * float(z[2])
-            om2 = float(z[1]) / m.N - m.kappa2 * float(z[3])
+            th2, om2 = self._load_estimate(z)
             on = abs(float(R[i]) - th2) <= self._dp_pass and abs(float(Rdd[i])) <= self._a_net
             self._gov = (float(R[i]), float(Rd[i]), True) if on else (th2, om2, False)
         g, w, on = self._gov
@@ -1447,8 +1451,7 @@ class MPC(Controller):
         if on:  # (the reference at t as this step reads it)
             g, w = float(R[i]), float(Rd[i])
         else:  # off the reference: at most what the plan stops within its horizon ahead of the load's estimate
-            th2 = float(z[0]) / m.N - m.kappa2 * float(z[2])
-            om2 = float(z[1]) / m.N - m.kappa2 * float(z[3])
+            th2, om2 = self._load_estimate(z)
             g = min(max(g, th2 - self._dp_pass), th2 + self._dp_pass)
             w = min(max(w, om2 - self._dv_pass), om2 + self._dv_pass)
         # back on the reference within what the plan takes in a sample at the torque limit
@@ -1682,9 +1685,7 @@ class MPC(Controller):
             return False
         if not self._held and self._land is not None:  # a landing under way is finished first
             return False
-        m = self.model
-        theta2 = float(z[0]) / m.N - m.kappa2 * float(z[2])
-        omega2 = float(z[1]) / m.N - m.kappa2 * float(z[3])
+        theta2, omega2 = self._load_estimate(z)
         band = self.settings.standstill_deadband
         slow = abs(omega2) * (n * self.Ts) <= band
         if self._held:
@@ -1874,7 +1875,7 @@ class MPC(Controller):
         if hold and sig * tau >= 0.0:  # no load torque presses the load onto this flank: hold the load where it
             # is unless this flank can push it towards the reference (it cannot pull, nor let a load torque bring
             # the load back)
-            theta2 = float(z[0]) / self.model.N - self.model.kappa2 * float(z[2])
+            theta2 = self._load_estimate(z)[0]
             if sig * (origin - theta2) < 0.0:
                 p[6:6 + n] = theta2 - origin
         if (hold and abs(tau) < _HANDS_OFF_TORQUE * self._ratio * self._umax
