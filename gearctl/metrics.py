@@ -306,8 +306,8 @@ def _chatter_remedy(controller: Any) -> str:
     """What to try against a chattering torque, by the controller's kind (its ``describe()``)."""
     kind = controller.get("kind") if isinstance(controller, dict) else None
     if kind == "mpc":
-        return ("compare with the PID; raise the MPC's [observer] measurement_noise to a few encoder counts, or use "
-                "finer encoders")
+        return ("compare with the PID and the deadzone_inverse (gearctl bench MODEL): the MPC's plan does not suit "
+                "this plant's encoders or the dynamics its model leaves out (a train's intermediate shafts)")
     if kind in ("pid", "deadzone_inverse", "adaptive_inverse", "reversal_offset"):
         return "lower its [design] bandwidth_hz, or use finer encoders"
     return "lower its gains, or use finer encoders"
@@ -319,10 +319,11 @@ def torque_chatter(res: ClosedLoopResult, settle: float = 0.0) -> float:
     of opposite signs, both that large): a sample-to-sample sawtooth [1].
 
     Measured on the catalog's runs (sine, step and move; PID, inverse, reversal offset, MPC): at most 0.08 where the
-    loop is sound, 0.45 and 0.51 for the MPC on ``servo_2stage_phm09`` and on a reviewer's pair with a 2^18-count
-    motor encoder (``tests/data/reviewer_pair_24x72.toml``), where it is 3x worse than the PID (torques alternating
-    by half the limit; with 2^20-count encoders 11x better than the PID; with the MPC's ``measurement_noise`` at
-    1e-4 rad, about four counts, 2.2x better: 2.7e-4 rad RMS on the sine against the PID's 6.0e-4, from 1.7e-3).
+    loop is sound, 0.45 for the MPC on ``servo_2stage_phm09`` (1.07x the PID's sine RMS). On a reviewer's pair with
+    a 65536-count load encoder beside a 2^18-count motor encoder (``tests/data/reviewer_pair_24x72.toml``) the MPC
+    scored 0.51 and tracked the sine 2.8x worse than the PID, until its observer weighed the load reading by its own
+    error (0.10 now; see *Coarse load encoders* in :mod:`gearctl.design.mpc`); on a 14-bit instrument drive
+    (``tests/data/h5_instrument_coarse_14bit.toml``) it scores 0.22 and is 6x worse than the PID.
     Without a torque limit the largest torque of the run is the scale.
     """
     u = np.asarray(res.torque, dtype=float)

@@ -318,20 +318,20 @@ def test_bench_names_the_processes_it_ran_on(capsys) -> None:  # noqa: ANN001
 
 
 def test_tracking_rows_worse_than_the_pid_carry_a_warning(capsys: pytest.CaptureFixture[str]) -> None:
-    # tests/data/tight_torque_servo.toml (a review's servo with a torque limit 1.5x what the catalog references
-    # need): the catalog MPC tracks the sine at 1.32x the PID's RMS error (measured 1.31e-3 against 9.90e-4 rad),
-    # which the bench's table gave only as a ratio, its warnings only as an impact rate. The inverse, 29x below the
-    # PID, is not warned of.
-    model = str(Path(__file__).resolve().parent / "data" / "tight_torque_servo.toml")
+    # tests/data/reviewer_pair_24x72.toml (a review's pair with load friction about as heavy, reflected, as the
+    # motor): the catalog MPC tracks the sine at 1.70x the PID's RMS error (1.02e-3 against 6.0e-4 rad), which the
+    # bench's table gave only as a ratio (on tests/data/tight_torque_servo.toml, where this was found, the MPC is
+    # now 0.95x the PID's). The inverse, 7x below the PID, is not warned of.
+    model = str(Path(__file__).resolve().parent / "data" / "reviewer_pair_24x72.toml")
     argv = ["bench", model, "--controllers", "pid", "mpc", "deadzone_inverse", "--plants", "improved",
             "--references", "sine", "--no-precision", "--jobs", "1", "--quiet", "--json", "-"]
     assert main(argv) == 0
     out, err = capsys.readouterr()
     rows = {(r["controller"], r["plant"]): r for r in json.loads(out)["runs"]}
     pid, mpc, inv = rows["pid", "improved"], rows["mpc", "improved"], rows["deadzone_inverse", "improved"]
-    assert mpc["rms_error"] / pid["rms_error"] == pytest.approx(1.32, rel=0.1)
+    assert mpc["rms_error"] / pid["rms_error"] == pytest.approx(1.70, rel=0.1)
     assert any(w.startswith("tracks worse than the pid") for w in mpc["warnings"])
-    assert inv["rms_error"] < 0.1 * pid["rms_error"]
+    assert inv["rms_error"] < 0.2 * pid["rms_error"]
     assert not any(w.startswith("tracks worse") for w in inv["warnings"] + pid["warnings"])
     assert "warning: tracks worse than the pid in" in err and "mpc on improved (sine)" in err
 
