@@ -1301,8 +1301,11 @@ class MPC(Controller):
     def _build_observer(self) -> None:
         """Steady-state Kalman gains of the two observers.
 
-        Centre of inertia ``[phi, omega, d]``: the rigid train, exact in every mode because impacts
-        conserve momentum (friction is split as in contact); measured by
+        Centre of inertia ``[phi, omega, d]``: the rigid train; impacts conserve momentum, so it is exact in
+        every mode where the shafts' viscous friction is in proportion to their inertia (``d1 / J1 = d2 / J2``).
+        Otherwise, while the gap is open, the friction differs from the rigid train's by a term in the relative
+        speed, which the disturbance estimate ``d`` takes up (on the three-stage catalog train's equivalent pair,
+        all its viscous friction on the load, some 3.6e-4 N m during each crossing); measured by
         ``phi_m = (J1 y1 + (J2/N) y2) / J_eq`` (``y1 - kappa1 s`` with the motor encoder alone).
         Gap ``[s, v]``: the separation model, measured by ``s_m = r_b1 y1 - r_b2 y2``; a small gain
         (the model is exact between impacts) and a large one, used when the innovation shows an impact.
