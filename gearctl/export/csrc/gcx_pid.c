@@ -263,6 +263,17 @@ GCX_FN void gcx_obs_update(const gcx_obs_p *P, gcx_obs_s *O, double theta, doubl
     O->x[2] = freeze ? d : d + L[2] * e;
 }
 
+/* Not in Python (it never misses a sample): the observer carried over a sample the C API missed, with the torque
+ * that acted then (the API wrote u = 0) and no correction. */
+GCX_FN void gcx_obs_predict(const gcx_obs_p *P, gcx_obs_s *O, double u, double friction) {
+    if (!O->set) return;
+    double th = O->x[0], om = O->x[1], d = O->x[2];
+    const double *A = P->A, *B = P->B;
+    double tau = P->N * u + P->tl - friction;
+    O->x[0] = A[0] * th + A[1] * om + A[2] * d + B[0] * tau;
+    O->x[1] = A[3] * th + A[4] * om + A[5] * d + B[1] * tau;
+}
+
 /* ---- dead-zone inverse (deadzone.py: DeadzoneInverse) ------------------------------------------------- */
 
 /* DeadzoneInverse.set_backlash */
@@ -568,6 +579,25 @@ GCX_FN double gcx_inv_one_way(const gcx_inv_p *P, gcx_inv_s *S, double t, double
     return one_way;
 }
 
+/* Not in Python (it never misses a sample): the inverse's models of the motion carried over the n samples the C API
+ * missed before this one (the PID's filter is carried in gcx_pid_torque). The load observer predicts over them with
+ * the torque that acted (u = 0, what the API wrote); taken as one sample, the motion of the missed ones came in as
+ * an innovation and threw the disturbance estimate, and with it the flank and the crossing (one missed reading at
+ * a sine's flank change on shing1993_servo: the load lost its flank, 4.8e-4 rad against 1.7e-5). The rattle guard's
+ * history restarts: its second difference of the motor angle assumes equal spacing. Over a gap of more than 1000
+ * samples the observer restarts from the next reading, as after init. */
+GCX_FN void gcx_inv_gap(const gcx_inv_p *P, gcx_inv_s *S, double n, double rd) {
+    S->y_hist_n = 0;
+    if (!P->has_observer) return;
+    if (n > 1000.0) {
+        S->obs.set = 0;
+        S->obs.x[0] = S->obs.x[1] = S->obs.x[2] = 0.0;
+        return;
+    }
+    double friction = (P->plant.tc2 > 0.0 && rd != 0.0) ? copysign(P->plant.tc2, rd) : 0.0;
+    for (double j = 0.0; j < n; j += 1.0) gcx_obs_predict(&P->obs, &S->obs, 0.0, friction);
+}
+
 /* DeadzoneInverse.step */
 GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const double y[2], int has_yl,
                            const double *ref) {
@@ -577,6 +607,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
         return gcx_pid_step(&P->pid, &S->pid, y, ref);
     double r = ref[0], rd = ref[1], rdd = ref[2];
     S->t = t;
+    if (S->pid.gap > 0.0) gcx_inv_gap(P, S, S->pid.gap, rd);
     gcx_inv_watch_rattle(P, S, y_motor, rd);
     double a = gcx_pid_reference_update(&P->pid, &S->pid, rd, rdd); /* at mid-sample (see PID) */
     if (pl->tc2 > 0.0 && rd != 0.0 && !S->moving_ref) S->pid.integral = -gcx_inv_beyond_friction(P, S) / P->pid.N;
