@@ -4,7 +4,8 @@
  * gate), the mode-pattern choice (stay on the flank, cross, land; the standstill hold), one dense QP per
  * pattern solved by gearctl_qp (the solver the Python MPC calls; its angles from the reference at t), the
  * fallback. A non-finite y[0] never reaches this code (gearctl_ctrl_step's bad input, as MPC.step's missed
- * sample); a non-finite y[1] is a missing load reading. Each function mirrors the Python method of
+ * sample; the next step that runs predicts over it); a non-finite y[1] is a missing load reading. Each
+ * function mirrors the Python method of
  * the same name (_observe, _holding, _steps_to_land, _solve, _land_on, step); the scalar arithmetic is the
  * Python's in the same order; a latched fault (_brake_torque) brakes the motor on its reading alone. The
  * Python forms the QP gradient and bounds with gearctl_qp_matvec (each row summed in index order), this file
@@ -463,10 +464,45 @@ GCX_FN const double *gcx_mpc_govern(const gcx_mpc_p *P, gcx_mpc_s *S, const doub
 
 /* MPC.step; returns 1 when the solve failed and the previous plan's next input was applied, or a reading
  * was missing or rejected (the plan ran on the prediction) */
+/* MPC._predict_missed: the estimate carried over n missed samples (gearctl_ctrl_step's bad input) by the prediction
+ * alone, as for a rejected reading, the first with the last torque, the others with the zero torque the missed steps
+ * returned; over more than GCX_MISSED_PREDICT it restarts from the next reading */
+#define GCX_MISSED_PREDICT 1000 /* mpc.py: _MISSED_PREDICT */
+GCX_FN void gcx_mpc_predict_missed(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t n) {
+    if (n > GCX_MISSED_PREDICT) {
+        S->z_set = 0;
+        return;
+    }
+    double b = P->b, tol = P->tol;
+    const double *gr = P->gap_rows, *cr = P->centre_rows;
+    double a0 = gr[0], a1 = gr[1], a2 = gr[2], a3 = gr[3], b0 = gr[4], b1 = gr[5];
+    double c0 = gr[6], c1 = gr[7], c2 = gr[8], c3 = gr[9], d0 = gr[10], d1 = gr[11];
+    double k00 = cr[0], k01 = cr[1], k11 = cr[2], kb0 = cr[3], kb1 = cr[4], e0 = cr[5], e1 = cr[6];
+    for (int64_t j = 0; j < n; j++) {
+        double u = S->u + S->f1;
+        double phi = S->z[0], om = S->z[1], s = S->z[2], v = S->z[3], d = S->z[4];
+        double tau = P->tau_load + d + S->f2;
+        double s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau;
+        double v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau;
+        double phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau;
+        double om_p = k11 * om + kb1 * u + e1 * tau;
+        double s_n, v_n;
+        if (P->rigid) {
+            s_n = 0.0, v_n = 0.0;
+        } else {
+            s_n = s_p, v_n = v_p;
+            if (fabs(s_n) >= b - tol) s_n = copysign(b, s_n), v_n = 0.0;
+        }
+        S->z[0] = phi_p, S->z[1] = om_p, S->z[2] = s_n, S->z[3] = v_n, S->z[4] = d;
+        S->u = 0.0;
+    }
+}
+
 GCX_FN int gcx_mpc_run(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t k, const double y[2], const double *ref,
                        double *u_out) {
-    (void)k;
     const int n = GCX_MPC_N;
+    if (S->z_set && !S->fault && k > S->k_run) gcx_mpc_predict_missed(P, S, k - S->k_run);
+    S->k_run = k + 1;
     S->n_obs += 1;
     int note = S->fault ? 0 : gcx_mpc_observe(P, S, y[0], P->uses_load ? y[1] : (double)NAN); /* y[1] unread */
     if (S->fault) { /* latched: the motor braked to rest, reported on every step */

@@ -25,6 +25,7 @@ typedef struct {
     double gap_s[2];        /* the floating gap's last two readings, the latest first [m] */
     int gap_s_n;            /* how many of them there are since contact (0..2; Python: NaN for a missing one) */
     int64_t n_obs;          /* samples observed (MPC._n_obs) */
+    int64_t k_run;          /* the sample after the last step that ran (MPC._k_run; missed samples do not run) */
     int64_t restarts[GCX_FAULT_RESTARTS]; /* the samples of the last restarts of the estimate */
     int fault;              /* latched: the motor braked, then zero torque (MPC.fault) */
     double brake_y, brake_dy, brake_w; /* after a fault: last motor reading, its step, the speed (MPC._brake) */
