@@ -30,10 +30,11 @@ SERVO = "shing1993_servo"
 
 
 class _Missing:
-    """A controller whose motor readings at the given sample numbers are NaN (a harness's missed samples)."""
+    """A controller whose motor readings at the given sample numbers are NaN (a harness's missed samples), or
+    whose load readings there are ``load`` (NaN, None, a value beyond the input limit)."""
 
-    def __init__(self, inner, missed) -> None:  # noqa: ANN001
-        self.inner, self.missed, self.n = inner, missed, 0
+    def __init__(self, inner, missed, load=False) -> None:  # noqa: ANN001
+        self.inner, self.missed, self.n, self.load = inner, missed, 0, load
         self.Ts, self.preview, self.name = inner.Ts, inner.preview, inner.name
         self.uses_load_encoder = inner.uses_load_encoder
         self.solve_times, self.fallbacks = [], []
@@ -44,6 +45,8 @@ class _Missing:
 
     def step(self, t, y_motor, y_load, ref):  # noqa: ANN001, ANN202
         k, self.n = self.n, self.n + 1
+        if self.load is not False:
+            return self.inner.step(t, y_motor, self.load if self.missed(k) else y_load, ref)
         return self.inner.step(t, math.nan if self.missed(k) else y_motor, y_load, ref)
 
     def describe(self) -> dict:
@@ -133,3 +136,28 @@ def test_the_exported_mpc_gives_the_python_torques_over_missed_samples(tmp_path:
     runs = [simulate_closed_loop(plant, _Missing(c, missed), ref, 1.0, sensors=m.sensors)
             for c in (load_controller("mpc", plant, sensors=m.sensors), load_exported(d))]
     assert np.array_equal(runs[0].torque, runs[1].torque)
+
+
+@needs_make
+@pytest.mark.parametrize("bad", [math.nan, -math.inf, 1e13])
+def test_the_adaptive_inverse_takes_a_missing_load_reading_as_no_gap_measured(tmp_path: Path, bad: float) -> None:
+    # on the motor encoder the adaptive inverse reads y[1] only to measure the gap: a load reading not finite or
+    # beyond the input limit is a missing one, the step the Python step with y_load = None (bit for bit), reported
+    # as a fallback. Before, it was a bad input: zero torque on the sample (on the gravity arm of
+    # tests/data/gravity_arm_17x119.toml, one missing load reading in every 50 samples: 2.4x the sine's RMS)
+    from gearctl.export.sil import load_exported
+
+    m = load_model(SERVO)
+    plant = build_plant(m)
+    d = tmp_path / "ada"
+    export_controller(load_controller("adaptive_inverse", plant), d, plant=plant, sensors=m.sensors, model=m.name,
+                      vectors=False)
+    missed = lambda k: k % 50 == 49  # noqa: E731
+    ref = reference("sine")
+    c = _Missing(load_exported(d), missed, load=bad)
+    run_c = simulate_closed_loop(plant, c, ref, 3.0, sensors=m.sensors)
+    run_py = simulate_closed_loop(plant, _Missing(load_controller("adaptive_inverse", plant), missed, load=None), ref,
+                                  3.0, sensors=m.sensors)
+    assert np.array_equal(run_c.torque, run_py.torque)
+    assert len(c.inner.fallbacks) == sum(missed(k) for k in range(c.n)) > 0
+    assert all("fallback" in f["reason"] for f in c.inner.fallbacks)

@@ -141,6 +141,11 @@ def _k_ran_field(spec: KindSpec) -> str:
             " not) */\n")
 
 
+def _gap_reading_only(spec: KindSpec) -> bool:
+    """The adaptive inverse on the motor encoder: it reads the load encoder only to measure the gap."""
+    return spec.prefix == "ada" and not spec.values["inv"]["pid"]["feedback_load"]
+
+
 def header_text(spec: KindSpec) -> str:
     """``gearctl_ctrl.h``: the API of issue 14, with this controller's constants and state."""
     from .. import __version__
@@ -157,8 +162,16 @@ def header_text(spec: KindSpec) -> str:
                    " gearctl_ctrl_init)")
     statuses = "GEARCTL_STEP_OK, _FALLBACK, _BAD_INPUT, _FAULT or _NOT_INIT" if spec.prefix == "mpc" else \
         "GEARCTL_STEP_OK, _BAD_INPUT or _NOT_INIT"
+    if _gap_reading_only(spec):
+        returns = ("GEARCTL_STEP_OK, GEARCTL_STEP_FALLBACK (a missing load reading),\n"
+                   " * GEARCTL_STEP_BAD_INPUT or GEARCTL_STEP_NOT_INIT (c never set up by gearctl_ctrl_init)")
+        statuses = "GEARCTL_STEP_OK, _FALLBACK, _BAD_INPUT or _NOT_INIT"
     if not spec.uses_load_encoder:
         load_rule = ""
+    elif _gap_reading_only(spec):
+        load_rule = (" (a y[1] not finite or beyond it\n * is a missing load reading: it only measures the gap, so "
+                     "the step runs on\n * the motor encoder, learns nothing from it and returns"
+                     " GEARCTL_STEP_FALLBACK)")
     elif spec.prefix == "mpc":
         load_rule = (" (a y[1] not finite or beyond it\n * is a missing load reading: the observer predicts over "
                      "it and the step returns\n * GEARCTL_STEP_FALLBACK)")
@@ -232,7 +245,7 @@ extern "C" {{
 
 #define GEARCTL_STEP_OK 0        /* a normal step */
 #define GEARCTL_STEP_FALLBACK 1  /* the MPC: its solver failed, or a reading was missing or rejected (the step ran on
-                                    the prediction) */
+                                    the prediction); the adaptive inverse: a missing load reading (no gap measured) */
 #define GEARCTL_STEP_BAD_INPUT 2 /* an input not finite or beyond GEARCTL_INPUT_LIMIT: u = 0, the state unchanged
                                     but for the clock k, which advances */
 #define GEARCTL_STEP_FAULT 3     /* the MPC's latched fault (its estimate restarted 3 times within 1000 samples):
@@ -273,7 +286,9 @@ int gearctl_ctrl_step(gearctl_ctrl_t *c, const double y[2], const double *ref, d
 def _implementation(spec: KindSpec) -> str:
     """``gearctl_ctrl.c``."""
     mpc = spec.prefix == "mpc"
-    check_load = spec.uses_load_encoder and not mpc  # the MPC takes a load reading beyond the limit as missing
+    # the MPC takes a load reading beyond the limit as missing, and so does the adaptive inverse on the motor encoder,
+    # which reads it only to measure the gap (gcx_ada_run)
+    check_load = spec.uses_load_encoder and not mpc and not _gap_reading_only(spec)
     load_screen = " || !gcx_finite(y[1]) || fabs(y[1]) > GEARCTL_INPUT_LIMIT" if check_load else ""
     # the MPC's latched fault is reported on every step, a bad input's too (its torque is zero either way)
     bad_status = "c->s.fault ? GEARCTL_STEP_FAULT : GEARCTL_STEP_BAD_INPUT" if mpc else "GEARCTL_STEP_BAD_INPUT"
@@ -396,9 +411,11 @@ double control_step(double motor_angle, double load_angle, const double ref[3 * 
 - `ref`: the load angle's reference, rows of `r` [rad], `r'` [rad/s], `r''` [rad/s^2].
 - `u`: the motor torque [N m].
 - `status`: `GEARCTL_STEP_OK` (0); `GEARCTL_STEP_FALLBACK` (1, the MPC: its solver failed, or a reading was missing
-  or rejected by its gate and the step ran on the prediction); `GEARCTL_STEP_BAD_INPUT` (2, a `y[0]`, a reference
-  entry, or a `y[1]` where the load encoder is used, not finite or beyond `GEARCTL_INPUT_LIMIT`; the MPC takes a
-  `y[1]` not finite or beyond the limit as a missing reading and returns `GEARCTL_STEP_FALLBACK`): `u = 0`, the state
+  or rejected by its gate and the step ran on the prediction; the adaptive inverse: a missing load reading, no gap
+  measured); `GEARCTL_STEP_BAD_INPUT` (2, a `y[0]`, a reference
+  entry, or a `y[1]` where the load encoder is fed back, not finite or beyond `GEARCTL_INPUT_LIMIT`; the MPC and the
+  adaptive inverse on the motor encoder take such a `y[1]` as a missing reading and return
+  `GEARCTL_STEP_FALLBACK`): `u = 0`, the state
   unchanged but for the sample clock, which advances;
   `GEARCTL_STEP_FAULT` (3, the MPC's latched fault: its estimate restarted 3 times within 1000 samples, e.g. encoders
   too coarse to follow, or an encoder that keeps jumping; the motor is braked to rest from its own reading, then

@@ -774,7 +774,7 @@ GCX_FN void gcx_ada_watch_flank(const gcx_ada_p *P, gcx_ada_s *S) {
 
 GCX_FN double gcx_ada_step(const gcx_ada_p *P, gcx_ada_s *S, double t, const double y[2], const double *ref) {
     gcx_ada_watch_flank(P, S);
-    int has_yl = !isnan(y[1]);
+    int has_yl = gcx_finite(y[1]); /* Python: y_load not None; read off the bits, as -ffast-math keeps it */
     if (has_yl) gcx_ada_observe(P, S, t, P->rb1 * y[0] - P->rb2 * y[1] - S->u / (P->rb1 * P->k));
     gcx_ada_switch_crossing(P, S, t);
     /* the inner inverse gets y_load only with load feedback (Python: None otherwise) */
@@ -787,7 +787,8 @@ GCX_FN double gcx_ada_step(const gcx_ada_p *P, gcx_ada_s *S, double t, const dou
 #endif /* GCX_ADA_WINDOW */
 
 /* ---- one interface per kind: init (the state after Controller.reset()) and run (one step) ------------- */
-/* run: t = k Ts is the Python step's sample time; the return value is 0 (no fallback in this family). */
+/* run: t = k Ts is the Python step's sample time; the return value is 0, or 1 for the adaptive inverse's missing load
+ * reading (a fallback). */
 
 GCX_FN void gcx_pid_init(const gcx_pid_p *P, gcx_pid_s *S) {
     (void)P;
@@ -834,9 +835,15 @@ GCX_FN void gcx_ada_init(const gcx_ada_p *P, gcx_ada_s *S) {
     gcx_ada_reset(P, S);
 }
 
+/* On the motor encoder the adaptive inverse reads y[1] only to measure the gap: one not finite or beyond the input
+ * limit is a missing reading (Python: y_load None), no gap measured on this sample, and the step runs on the motor
+ * encoder and reports a fallback (1). Before, it was a bad input: zero torque, a missed sample, for a reading the
+ * torque does not depend on. With load feedback gearctl_ctrl_step screens it as a bad input before this. */
 GCX_FN int gcx_ada_run(const gcx_ada_p *P, gcx_ada_s *S, int64_t k, const double y[2], const double *ref,
                        double *u) {
-    *u = gcx_ada_step(P, S, (double)k * P->inv.pid.Ts, y, ref);
-    return 0;
+    int missing = !gcx_finite(y[1]) || fabs(y[1]) > GEARCTL_INPUT_LIMIT;
+    double yl[2] = {y[0], missing ? (double)NAN : y[1]};
+    *u = gcx_ada_step(P, S, (double)k * P->inv.pid.Ts, yl, ref);
+    return missing;
 }
 #endif /* GCX_ADA_WINDOW */
