@@ -1,10 +1,13 @@
 """Bode, step and margins of the contact-mode models: the analysis script a servo designer writes.
 
-Loads the benchmark servo, gets its linear models per contact mode as python-control objects, plots the
-Bode diagram of both modes (and the rigid limit) on common axes and a step response, and prints the
-margins of the catalog PID on the contact and the separation model (the loop must survive the gap).
+Loads a servo (the benchmark servo unless ``--model`` names another catalog entry or TOML file, a pair or a
+train), gets its linear models per contact mode as python-control objects, plots the Bode diagram of both modes
+(and the rigid limit) on common axes and a step response, and prints the margins of the catalog PID on the
+contact and the separation model (the loop must survive the gap). The signals are taken by the model's own
+names: a pair's ``theta1, theta2, force``, a train's ``theta0, thetan, force1``.
 
     python examples/03_bode_step_margins.py --out out/analysis
+    python examples/03_bode_step_margins.py --model servo_3stage_quanser_srv02 --out out/analysis_srv02
 """
 
 from __future__ import annotations
@@ -24,22 +27,27 @@ from gearctl.plots import plot_bode, plot_step, save
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("out/analysis"))
+    ap.add_argument("--model", default="shing1993_servo", help="catalog name or TOML file (default shing1993_servo)")
     args = ap.parse_args(argv)
 
     # --- model and its linear modes ---------------------------------------------------------------------
-    plant = build_plant(load_model("shing1993_servo"))
+    plant = build_plant(load_model(args.model))
     modes = linearize_modes(plant)
+    motor, load = modes.contact.output_labels[:2]  # theta1, theta2 on a pair; theta0, thetan on a train
+    xi = modes.contact.input_labels[0]  # the motor torque: xi1 on a pair, xi0 on a train
+    force = "force" if plant.n_stages == 1 else "force1"  # the motor's mesh
     print(f"mesh mode {modes.mesh.natural_frequency_hz:.1f} Hz (zeta {modes.mesh.damping_ratio:.3f}), "
           f"anti-resonance {modes.mesh.antiresonance_hz:.1f} Hz")
     print("motor torque -> load angle in contact:", modes.load_angle)
 
     # --- Bode of both modes on common axes, and a step ----------------------------------------------------
     systems = {"contact": modes.contact, "separation": modes.separation, "rigid (k -> inf)": modes.rigid}
-    save(plot_bode(systems, output="theta1"), args.out / "bode_motor_angle.png")
-    save(plot_bode({"contact": modes.contact, "rigid (k -> inf)": modes.rigid}, output="theta2"),
+    save(plot_bode(systems, output=motor, input=xi), args.out / "bode_motor_angle.png")
+    save(plot_bode({"contact": modes.contact, "rigid (k -> inf)": modes.rigid}, output=load, input=xi),
          args.out / "bode_load_angle.png")
-    T = np.linspace(0.0, 3e-3, 3000)
-    save(plot_step({"contact": modes.contact}, output="force", T=T), args.out / "step_force.png")
+    # eight periods of the lowest resonance (an overdamped mesh has none: its undamped frequency)
+    T = np.linspace(0.0, 8.0 / min(modes.resonances_hz, default=modes.mesh.natural_frequency_hz), 3000)
+    save(plot_step({"contact": modes.contact}, output=force, input=xi, T=T), args.out / "step_force.png")
 
     # --- margins of the catalog PID (motor feedback, scaled to load units) in each mode -------------------
     # the controller that runs (PIDGains.sampled_tf: PID.step's own difference equation), as a state-space model:
