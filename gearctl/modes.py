@@ -337,30 +337,68 @@ def _pair_figures(a: complex, b: complex) -> tuple[float, float]:
     return wn, float(-(a + b).real / (2 * wn))
 
 
-def _mode_pair(roots: np.ndarray, rigid: tuple[complex, ...], target: float) -> tuple[complex, complex] | None:
-    """The highest mode among ``roots``: its complex pair, or (none oscillating) a pair of real roots.
+def _matchings(items: list[float]) -> Iterable[list[tuple[float, float]]]:
+    """Every way of splitting ``items`` (an even number) into pairs."""
+    if not items:
+        yield []
+        return
+    first, rest = items[0], items[1:]
+    for j, other in enumerate(rest):
+        for tail in _matchings(rest[:j] + rest[j + 1:]):
+            yield [(first, other), *tail]
 
-    ``rigid``: roots of the rigid-body motion; with no oscillating root, the root nearest each is set aside
-    and the mode is the fastest real root left with the partner whose product with it is nearest ``target``
-    (the squared natural frequency expected; for a pair, the only root left). ``None``: no such pair.
+
+def _modes_of(roots: Any, rigid: Sequence[complex], targets: Sequence[float]) -> list[tuple[float, float]]:
+    """The modes among ``roots`` as ``(omega_n, zeta)``, lowest first (:class:`MeshMode`'s rule per pair).
+
+    ``rigid``: roots of the rigid-body motion, the nearest root to each set aside. ``targets``: the undamped
+    natural frequencies [rad/s], one per mode. A complex pair is a mode; the real roots left are the overdamped
+    modes, paired so that the pairs' products (``omega_n^2``) come nearest the targets that no complex pair
+    took (every pairing is tried: at most 6 such modes, 10395 pairings).
     """
     roots = clean_poles(roots)
     if roots.size == 0:
-        return None
-    osc = roots[np.abs(roots.imag) > 1e-9 * np.max(np.abs(roots))]
-    if osc.size:
-        lam = complex(osc[np.argmax(np.abs(osc))])
-        return lam, lam.conjugate()
-    rest = [float(r.real) for r in roots]
+        return []
+    rest = list(roots)
     for e in rigid:
         if rest:
             rest.pop(int(np.argmin([abs(r - e) for r in rest])))
-    rest = sorted((r for r in rest if r != 0.0), key=abs)
-    if len(rest) < 2:
-        return None
-    fast = rest.pop()
-    partner = min(rest, key=lambda r: abs(math.log(abs(fast * r) / target)))
-    return complex(fast), complex(partner)
+    tol = 1e-9 * float(np.max(np.abs(roots)))
+    modes = [_pair_figures(r, r.conjugate()) for r in rest if r.imag > tol]
+    real = sorted(float(r.real) for r in rest if abs(r.imag) <= tol and r != 0.0)
+    free = sorted(float(t) for t in targets if t > 0.0)
+    for wn, _ in modes:  # the undamped frequency each complex pair stands for
+        if free:
+            free.pop(int(np.argmin([abs(math.log(wn / t)) for t in free])))
+    m = len(real) // 2
+    if m:
+        free = (free + [float("nan")] * m)[:m] if len(free) < m else free[-m:]
+        known = [t for t in free if math.isfinite(t)]
+
+        def cost(pairs: list[tuple[float, float]]) -> float:
+            prods = sorted(math.sqrt(a * b) for a, b in pairs)
+            return sum(abs(math.log(p / t)) for p, t in zip(prods[len(prods) - len(known):], known, strict=True))
+
+        best = min(_matchings(real[:2 * m]), key=cost)
+        modes += [_pair_figures(complex(a), complex(b)) for a, b in best]
+    return sorted(modes)
+
+
+def _undamped_frequencies(plant: Plant, *, motor_held: bool = False) -> list[float]:
+    """Natural frequencies of the undamped contact model [rad/s] (``K phi = omega^2 M phi``), rigid body left
+    out; ``motor_held``: with the motor shaft clamped (the anti-resonances of motor torque to motor angle)."""
+    w = len(plant.shafts)
+    K = np.zeros((w, w))
+    for i, st in enumerate(plant.stages):
+        g = np.zeros(w)
+        g[[i, i + 1]] = [st.rb1, -st.rb2]
+        K += st.k * np.outer(g, g)
+    M = np.diag([sh.J for sh in plant.shafts])
+    if motor_held:
+        K, M = K[1:, 1:], M[1:, 1:]
+    lam = np.linalg.eigvals(np.linalg.solve(M, K)).real
+    lam = np.sort(lam)[(0 if motor_held else 1):]  # the rigid body's zero
+    return [math.sqrt(max(v, 0.0)) for v in lam]
 
 
 def mesh_mode(plant: Plant) -> MeshMode:
@@ -379,26 +417,31 @@ def mesh_mode(plant: Plant) -> MeshMode:
 
     Notes
     -----
-    The pole pair is the oscillating pair of largest ``|lambda|`` (an underdamped mesh: every catalog model).
-    An overdamped mesh (``damping_ratio > 1`` in the model file; the schema allows up to 2) has no
-    oscillating pole: then the rigid-body poles (``0`` and ``-d_eq / J_eq`` of :func:`rigid_model`) are set
-    aside and the two real poles left are the mesh's (a train: the fastest real pole and the partner whose
-    product with it is nearest the fastest stage's ``k / m_eq``). Either way ``natural_frequency`` and
-    ``damping_ratio`` come from the pair's product and sum (:class:`MeshMode`), so an overdamped mesh
-    reports ``sqrt(k / m_eq)`` and a damping ratio above 1 (``MeshMode.overdamped``), not the frequency of
-    one of its real poles. The zero pair follows the same rule (no rigid-body zeros: the motor is held).
+    The contact model's poles are its rigid body (``0`` and about ``-d_eq / J_eq`` of :func:`rigid_model`,
+    set aside) and one root pair per stage: a complex pair, or for an overdamped mode (a large
+    ``damping_ratio``; the schema allows up to 2) two real roots, paired so that their products come nearest
+    the undamped natural frequencies squared. The mesh mode is the pair of the highest natural frequency.
+    Either way ``natural_frequency`` and ``damping_ratio`` come from the pair's product and sum
+    (:class:`MeshMode`), so an overdamped mesh reports its undamped ``sqrt(k / m_eq)`` and a damping ratio
+    above 1 (``MeshMode.overdamped``), not the frequency of one of its real poles. (Before, a train took its
+    highest *oscillating* pair: with damping_ratio 0.9 a four-stage train's two upper modes are overdamped,
+    and its 7.4 kHz second mode was reported as the mesh mode instead of the 18 kHz one.) The zero pair
+    follows the same rule (no rigid-body zeros: the motor is held).
     """
-    plant = check_plant(plant)
+    return _mesh_and_modes(check_plant(plant))[0]
+
+
+def _mesh_and_modes(plant: Plant) -> tuple[MeshMode, list[tuple[float, float]]]:
+    """:func:`mesh_mode` and every contact mode's ``(omega_n, zeta)``, lowest first."""
     sys = contact_mode_model(plant)
-    target = plant.natural_frequency**2
     rigid = tuple(complex(r) for r in rigid_model(plant).poles())
-    pair = _mode_pair(sys.poles(), rigid, target)
-    if pair is None:  # a contact model has 2 rigid-body poles and 2 per mesh: not reached
+    modes = _modes_of(sys.poles(), rigid, _undamped_frequencies(plant))
+    if not modes:  # a contact model has 2 rigid-body poles and 2 per mesh: not reached
         raise ValueError("the contact model has no mesh mode (fewer than two poles besides the rigid body)")
-    wn, zeta = _pair_figures(*pair)
-    zpair = _mode_pair(ct.zeros(sys[0, 0]), (), target)
-    wz, zz = _pair_figures(*zpair) if zpair is not None else (float("nan"), float("nan"))
-    return MeshMode(natural_frequency=wn, damping_ratio=zeta, antiresonance=wz, antiresonance_damping=zz)
+    wn, zeta = modes[-1]
+    zmodes = _modes_of(ct.zeros(sys[0, 0]), (), _undamped_frequencies(plant, motor_held=True))
+    wz, zz = zmodes[-1] if zmodes else (float("nan"), float("nan"))
+    return MeshMode(natural_frequency=wn, damping_ratio=zeta, antiresonance=wz, antiresonance_damping=zz), modes
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -416,9 +459,10 @@ class ContactModes:
     plant : Plant
         The plant they come from.
     resonances_hz : tuple of float
-        Natural frequencies of every oscillatory mode with all stages in contact [Hz], ``|p| / 2 pi`` of each pole
-        pair of the damped model (as ``control.damp`` gives them; within a few 1e-6 of the undamped eigenfrequencies
-        at the catalog's mesh damping), one per stage: the train's resonances, lowest first.
+        Natural frequencies of every oscillatory mode with all stages in contact [Hz], ``|p| / 2 pi`` of each
+        complex pole pair of the damped model (as ``control.damp`` gives them; within a few 1e-4 of the undamped
+        eigenfrequencies at the catalog's mesh damping), lowest first: one per stage unless a mode is overdamped
+        (real poles: it does not ring, and is left out; :attr:`mesh` may be such a mode).
     stage_separated : tuple of control.StateSpace or None
         For a train, the model with stage ``i`` separated and the others in contact (empty for a pair); None
         for a stage without backlash, which cannot separate.
@@ -484,8 +528,7 @@ def linearize_modes(plant: Plant) -> ContactModes:
     tf_load = _siso_tf(contact, 1, 0)
     outs = output_names(plant)
     xi = signal_names(plant)[1][0]
-    poles = clean_poles(contact.poles())
-    osc = poles[poles.imag > 1e-9 * np.max(np.abs(poles))]
+    mesh, modes = _mesh_and_modes(plant)
     n = plant.n_stages
     separated = tuple(mode_model(plant, [j != i for j in range(n)], name=f"stage{i + 1}_separated")
                       if plant.backlashes[i] > 0.0 else None for i in range(n)) if n > 1 else ()
@@ -493,8 +536,8 @@ def linearize_modes(plant: Plant) -> ContactModes:
         contact=contact, separation=separation_model(plant), rigid=rigid_model(plant),
         motor_angle=ct.tf(tf_motor.num, tf_motor.den, inputs=xi, outputs=outs[0], name="motor_angle"),
         load_angle=ct.tf(tf_load.num, tf_load.den, inputs=xi, outputs=outs[1], name="load_angle"),
-        mesh=mesh_mode(plant), plant=plant,
-        resonances_hz=tuple(sorted(float(abs(p)) / (2 * math.pi) for p in osc)), stage_separated=separated,
+        mesh=mesh, plant=plant, resonances_hz=tuple(wn / (2 * math.pi) for wn, zeta in modes if zeta < 1.0),
+        stage_separated=separated,
     )
 
 

@@ -1,0 +1,75 @@
+"""Mesh mode and resonances of a train whose upper modes are overdamped (``damping_ratio`` up to 2 is allowed).
+
+Before, a train's mesh mode was its highest *oscillating* pole pair and its resonances the oscillating pairs only:
+with damping_ratio 0.9 the four-stage review train's two upper modes have real poles, so ``linearize`` and
+``info`` reported the 7.4 kHz second mode as the mesh mode (the highest undamped one is at 18.1 kHz) and two
+resonances for four stages.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+import gearctl
+
+DATA = Path(__file__).parent / "data"
+
+
+def _with_damping(tmp_path: Path, name: str, zeta: float) -> Path:
+    text = (DATA / name).read_text()
+    lines = [f"damping_ratio = {zeta}" if ln.strip().startswith("damping_ratio") else ln for ln in text.splitlines()]
+    out = tmp_path / f"{Path(name).stem}_zeta{zeta}.toml"
+    out.write_text("\n".join(lines) + "\n")
+    return out
+
+
+def _undamped_hz(plant) -> np.ndarray:
+    """Natural frequencies of K phi = w^2 M phi [Hz], K from each mesh k (r_b1 theta_i - r_b2 theta_(i+1))^2."""
+    w = len(plant.shafts)
+    K = np.zeros((w, w))
+    for i, st in enumerate(plant.stages):
+        g = np.zeros(w)
+        g[i], g[i + 1] = st.rb1, -st.rb2
+        K += st.k * np.outer(g, g)
+    lam = sla.eigh(K, np.diag([sh.J for sh in plant.shafts]), eigvals_only=True)
+    return np.sqrt(lam[1:]) / (2 * math.pi)
+
+
+@pytest.mark.parametrize("zeta", [0.9, 1.5])
+def test_train_with_overdamped_modes(tmp_path: Path, zeta: float) -> None:
+    plant = gearctl.build_plant(gearctl.load_model(_with_damping(tmp_path, "h4_train4_review.toml", zeta)))
+    modes = gearctl.linearize_modes(plant)
+    poles = modes.contact.poles()
+    assert np.sum(np.abs(poles.imag) < 1e-9 * np.abs(poles).max()) >= 4  # some mode is overdamped here
+    f = _undamped_hz(plant)
+    # the resonances are the modes that ring (complex poles): the lower ones here, the undamped ones to 20 %
+    # (heavy, non-proportional damping moves the coupled modes)
+    res = np.array(modes.resonances_hz)
+    assert 1 <= res.size < plant.n_stages
+    np.testing.assert_allclose(res, f[:res.size], rtol=0.2)
+    # the mesh mode is the highest mode, overdamped or not: not the highest resonance that rings
+    np.testing.assert_allclose(modes.mesh.natural_frequency_hz, f[-1], rtol=0.1)
+    assert modes.mesh.overdamped and modes.mesh.natural_frequency_hz > 2 * res.max()
+
+
+def test_overdamped_pair(tmp_path: Path) -> None:
+    """A pair with damping_ratio 1.5: its mesh mode at the undamped sqrt(k / m_eq), and no resonance (no ringing)."""
+    plant = gearctl.build_plant(gearctl.load_model(_with_damping(tmp_path, "plastic_pom.toml", 1.5)))
+    modes = gearctl.linearize_modes(plant)
+    wn = math.sqrt(plant.k / plant.m_eq)
+    assert modes.resonances_hz == ()
+    np.testing.assert_allclose(modes.mesh.natural_frequency, wn, rtol=1e-3)
+    assert modes.mesh.damping_ratio > 1.0
+
+
+def test_catalog_train_modes_match_the_undamped_ones() -> None:
+    """At the catalog's mesh damping (0.05) the coupled modes are the undamped eigenfrequencies to 5e-4."""
+    for name in ("servo_2stage_phm09", "servo_3stage_quanser_srv02", DATA / "h4_train4_review.toml"):
+        plant = gearctl.build_plant(gearctl.load_model(name))
+        modes = gearctl.linearize_modes(plant)
+        np.testing.assert_allclose(modes.resonances_hz, _undamped_hz(plant), rtol=5e-4)
