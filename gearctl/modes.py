@@ -549,7 +549,8 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
     loop : control.LTI
         Open-loop transfer function (controller times plant, SISO), continuous or discrete.
     omega : array_like, optional
-        Frequencies [rad/s]; default 1e-2 rad/s to the Nyquist frequency (discrete) or 1e6 rad/s.
+        Frequencies [rad/s], increasing, > 0 and, for a sampled loop, below its Nyquist frequency ``pi / dt``;
+        default 1e-2 rad/s to the Nyquist frequency (discrete) or 1e6 rad/s.
 
     Returns
     -------
@@ -564,7 +565,8 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
     Raises
     ------
     InputError
-        If ``loop`` is not a SISO python-control system, or ``omega`` not increasing positive frequencies.
+        If ``loop`` is not a SISO python-control system, or ``omega`` not increasing positive frequencies (below
+        the Nyquist frequency of a sampled loop).
 
     Notes
     -----
@@ -593,6 +595,12 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
         if not (w.ndim == 1 and w.size >= 2 and np.all(np.isfinite(w)) and w[0] > 0 and np.all(np.diff(w) > 0)):
             raise InputError(f"omega = {short_repr(omega)} is not a frequency grid: expected a 1-D array of at least 2 "
                              "increasing frequencies > 0 [rad/s], e.g. np.logspace(-1, 4, 5000)", field="omega")
+        if ct.isdtime(loop, strict=True) and loop.dt is not True and w[-1] >= math.pi / loop.dt:
+            # beyond the Nyquist frequency a sampled loop's response repeats (aliases): margins read there are
+            # not the loop's (python-control only warns, and evaluates)
+            raise InputError(f"omega = {short_repr(omega)} reaches {w[-1]:.6g} rad/s: the loop is sampled (dt = "
+                             f"{loop.dt:g} s), so expected every frequency below its Nyquist frequency pi / dt = "
+                             f"{math.pi / loop.dt:.6g} rad/s", field="omega")
         omega = w
     resp = ct.frequency_response(loop, omega)
     mag = np.squeeze(resp.magnitude)
