@@ -375,7 +375,11 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
             save_figure(plot_bode(both, output=motor, input=list(modes.contact.input_labels)[0],
                                   title=f"{model.name}: motor torque to motor angle"), args.bode)
         if args.step:
-            T = np.linspace(0, 8 / max(mesh.natural_frequency_hz, 1.0), 2000)
+            # eight periods of the lowest resonance (a train's, far below its mesh mode; an overdamped mesh has
+            # none: its undamped frequency), at least 20 points per period of the highest mode, at most 20 000
+            f_lo = min(modes.resonances_hz, default=mesh.natural_frequency_hz)
+            T = np.linspace(0, 8 / max(f_lo, 1.0),
+                            min(max(2000, math.ceil(160 * mesh.natural_frequency_hz / max(f_lo, 1.0)) + 1), 20000))
             s_out = "s" if n == 1 else "s1"
             save_figure(plot_step({"contact": modes.contact}, output=s_out, input=list(modes.contact.input_labels)[0],
                                   T=T, title=f"{model.name}: motor torque step, relative displacement"), args.step)
