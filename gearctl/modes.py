@@ -515,6 +515,14 @@ def linearize_modes(plant: Plant) -> ContactModes:
     InputError
         If ``plant`` is not a :class:`~gearctl.plant.Plant` (a gear model: build it first).
 
+    Notes
+    -----
+    The models are the improved plant's linear law ``F = k s + c s'`` in contact, with each stage's ``k`` and
+    ``c`` as the plant holds them. A ``tvms`` plant holds the mean mesh stiffness, so its models are the improved
+    plant's. A ``yang-sun`` plant holds the Hertz stiffness of eq 39 and the eq 38 damping ``c``, which Yang-Sun's
+    law does not use (its damping ``d x x'`` vanishes to first order at the contact onset and grows with the
+    load): its models have the Hertz stiffness and a mesh damping that is not Yang-Sun's.
+
     Examples
     --------
     >>> from gearctl import load_model, build_plant
