@@ -34,7 +34,7 @@ from .closedloop import ClosedLoopResult, simulate_closed_loop
 from .controller import ReferenceLike
 from .design.base import Controller
 from .design.pid import PID, PIDGains, gap_loop_pole
-from .errors import InputError
+from .errors import InputError, short_repr
 from .modes import contact_mode_model
 from .params import ContactLaw, Sensors
 from .plant import Plant, PlantKind, build_plant
@@ -75,6 +75,12 @@ def dead_zone_factor(A: ArrayLike, b: float) -> Any:
     float or ndarray
         ``eta`` in ``[0, 1)`` [1], the shape of ``A``.
 
+    Raises
+    ------
+    InputError
+        If an amplitude is NaN or negative, or ``b`` is not a finite number >= 0 (before, NaN and negative
+        amplitudes read as inside the gap: ``eta = 0``).
+
     Notes
     -----
     With ``cos phi = b / A``: ``eta = (2 phi - sin 2 phi) / pi``, evaluated with
@@ -90,6 +96,11 @@ def dead_zone_factor(A: ArrayLike, b: float) -> Any:
     0.0
     """
     A = np.asarray(A, dtype=float)
+    if np.any(np.isnan(A)) or np.any(A < 0):
+        raise InputError(f"A = {short_repr(A.tolist())} is out of range: expected amplitudes >= 0 [m] (not NaN)",
+                         field="A")
+    if not (isinstance(b, int | float | np.floating) and math.isfinite(b) and b >= 0):
+        raise InputError(f"b = {b!r} is out of range: expected a finite number >= 0 [m]", field="b")
     phi = np.arctan2(np.sqrt(np.maximum((A - b) * (A + b), 0.0)), b)
     x = 2.0 * phi
     closed = (x - np.sin(x)) / np.pi
@@ -188,9 +199,18 @@ class MeshBacklash(ct.DescribingFunctionNonlinearity):
         A : float or array_like
             Amplitude of ``s`` [m].
         omega : float or array_like
-            Frequency [rad/s].
+            Frequency [rad/s], finite.
+
+        Raises
+        ------
+        InputError
+            If an amplitude is NaN or negative, or a frequency not finite.
         """
-        return (self.k + 1j * np.asarray(omega, dtype=float) * self.c) * dead_zone_factor(A, self.b)
+        w = np.asarray(omega, dtype=float)
+        if not np.all(np.isfinite(w)):
+            raise InputError(f"omega = {short_repr(w.tolist())} is not finite: expected frequencies [rad/s]",
+                             field="omega")
+        return (self.k + 1j * w * self.c) * dead_zone_factor(A, self.b)
 
 
 # --- the linear part --------------------------------------------------------------------------------------
