@@ -329,6 +329,11 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     modes = linearize_modes(build_plant(model))
     n = modes.plant.n_stages
+    if modes.plant.has_coulomb:  # the models carry the viscous friction only: say what they leave out
+        tc = ", ".join(f"{sh.tc:g}" for sh in modes.plant.shafts)
+        warn("linearize", [f"the linear models leave out the Coulomb friction ({tc} N m on the shafts, motor first; "
+                           "viscous friction only): below the break-away torque the real plant does not move, and "
+                           "margins read off these models do not see the friction"], kind="note")
     if args.mode.startswith("stage"):
         k = int(args.mode[5:]) if args.mode[5:].isdigit() else 0
         if n == 1:
