@@ -16,6 +16,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import InputError, short_repr
 from .geometry import GearPair, Geometry, check_pair, involute, pair_geometry
 from .units import POINTS, Spec
 
@@ -242,6 +243,12 @@ def mesh_stiffness_at(pair: GearPair, theta1: ArrayLike, geo: Geometry | None = 
     ndarray
         Mesh stiffness [N/m], same shape as ``theta1``.
 
+    Raises
+    ------
+    InputError
+        If ``theta1`` holds a value that is not a finite number (before, NaN gave ``K = 0`` and inf ``0`` with a
+        numpy warning: no contact, without a word).
+
     Notes
     -----
     Every tooth pair whose contact point ``z + i p_b`` lies on the path of contact C → D carries
@@ -249,7 +256,13 @@ def mesh_stiffness_at(pair: GearPair, theta1: ArrayLike, geo: Geometry | None = 
     report's double/single-tooth zones. Teeth in series, pairs in parallel (eq 21).
     """
     geo = pair_geometry(pair) if geo is None else geo
-    th = np.asarray(theta1, dtype=float)
+    try:
+        th = np.asarray(theta1, dtype=float)
+    except (TypeError, ValueError):
+        th = None
+    if th is None or not np.all(np.isfinite(th)):
+        raise InputError(f"theta1 = {short_repr(theta1)} is not finite: expected angles of gear 1 from C [rad], "
+                         "finite numbers", field="theta1")
     period = geo.mesh_period_angle
     phase = np.mod(th, period)
     # a whole number of cycles comes back as (period - rounding), not 0: the start of the cycle, where K jumps
