@@ -489,11 +489,35 @@ class ContactModes:
         return self.plant.equivalent_stiffness
 
     def mode(self, name: str) -> ct.StateSpace:
-        """The model of ``"contact"``, ``"separation"`` or ``"rigid"``."""
+        """The model of ``"contact"``, ``"separation"``, ``"rigid"`` or, on a train, ``"stageK"`` (stage K separated,
+        the others in contact: ``stage_separated[K - 1]``), the names ``gearctl linearize --mode`` takes.
+
+        Raises
+        ------
+        InputError
+            For another name, ``"stageK"`` on a pair or with K not a stage of the train, or a stage without backlash
+            (it cannot separate).
+        """
         from .errors import InputError
 
+        n = self.plant.n_stages
+        if isinstance(name, str) and name.startswith("stage"):
+            k = int(name[5:]) if name[5:].isdigit() else 0
+            if n == 1:
+                raise InputError(f"mode = {name!r}: 'stageK' (stage K separated, the others in contact) needs a train; "
+                                 "this plant is a pair: its modes are contact, separation and rigid", field="mode")
+            if not 1 <= k <= n:
+                raise InputError(f"mode = {name!r}: 'stageK' (stage K separated, the others in contact) needs "
+                                 f"1 <= K <= {n} (the train's stages)", field="mode")
+            sys_ = self.stage_separated[k - 1]
+            if sys_ is None:
+                raise InputError(f"mode = {name!r}: stage {k} has no backlash (backlash = 0), so it cannot separate: "
+                                 "expected a stage with backlash > 0", field="mode")
+            return sys_
         if name not in ("contact", "separation", "rigid"):
-            raise InputError(f"mode = {name!r} is not a mode: expected contact, separation or rigid", field="mode")
+            more = f", or stage1 to stage{n} (that stage separated)" if n > 1 else ""
+            raise InputError(f"mode = {name!r} is not a mode: expected contact, separation or rigid{more}",
+                             field="mode")
         return getattr(self, name)
 
 

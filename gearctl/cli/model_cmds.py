@@ -329,26 +329,15 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     modes = linearize_modes(build_plant(model))
     n = modes.plant.n_stages
+    if args.mode.startswith("stage") and n == 1:  # name the model the user gave
+        raise InputError(f"mode = {args.mode!r}: 'stageK' (stage K separated, the others in contact) needs a "
+                         f"train; {args.model} is a pair: its modes are contact, separation and rigid", field="mode")
+    sys_ = modes.mode(args.mode)
     if modes.plant.has_coulomb:  # the models carry the viscous friction only: say what they leave out
         tc = ", ".join(f"{sh.tc:g}" for sh in modes.plant.shafts)
         warn("linearize", [f"the linear models leave out the Coulomb friction ({tc} N m on the shafts, motor first; "
                            "viscous friction only): below the break-away torque the real plant does not move, and "
                            "margins read off these models do not see the friction"], kind="note")
-    if args.mode.startswith("stage"):
-        k = int(args.mode[5:]) if args.mode[5:].isdigit() else 0
-        if n == 1:
-            raise InputError(f"mode = {args.mode!r}: 'stageK' (stage K separated, the others in contact) needs a "
-                             f"train; {args.model} is a pair: its modes are contact, separation and rigid",
-                             field="mode")
-        if not 1 <= k <= n:
-            raise InputError(f"mode = {args.mode!r}: 'stageK' (stage K separated, the others in contact) needs "
-                             f"1 <= K <= {n} (the train's stages)", field="mode")
-        sys_ = modes.stage_separated[k - 1]
-        if sys_ is None:
-            raise InputError(f"mode = {args.mode!r}: stage {k} has no backlash (backlash = 0), so it cannot separate: "
-                             f"expected a stage with backlash > 0", field="mode")
-    else:
-        sys_ = modes.mode(args.mode)
     mesh = modes.mesh
     contact = args.mode == "contact"
     out = {
