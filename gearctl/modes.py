@@ -34,6 +34,7 @@ __all__ = [
     "linearize_modes",
     "mesh_mode",
     "mode_model",
+    "mode_poles",
     "loop_margins",
     "OUTPUTS",
     "output_names",
@@ -119,9 +120,19 @@ def mode_model(plant: Plant, loaded: Sequence[bool | Mode], *, name: str = "mode
         If ``plant`` is not a Plant, or ``loaded`` has not one entry per stage, each a bool or a mode, or it
         separates a stage without backlash.
     """
-    from .errors import InputError
 
     plant = check_plant(plant)
+    loaded = _loaded_flags(plant, loaded)
+    states, inputs = signal_names(plant)
+    C, D = _outputs(plant, loaded)
+    return ct.ss(mode_matrices(plant, loaded), input_matrix(plant), C, D, states=states, inputs=inputs,
+                 outputs=output_names(plant), name=name)
+
+
+def _loaded_flags(plant: Plant, loaded: Any) -> list[bool]:
+    """``loaded`` checked as :func:`mode_model` takes it, as one bool per stage."""
+    from .errors import InputError
+
     if isinstance(loaded, str | bytes) or not isinstance(loaded, Iterable):
         raise InputError(f"loaded = {loaded!r} is not a sequence: expected one bool or Mode per stage "
                          f"({plant.n_stages}), e.g. [True] * {plant.n_stages}", field="loaded")
@@ -144,11 +155,70 @@ def mode_model(plant: Plant, loaded: Sequence[bool | Mode], *, name: str = "mode
             raise InputError(f"loaded[{i}] = {loaded[i]!r}: {where} has no backlash (backlash = 0), so it cannot "
                              "separate (its contact law is one spring through s = 0): expected it in contact",
                              field="loaded")
-    loaded = flags
-    states, inputs = signal_names(plant)
-    C, D = _outputs(plant, loaded)
-    return ct.ss(mode_matrices(plant, loaded), input_matrix(plant), C, D, states=states, inputs=inputs,
-                 outputs=output_names(plant), name=name)
+    return flags
+
+
+def mode_poles(plant: Plant, loaded: Sequence[bool | Mode]) -> np.ndarray:
+    """Poles of :func:`mode_model` ``(plant, loaded)`` [rad/s], the rigid bodies' exactly.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    loaded : sequence of bool or Mode
+        Per stage, in contact or separated, as :func:`mode_model` takes it.
+
+    Returns
+    -------
+    ndarray
+        ``2 (n + 1)`` complex poles, fastest first: a 0 per rigid body (a group of shafts joined by stages in
+        contact), a second 0 for each such body without viscous friction, and the eigenvalues of the model in gap
+        coordinates.
+
+    Raises
+    ------
+    InputError
+        As :func:`mode_model`.
+
+    Notes
+    -----
+    The angles enter the dynamics through the gaps ``s_i`` of the stages in contact only, so the model in the
+    coordinates ``(s_i, omega)`` has the same poles less one exact 0 per rigid body. Its eigenvalues carry the
+    rounding ``eps |A|`` (1e-6 rad/s where ``|A|`` is 1e10), where the eigenvalues of the angle model round its
+    rigid body's pair ``(0, -d / J)`` by ``sqrt(eps |A|)`` (1e-4 rad/s); :func:`clean_poles` then took both for 0
+    when ``d / J`` was below 1e-7 of the mesh pole: ``tests/data/heavy_motor_no_limit.toml``'s -5.8155e-5 rad/s
+    (a 4.8 h time constant) came out as 0. Here it is -5.8155e-5 to 1e-11, and a frictionless body's second 0
+    (rounded to ~1e-13 rad/s in gap coordinates) is set to the 0 it is by count, not by size.
+    """
+    plant = check_plant(plant)
+    flags = _loaded_flags(plant, loaded)
+    w = len(plant.shafts)
+    on = [i for i, f in enumerate(flags) if f]
+    G = np.zeros((len(on), w))
+    for row, i in enumerate(on):
+        G[row, [i, i + 1]] = [plant.stages[i].rb1, -plant.stages[i].rb2]
+    k = np.diag([plant.stages[i].k for i in on])
+    c = np.diag([plant.stages[i].c for i in on])
+    Mi = np.diag([1.0 / sh.J for sh in plant.shafts])
+    D = np.diag([sh.d for sh in plant.shafts])
+    A = np.block([[np.zeros((len(on), len(on))), G], [-Mi @ G.T @ k, -Mi @ (G.T @ c @ G + D)]])
+    ev = np.linalg.eigvals(A).astype(complex)
+    # the rigid bodies: shafts joined by the stages in contact (a chain: stage i joins shafts i and i + 1)
+    bodies, start = [], 0
+    for i in range(len(flags) + 1):
+        if i == len(flags) or not flags[i]:
+            bodies.append(range(start, i + 1))
+            start = i + 1
+    free = sum(all(plant.shafts[j].d == 0.0 for j in body) for body in bodies)
+    if free:
+        ev[np.argsort(np.abs(ev))[:free]] = 0.0
+    return _ordered(np.concatenate([np.zeros(len(bodies), dtype=complex), ev]))
+
+
+def _ordered(poles: np.ndarray) -> np.ndarray:
+    """Poles fastest first (a conjugate pair: positive imaginary part first), -0.0 written as 0."""
+    p = np.asarray(poles, dtype=complex) + 0.0
+    return p[np.lexsort((-p.imag, -np.abs(p)))]
 
 
 def contact_mode_model(plant: Plant, *, name: str = "contact") -> ct.StateSpace:
@@ -309,20 +379,19 @@ class MeshMode:
         return self.damping_ratio >= 1.0
 
 
-def _siso_tf(sys: ct.StateSpace, out: int, inp: int) -> ct.TransferFunction:
+def _siso_tf(sys: ct.StateSpace, out: int, inp: int, poles: np.ndarray) -> ct.TransferFunction:
     """SISO transfer function of ``sys[out, inp]``, from its poles, zeros and high-frequency gain.
 
-    Poles are the eigenvalues of ``A`` (the rigid body's rounding set to the 0 it is, :func:`clean_poles`), zeros
+    ``poles``: those of ``sys`` (:func:`mode_poles`, the rigid body's exactly); zeros
     the invariant zeros (``control.zeros``), the gain the first nonzero Markov parameter ``C A^(r-1) B`` (``r``:
     the relative degree). ``control.ss2tf`` builds the coefficients directly, and they carry rounding far above
     the physical terms: on a four-stage train its constant term stood where the viscous friction's pole (a
     coefficient 4e-11 of the largest, weighted by the mesh frequency) should be, and cleaning such round-off by
     size dropped that pole with it (the motor-angle response 1.9x off at 0.1 rad/s, the load angle 1.7x at 3e5
-    rad/s). Built from its roots, the transfer function matches the state-space model to 2e-6 from 1e-3 to
-    1e7 rad/s on every catalog model.
+    rad/s). Built from its roots, the transfer function matches an exact evaluation of the shaft chain to 5e-6
+    from 1e-7 to 1e7 rad/s on every catalog and ``tests/data`` model (``tests/test_h4_mode_tf.py``).
     """
     sub = sys[out, inp]
-    poles = clean_poles(np.linalg.eigvals(sub.A))
     zeros = np.atleast_1d(ct.zeros(sub))
     r = poles.size - zeros.size
     gain = float(np.real((sub.C @ np.linalg.matrix_power(sub.A, r - 1) @ sub.B).item())) if r > 0 else \
@@ -435,7 +504,7 @@ def _mesh_and_modes(plant: Plant) -> tuple[MeshMode, list[tuple[float, float]]]:
     """:func:`mesh_mode` and every contact mode's ``(omega_n, zeta)``, lowest first."""
     sys = contact_mode_model(plant)
     rigid = tuple(complex(r) for r in rigid_model(plant).poles())
-    modes = _modes_of(sys.poles(), rigid, _undamped_frequencies(plant))
+    modes = _modes_of(mode_poles(plant, [True] * plant.n_stages), rigid, _undamped_frequencies(plant))
     if not modes:  # a contact model has 2 rigid-body poles and 2 per mesh: not reached
         raise ValueError("the contact model has no mesh mode (fewer than two poles besides the rigid body)")
     wn, zeta = modes[-1]
@@ -487,6 +556,24 @@ class ContactModes:
     def equivalent_stiffness(self) -> float:
         """Torsional stiffness of the train in contact at the load shaft [N m/rad]."""
         return self.plant.equivalent_stiffness
+
+    def poles(self, name: str) -> np.ndarray:
+        """Poles of :meth:`mode` ``(name)`` [rad/s], the rigid bodies' exactly (:func:`mode_poles`).
+
+        Raises
+        ------
+        InputError
+            For a name :meth:`mode` refuses.
+        """
+        sys_ = self.mode(name)
+        p, n = self.plant, self.plant.n_stages
+        if name == "rigid":
+            return _ordered(np.linalg.eigvals(sys_.A))  # triangular: 0 and -d_eq / J_eq exactly
+        loaded = {"contact": [True] * n, "separation": [b == 0.0 for b in p.backlashes]}.get(name)
+        if loaded is None:  # stageK
+            k = int(name[5:])
+            loaded = [j != k - 1 for j in range(n)]
+        return mode_poles(p, loaded)
 
     def mode(self, name: str) -> ct.StateSpace:
         """The model of ``"contact"``, ``"separation"``, ``"rigid"`` or, on a train, ``"stageK"`` (stage K separated,
@@ -556,8 +643,9 @@ def linearize_modes(plant: Plant) -> ContactModes:
     """
     plant = check_plant(plant)
     contact = contact_mode_model(plant)
-    tf_motor = _siso_tf(contact, 0, 0)
-    tf_load = _siso_tf(contact, 1, 0)
+    poles = mode_poles(plant, [True] * plant.n_stages)
+    tf_motor = _siso_tf(contact, 0, 0, poles)
+    tf_load = _siso_tf(contact, 1, 0, poles)
     outs = output_names(plant)
     xi = signal_names(plant)[1][0]
     mesh, modes = _mesh_and_modes(plant)

@@ -44,7 +44,8 @@ def chain_response(plant, omega):
 
 
 MODELS = ["shing1993_servo", "servo_2stage_phm09", "servo_3stage_quanser_srv02",
-          str(DATA / "h4_train4_review.toml"), str(DATA / "h1_pair_17x43_frictionless.toml")]
+          *(str(DATA / f) for f in ("h4_train4_review.toml", "h1_pair_17x43_frictionless.toml",
+                                    "heavy_motor_no_limit.toml", "featherweight_load_train.toml"))]
 
 
 @pytest.mark.parametrize("name", MODELS, ids=lambda m: Path(m).stem)

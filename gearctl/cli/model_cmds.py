@@ -35,12 +35,10 @@ __all__ = ["register"]
 
 
 
-def _poles(sys_: Any) -> list[complex]:
-    """The model's poles, those within the eigenvalue solver's rounding of zero (:func:`gearctl.modes.clean_poles`:
-    the free rotation's, and a frictionless train's double zero) printed as the 0 they are."""
-    from ..modes import clean_poles
-
-    return [complex(p) for p in clean_poles(sys_.poles())]
+def _poles(modes: Any, name: str) -> list[complex]:
+    """The poles of mode ``name``, the rigid bodies' exactly (:meth:`gearctl.modes.ContactModes.poles`: the free
+    rotation's 0, a frictionless body's second 0, and a slow friction pole that rounding would have made 0)."""
+    return [complex(p) for p in modes.poles(name)]
 
 
 def _duration_text(t: float) -> str:
@@ -347,7 +345,7 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
         "inputs": list(sys_.input_labels),
         "outputs": list(sys_.output_labels),
         "A": sys_.A.tolist(), "B": sys_.B.tolist(), "C": sys_.C.tolist(), "D": sys_.D.tolist(),
-        "poles": [[float(p.real), float(p.imag)] for p in _poles(sys_)],
+        "poles": [[float(p.real), float(p.imag)] for p in _poles(modes, args.mode)],
         "natural_frequency_hz": mesh.natural_frequency_hz if contact else None,
         "damping_ratio": mesh.damping_ratio if contact else None,
         "overdamped": mesh.overdamped if contact else None,
@@ -382,7 +380,7 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
         return 0
     print(f"{model.name}: {args.mode} model, states {', '.join(out['states'])}; inputs {', '.join(out['inputs'])}; "
           f"outputs {', '.join(out['outputs'])}")
-    print("  poles                  " + ", ".join(f"{p.real:.5g}{p.imag:+.5g}j" for p in _poles(sys_)))
+    print("  poles                  " + ", ".join(f"{p.real:.5g}{p.imag:+.5g}j" for p in _poles(modes, args.mode)))
     if contact:
         over = " (overdamped: real poles, no ringing)" if mesh.overdamped else ""
         print(f"  mesh mode              {mesh.natural_frequency_hz:.5g} Hz, damping ratio "
