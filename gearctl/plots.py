@@ -184,7 +184,23 @@ def plot_tracking(results: dict[str, Any], *, title: str = "") -> Figure:
     return fig
 
 
-def plot_bode(systems: dict[str, Any], *, output: str = "theta1", input: str = "xi1",
+def _channel(sys: Any, label: str, output: str | None, input: str | None) -> tuple[Any, str, str]:
+    """``sys[output, input]`` by signal name (default: the first output and input), else InputError naming the
+    signal and the system's names (a train's models name the motor ``theta0``, ``xi0``: the pair's ``theta1``,
+    ``xi1`` defaults used to fail there with ``ValueError: 'xi1' is not in list``)."""
+    from .errors import InputError
+
+    outs, ins = list(sys.output_labels), list(sys.input_labels)
+    output = outs[0] if output is None else output
+    input = ins[0] if input is None else input
+    for field, name, names in (("output", output, outs), ("input", input, ins)):
+        if name not in names:
+            raise InputError(f"{field} = {name!r} is not a signal of system {label!r}: expected one of "
+                             f"{', '.join(names)}", field=field)
+    return sys[outs.index(output), ins.index(input)], output, input
+
+
+def plot_bode(systems: dict[str, Any], *, output: str | None = None, input: str | None = None,
               omega: Any = None, title: str = "") -> Figure:
     """Bode diagram of one channel of several python-control systems on common axes.
 
@@ -192,12 +208,18 @@ def plot_bode(systems: dict[str, Any], *, output: str = "theta1", input: str = "
     ----------
     systems : dict of str to control.LTI
         Label to system (e.g. the contact and separation models); the channel is picked by signal name.
-    output, input : str
-        Signal names of the channel.
+    output, input : str, optional
+        Signal names of the channel (default: each system's first output and input, the motor angle and the motor
+        torque of the mode models: ``theta1``, ``xi1`` on a pair, ``theta0``, ``xi0`` on a train).
     omega : array_like, optional
         Frequencies [rad/s] (default: 0.1 Hz to 3x the highest pole).
     title : str
         Figure title.
+
+    Raises
+    ------
+    InputError
+        If ``output`` or ``input`` is not a signal of a system.
     """
     import control as ct
     import numpy as np
@@ -208,7 +230,7 @@ def plot_bode(systems: dict[str, Any], *, output: str = "theta1", input: str = "
     fig = Figure(figsize=(9, 7), layout="constrained")
     ax_m, ax_p = fig.subplots(2, 1, sharex=True)
     for label, sys in systems.items():
-        sub = sys[sys.output_labels.index(output), sys.input_labels.index(input)]
+        sub, output, input = _channel(sys, label, output, input)
         resp = ct.frequency_response(sub, omega)
         mag, phase = np.squeeze(resp.magnitude), np.squeeze(resp.phase)
         ax_m.semilogx(omega / (2 * np.pi), 20 * np.log10(mag), label=label)
@@ -223,16 +245,19 @@ def plot_bode(systems: dict[str, Any], *, output: str = "theta1", input: str = "
     return fig
 
 
-def plot_step(systems: dict[str, Any], *, output: str = "theta1", input: str = "xi1", T: Any = None,
+def plot_step(systems: dict[str, Any], *, output: str | None = None, input: str | None = None, T: Any = None,
               title: str = "") -> Figure:
-    """Step responses of one channel of several python-control systems on common axes."""
+    """Step responses of one channel of several python-control systems on common axes.
+
+    ``output``, ``input``: signal names as :func:`plot_bode` takes them (default: the first of each system).
+    """
     import control as ct
     import numpy as np
 
     fig = Figure(figsize=(9, 5), layout="constrained")
     ax = fig.subplots()
     for label, sys in systems.items():
-        sub = sys[sys.output_labels.index(output), sys.input_labels.index(input)]
+        sub, output, input = _channel(sys, label, output, input)
         resp = ct.step_response(sub, T=T)
         ax.plot(resp.time * 1e3, np.squeeze(resp.outputs), label=label)
     ax.set(xlabel="t [ms]", ylabel=output, title=f"Step of {input} -> {output}")
