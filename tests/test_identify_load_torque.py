@@ -142,7 +142,9 @@ def test_without_a_load_torque_the_figures_are_unchanged(log_of: Callable[[str, 
     assert both.friction["coulomb2"] == pytest.approx(0.04943027986064954, rel=1e-9)
     motor = identify(path, model, encoders="motor")
     assert motor.backlash == pytest.approx(9.780550477140189e-05, rel=1e-9)
-    assert motor.backlash_ci == pytest.approx((7.620563043917835e-05, 0.00011940537910362542), rel=1e-9)
+    # its interval was [76.2, 119.4] um; the re-simulation's misfit (20.5 um RMS, 21 % of b) now enters as 1.96 times
+    # it (h2's review: an RMS against 95 % half-widths), a half-width of 40.8 um, beyond a third of b
+    assert "backlash" in motor.not_identified
 
 
 def test_a_load_torque_above_the_load_friction_is_named_in_the_refusal(
