@@ -36,6 +36,21 @@ def _unflagged_misses(res, truth: dict[str, float]) -> dict[str, str]:
             if k not in res.not_identified and not lo <= truth[k] <= hi}
 
 
+def test_load_friction_with_a_gap_misfit_is_not_reported_confidently() -> None:
+    # a 0.5 Hz triangle logged at 5 kHz: the re-simulated motor misses its encoder inside the gap (1.06 b), J1 comes out
+    # at 3 % of the truth and the Coulomb split of the re-simulated crossings puts 5.6 mN m on the motor (truth 0); the
+    # gate named J1, J2 and the motor's friction, but the load's held the rest of tc1 + tc2/N and was reported at
+    # 0.1775 N m [0.167, 0.188] against a true 0.2, unflagged
+    path = DATA / "triangle_5khz.csv"
+    res = identify(path, MODEL)
+    assert res.encoders == "motor+load"
+    assert "coulomb2" in res.not_identified
+    assert "tc1 + tc2/N" in res.not_identified["coulomb2"]
+    assert _unflagged_misses(res, _truth(path)) == {}
+    # b from the plateaus does not depend on it
+    assert res.backlash == pytest.approx(5e-5, rel=0.01)
+
+
 def test_motor_only_backlash_under_lugre_friction_is_not_confidently_wrong() -> None:
     # LuGre friction (bristles of 1000 N m/rad): after the motor meets the stuck load it travels on through the load's
     # bristles, which the re-simulation's Karnopp law does not have. The crossings agree with each other and b came

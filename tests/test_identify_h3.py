@@ -34,7 +34,9 @@ def test_a_motor_that_stalls_mid_gap_in_the_re_simulation_is_not_identified() ->
     # h3's A8: 800 Hz, J2 20 % above the model's, Stribeck friction on the load. The regression gave J1 3.1e-5
     # [0, 7.5e-5] (truth 2.2e-4), J2 0.0151 [0.0144, 0.0158] (0.012) and tc1 3.8 mN m [2.5, 5.0] (2), none flagged:
     # the re-simulated motor stalls mid-gap and misses it by 0.55 b, while the RMS over the windows, mostly contact,
-    # was 7.7 um against a 12.5 um gate. b and the load's Coulomb friction are right and stay identified
+    # was 7.7 um against a 12.5 um gate. b is right and stays identified; the load's Coulomb friction, 0.243 N m, is
+    # right here but named too, since the split of tc1 + tc2/N comes from the same crossings (h2's 5 kHz triangle log:
+    # 0.1775 N m [0.167, 0.188] for a true 0.2, see tests/test_h2_identify.py)
     res = identify(DATA / "A8_offnominal_b50_800hz.csv", "shing1993_servo_friction", encoders="motor+load")
     lo, hi = res.backlash_ci
     assert "backlash" not in res.not_identified and lo <= 50e-6 <= hi
@@ -43,7 +45,7 @@ def test_a_motor_that_stalls_mid_gap_in_the_re_simulation_is_not_identified() ->
         assert key in res.not_identified and "inside the gap" in res.not_identified[key], key
         lo, hi = (res.inertia_ci if key[0] == "J" else res.friction_ci)[key]
         assert lo <= truth[key] <= hi, (key, lo, hi)
-    assert "coulomb2" not in res.not_identified
+    assert "coulomb2" in res.not_identified and "tc1 + tc2/N" in res.not_identified["coulomb2"]
     lo, hi = res.friction_ci["coulomb2"]
     assert lo <= 0.25 <= hi
     assert any("inside the gap" in w for w in res.warnings)
