@@ -33,7 +33,7 @@ from .closedloop import ClosedLoopResult, simulate_closed_loop
 from .controller import Controller, ReferenceLike
 from .errors import InputError
 from .limits import check_output_size
-from .logs import EncoderLog
+from .logs import MAX_LOG_SAMPLES, EncoderLog
 from .plant import Plant, build_plant
 from .references import move_point, move_times
 from .units import DURATION, SEED, Spec, check_choice
@@ -250,6 +250,12 @@ def record_excitation(model: GearModel | str | Path, *, motion: str = "identify"
     Returns
     -------
     Excitation
+
+    Raises
+    ------
+    InputError
+        A train, a motion, amplitude, seed, plant or controller not allowed, or a log longer than
+        :data:`~gearctl.logs.MAX_LOG_SAMPLES` samples (which identify would refuse).
     """
     m = model if isinstance(model, GearModel) else load_model(model)
     if m.n_stages != 1:
@@ -260,7 +266,14 @@ def record_excitation(model: GearModel | str | Path, *, motion: str = "identify"
     true = build_plant(m, plant, backlash=backlash)
     nominal = build_plant(m, backlash=backlash)
     ctrl = load_controller(controller, nominal, sensors=m.sensors)
-    check_output_size(int(round(duration / ctrl.Ts)) + 1, true.nx + 8, field="duration", fix="a shorter --duration")
+    n = int(round(duration / ctrl.Ts)) + 1
+    if n > MAX_LOG_SAMPLES:
+        # checked before the run (about 0.1 s of computing per simulated second: beyond 1000 s, minutes spent on a log
+        # that identify then refused)
+        raise InputError(f"duration = {duration:g} s is too long for a log: {n:,} samples at the controller's period "
+                         f"{ctrl.Ts:g} s, more than identify reads ({MAX_LOG_SAMPLES:,}); expected at most "
+                         f"{(MAX_LOG_SAMPLES - 1) * ctrl.Ts:g} s", field="duration")
+    check_output_size(n, true.nx + 8, field="duration", fix="a shorter --duration")
     # the log records the load encoder too, where the servo has one
     rec = _RecordBoth(ctrl) if m.sensors.load_encoder else ctrl
     run = simulate_closed_loop(true, rec, program, duration, sensors=m.sensors, seed=seed)
