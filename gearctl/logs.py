@@ -249,6 +249,9 @@ def read_log(path: str | Path, *, load_encoder: bool = True) -> EncoderLog:
                 # a units row under the header ('s', 'N m', 'rad'): no field gearctl reads is a number
                 hint = (": a units row? the header holds the names alone, in SI units (delete the row or start it "
                         "with #)" if k == 0 and not any(_is_number(fields[j]) for j in need) else "")
+                if f.count(",") == 1 and _is_number(f.strip().replace(",", ".")):
+                    # a spreadsheet's decimal comma in a semicolon file: it was named a units row
+                    hint = ": a decimal comma? numbers take a decimal point (0.001, not 0,001)"
                 raise _fail(path, f"line {line_no}", f"column {names[c]} = {f.strip()!r} is not a number{hint}",
                             names[c]) from None
             if not math.isfinite(v):

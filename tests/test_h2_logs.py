@@ -57,3 +57,15 @@ def test_crlf_line_ends_read_as_lf(tmp_path: Path, capsys: pytest.CaptureFixture
     np.testing.assert_array_equal(a.theta1, b.theta1)
     np.testing.assert_array_equal(a.torque, b.torque)
     assert main(["identify", str(path), "--model", "shing1993_servo", "--json"]) == 0
+
+
+def test_a_decimal_comma_is_named(tmp_path: Path) -> None:
+    """A spreadsheet's semicolon file with decimal commas: refused (README), but the message asked whether the first
+    row was a units row."""
+    header, body = _rows(LOG)
+    path = tmp_path / "comma.csv"
+    path.write_text("\n".join([header.replace(",", ";"), *(r.replace(",", ";").replace(".", ",") for r in body)]))
+    with pytest.raises(InputError, match="line 2: column theta1 = '0,75.*' is not a number: a decimal comma\\? "
+                                         "numbers take a decimal point") as exc:
+        read_log(path)
+    assert "units row" not in str(exc.value)
