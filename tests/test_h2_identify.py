@@ -9,11 +9,12 @@ interval.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
 
-from gearctl.identify import identify
+from gearctl.identify import identify, read_log
 
 DATA = Path(__file__).parent / "data" / "logs" / "h2_sim"
 MODEL = "shing1993_servo_friction"
@@ -66,3 +67,20 @@ def test_motor_only_backlash_under_lugre_friction_is_not_confidently_wrong() -> 
     both = identify(path, MODEL)
     assert both.backlash == pytest.approx(truth["backlash"], rel=0.02)
     assert both.backlash_ci[0] <= truth["backlash"] <= both.backlash_ci[1]
+
+
+def test_one_rest_on_each_flank_does_not_identify_b() -> None:
+    # with a single rest per flank nothing shows how far the rests scatter, and b's interval held only the quantisation
+    # and the deflection: h2's simulator (a frictionless load, a loop with a sample's delay, gearctl excite's motion,
+    # 1 kHz) gave 28.6 um [27.9, 29.3] for a true 30. Here another simulator's chirp cut to its first 45 %: one rest
+    # on each flank, b 49.98 um [49.46, 50.49] before (right, by luck of the one pair)
+    lg = read_log(Path(__file__).parent / "data" / "logs" / "other_sim_chirp_5khz.csv")
+    n = int(0.45 * lg.n)
+    cut = dataclasses.replace(lg, t=lg.t[:n], torque=lg.torque[:n], theta1=lg.theta1[:n], theta2=lg.theta2[:n])
+    res = identify(cut, MODEL)
+    assert "one rest on each flank" in res.not_identified["backlash"]
+    assert res.backlash_ci[0] == 0.0 and res.backlash_ci[1] >= 1e-3
+    # the whole log, two rests on the front flank and one on the back, keeps its b
+    full = identify(lg, MODEL)
+    assert "backlash" not in full.not_identified
+    assert full.backlash_ci[0] <= 5e-5 <= full.backlash_ci[1]
