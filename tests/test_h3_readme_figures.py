@@ -117,7 +117,7 @@ def test_reversal_offset_cuts_the_friction_servos_reversal_value(capsys: pytest.
 
 @pytest.mark.slow
 def test_cnc_table_inverse_against_pid(capsys: pytest.CaptureFixture[str]) -> None:
-    # "gearctl precision tests/data/cnc_table_tight.toml --cycles 3 A 178 µrad against the PID's 85, now 88"
+    # "gearctl precision tests/data/cnc_table_tight.toml --cycles 3 A 178 µrad against the PID's 85, now 87"
     model = str(DATA / "cnc_table_tight.toml")
     _, inv = _run(["precision", model, "--cycles", "3"], capsys)
     _, pid = _run(["precision", model, "pid", "--cycles", "3"], capsys)
@@ -165,7 +165,7 @@ def test_perf_simulator_errors() -> None:
 @pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"), reason="the README's sizes are x86-64")
 def test_exported_state_sizes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # "RAM is sizeof(gearctl_ctrl_t) per instance (x86-64: the PIDs 112 B, the reversal offset 168 B, the dead-zone
-    # inverse 448 B, ...)": compiled here from each export's header
+    # inverse 464 B, ...)": compiled here from each export's header
     import shutil
     import subprocess
 

@@ -61,7 +61,7 @@ _struct("gcx_inv_p", [("pid", "gcx_pid_p"), ("plant", "gcx_plant_p"), ("obs", "g
                       ("rattle_decay", "double"),
                       ("rattle_level", "double"), ("rattle_gain", "double"), ("rattle_max_error", "double"),
                       ("contact_lag", "double"), ("free_load_reach", "double"),
-                      ("press_time", "double"), ("press_travel", "double"),
+                      ("press_time", "double"), ("press_travel", "double"), ("friction_margin", "double"),
                       ("take_up_acceleration", "double"), ("follow_inertia", "double"), ("n_carried", "int"),
                       ("carried", f"double[{4 * MAX_STAGES}]")])
 _struct("gcx_ada_p", [("inv", "gcx_inv_p"), ("rb1", "double"), ("rb2", "double"), ("k", "double"),
@@ -197,6 +197,7 @@ def _inv_values(inv: DeadzoneInverse) -> dict[str, Any]:
             "rattle_max_error": deadzone.RATTLE_MAX_ERROR,
             "contact_lag": inv._contact_lag, "free_load_reach": deadzone.FREE_LOAD_REACH,
             "press_time": deadzone.PRESS_TIME, "press_travel": deadzone.PRESS_TRAVEL,
+            "friction_margin": deadzone.FRICTION_MARGIN,
             "take_up_acceleration": deadzone.TAKE_UP_ACCELERATION, "follow_inertia": inv._J_follow,
             "n_carried": len(inv._carried),
             "carried": [v for row in inv._carried for v in row] + [0.0] * (4 * (MAX_STAGES - len(inv._carried)))}

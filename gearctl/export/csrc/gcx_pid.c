@@ -310,6 +310,7 @@ GCX_FN void gcx_inv_reset(gcx_inv_s *S) {
     S->stopped = 0;
     S->one_way_prev = 0;
     S->press_set = 0, S->press_t = 0.0, S->press_y = 0.0;
+    S->lead[0] = S->lead[1] = 0.0;
     S->has_lag = 0;
     S->lag[0] = S->lag[1] = S->lag[2] = S->lag[3] = 0.0;
     S->contacts = 0;
@@ -343,6 +344,25 @@ GCX_FN double gcx_inv_transmitted(const gcx_inv_p *P, const gcx_inv_s *S, double
     return drive;
 }
 
+/* DeadzoneInverse._braking_needed: a change to the braking flank in motion on a load with Coulomb friction waits
+ * while the braking need is under friction_margin of T_c2; meanwhile the lead the load would take on the driving
+ * flank, free, and its speed are integrated (a crossing that follows starts from there) */
+GCX_FN int gcx_inv_braking_needed(const gcx_inv_p *P, gcx_inv_s *S, double sigma, double rd, double drive) {
+    double held = S->sigma;
+    if (!(!P->rule_velocity && P->plant.tc2 > 0.0 && held * rd > 0.0)) {
+        S->lead[0] = S->lead[1] = 0.0;
+        return 1;
+    }
+    double Ts = P->pid.Ts;
+    double x = S->lead[0], v = S->lead[1];
+    double v_new = v - held * drive / P->plant.J2 * Ts; /* the free load's acceleration away from the driving flank */
+    x += 0.5 * (v + v_new) * Ts;
+    v = v_new;
+    if (x <= 0.0) x = 0.0, v = fmax(v, 0.0); /* back on the driving flank, which pushes it */
+    S->lead[0] = x, S->lead[1] = v;
+    return sigma == held || -held * drive >= P->friction_margin * P->plant.tc2;
+}
+
 /* DeadzoneInverse.flank (rdd_prev: |r''| of the last sample) */
 GCX_FN double gcx_inv_flank(const gcx_inv_p *P, gcx_inv_s *S, double rd, double rdd, double rdd_prev) {
     double w = P->width;
@@ -355,6 +375,7 @@ GCX_FN double gcx_inv_flank(const gcx_inv_p *P, gcx_inv_s *S, double rd, double 
     }
     double drive = !P->rule_velocity ? gcx_inv_transmitted(P, S, rd, rdd) : rd;
     double sigma = drive > w ? 1.0 : (drive < -w ? -1.0 : S->sigma);
+    if (!gcx_inv_braking_needed(P, S, sigma, rd, drive)) sigma = S->sigma;
     /* too late to land: the reference rests before a crossing could */
     int stops_first = rd * rdd < 0.0 && fabs(rdd) < rdd_prev && 2.0 * fabs(rd) < fabs(rdd) * S->crossing_time;
     if (!(S->sigma != 0.0 && sigma != S->sigma && stops_first)) S->sigma = sigma;
@@ -362,22 +383,22 @@ GCX_FN double gcx_inv_flank(const gcx_inv_p *P, gcx_inv_s *S, double rd, double 
 }
 
 /* DeadzoneInverse._start_crossing */
-GCX_FN void gcx_inv_start_crossing(const gcx_inv_p *P, gcx_inv_s *S, double t, double y_motor, double y_load,
-                                   int has_yl, double rd) {
+GCX_FN void gcx_inv_start_crossing(const gcx_inv_p *P, gcx_inv_s *S, double t, double sigma_old, double y_motor,
+                                   double y_load, int has_yl, double rd) {
     double theta;
     if (P->pid.feedback_load && has_yl) {
         theta = y_load;
     } else {
         double at[3];
         gcx_ramp_at(&S->ramp, S->ramp_shape, t, at);
-        theta = y_motor / P->pid.N - at[0];
+        theta = y_motor / P->pid.N - at[0] + sigma_old * S->lead[0]; /* or the lead ahead of the old flank */
     }
     double omega;
     if (P->has_observer) /* before the first update the observer starts at rest, as the plant does */
         omega = S->obs.set ? S->obs.x[1] : 0.0;
     else
         omega = rd;
-    S->free[0] = theta, S->free[1] = omega;
+    S->free[0] = theta, S->free[1] = omega + sigma_old * S->lead[1];
     /* the motor alone from here on, under the torques it is given */
     S->motor_free[0] = y_motor / P->pid.N, S->motor_free[1] = omega;
     S->motor_free_set = 1, S->motor_free_new = 1, S->motor_free_anchor = 1, S->motor_free_since = t;
@@ -622,7 +643,7 @@ GCX_FN double gcx_inv_step(const gcx_inv_p *P, gcx_inv_s *S, double t, const dou
     } else if (sigma != sigma_old) {
         /* a contact met during this crossing is trusted only if it starts from a settled flank */
         S->trusted = sigma_old != 0.0 && !S->has_lag && !S->rattling && t >= S->cross_end + S->crossing_time;
-        if (t >= S->cross_end) gcx_inv_start_crossing(P, S, t, y_motor, y_load, has_yl, rd);
+        if (t >= S->cross_end) gcx_inv_start_crossing(P, S, t, sigma_old, y_motor, y_load, has_yl, rd);
         S->has_lag = 0; /* the landing of the new crossing sets the lag to take up */
         gcx_ramp_move_to(&S->ramp, S->ramp_shape, S->crossing_time, t, sigma * S->offset);
         S->cross_end = S->ramp.t0 + S->ramp.T;

@@ -48,6 +48,7 @@ typedef struct {
     int stopped, one_way_prev; /* at rest with the push-back withheld; withheld at the last step (_one_way) */
     double press_t, press_y; /* since when, and from where, the motor at rest presses the other flank */
     int press_set;           /* (_presses_other_flank) */
+    double lead[2]; /* the lead the load would take on the driving flank, free, and its speed (_braking_needed) */
 } gcx_inv_s;
 
 #ifdef GCX_ADA_WINDOW
