@@ -62,3 +62,27 @@ def example_main(name: str) -> Callable[..., object]:
     mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
     spec.loader.exec_module(mod)  # type: ignore[union-attr]
     return mod.main
+
+
+class ReadingFilter:
+    """A controller whose readings a test alters before they reach it (a harness's missed samples, a glitch): the
+    wrapped controller's attributes the closed loop reads, its ``reset``, and ``step`` passing
+    :meth:`readings`' values on. Subclasses override :meth:`readings` ((sample number, y_motor, y_load) to the
+    readings given)."""
+
+    def __init__(self, inner) -> None:  # noqa: ANN001
+        self.inner, self.n = inner, 0
+        self.Ts, self.preview, self.name = inner.Ts, inner.preview, inner.name
+        self.uses_load_encoder = inner.uses_load_encoder
+        self.solve_times, self.fallbacks = [], []
+
+    def reset(self) -> None:
+        self.inner.reset()
+        self.n = 0
+
+    def readings(self, k: int, y_motor: float, y_load: float | None) -> tuple[float, float | None]:
+        return y_motor, y_load
+
+    def step(self, t, y_motor, y_load, ref):  # noqa: ANN001, ANN201
+        k, self.n = self.n, self.n + 1
+        return self.inner.step(t, *self.readings(k, y_motor, y_load), ref)

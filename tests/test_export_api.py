@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import ReadingFilter
 
 from gearctl.build import c_compiler
 from gearctl.catalog import load_controller, load_model
@@ -128,20 +129,13 @@ def test_one_wild_reading_cannot_wind_up_the_integral() -> None:
     m = load_model(SERVO)
     plant = build_plant(m)
 
-    class Glitch:
+    class Glitch(ReadingFilter):
         def __init__(self, inner, k: int) -> None:  # noqa: ANN001
-            self.inner, self.k, self.n = inner, k, 0
-            self.Ts, self.preview, self.name = inner.Ts, inner.preview, inner.name
-            self.uses_load_encoder = inner.uses_load_encoder
-            self.solve_times, self.fallbacks = [], []
+            super().__init__(inner)
+            self.k = k
 
-        def reset(self) -> None:
-            self.inner.reset()
-            self.n = 0
-
-        def step(self, t, y_motor, y_load, ref):  # noqa: ANN001, ANN202
-            self.n += 1
-            return self.inner.step(t, 1e6 if self.n == self.k else y_motor, y_load, ref)
+        def readings(self, k: int, y_motor: float, y_load: float | None) -> tuple[float, float | None]:
+            return (1e6 if k + 1 == self.k else y_motor), y_load
 
         def describe(self) -> dict:
             return self.inner.describe()

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import ReadingFilter
 
 from gearctl.build import c_compiler
 from gearctl.catalog import load_controller, load_model
@@ -29,25 +30,18 @@ needs_make = pytest.mark.skipif(CC is None or shutil.which("make") is None, reas
 SERVO = "shing1993_servo"
 
 
-class _Missing:
+class _Missing(ReadingFilter):
     """A controller whose motor readings at the given sample numbers are NaN (a harness's missed samples), or
     whose load readings there are ``load`` (NaN, None, a value beyond the input limit)."""
 
     def __init__(self, inner, missed, load=False) -> None:  # noqa: ANN001
-        self.inner, self.missed, self.n, self.load = inner, missed, 0, load
-        self.Ts, self.preview, self.name = inner.Ts, inner.preview, inner.name
-        self.uses_load_encoder = inner.uses_load_encoder
-        self.solve_times, self.fallbacks = [], []
+        super().__init__(inner)
+        self.missed, self.load = missed, load
 
-    def reset(self) -> None:
-        self.inner.reset()
-        self.n = 0
-
-    def step(self, t, y_motor, y_load, ref):  # noqa: ANN001, ANN202
-        k, self.n = self.n, self.n + 1
+    def readings(self, k: int, y_motor: float, y_load: float | None) -> tuple[float, float | None]:
         if self.load is not False:
-            return self.inner.step(t, y_motor, self.load if self.missed(k) else y_load, ref)
-        return self.inner.step(t, math.nan if self.missed(k) else y_motor, y_load, ref)
+            return y_motor, self.load if self.missed(k) else y_load
+        return math.nan if self.missed(k) else y_motor, y_load
 
     def describe(self) -> dict:
         return self.inner.describe()
