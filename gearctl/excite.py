@@ -39,7 +39,7 @@ from .references import move_point, move_times
 from .units import DURATION, SEED, Spec, check_choice
 
 __all__ = ["MOTIONS", "AMPLITUDE", "ExcitationProgram", "excitation", "Excitation", "record_excitation",
-           "write_reference"]
+           "write_reference", "check_reference_duration"]
 
 #: The motion programs :func:`excitation` builds.
 MOTIONS = ("identify", "moves")
@@ -272,7 +272,7 @@ def record_excitation(model: GearModel | str | Path, *, motion: str = "identify"
         # that identify then refused)
         raise InputError(f"duration = {duration:g} s is too long for a log: {n:,} samples at the controller's period "
                          f"{ctrl.Ts:g} s, more than identify reads ({MAX_LOG_SAMPLES:,}); expected at most "
-                         f"{(MAX_LOG_SAMPLES - 1) * ctrl.Ts:g} s", field="duration")
+                         f"{(MAX_LOG_SAMPLES - 1) * ctrl.Ts:.10g} s", field="duration")
     check_output_size(n, true.nx + 8, field="duration", fix="a shorter --duration")
     # the log records the load encoder too, where the servo has one
     rec = _RecordBoth(ctrl) if m.sensors.load_encoder else ctrl
@@ -285,6 +285,24 @@ def record_excitation(model: GearModel | str | Path, *, motion: str = "identify"
     return Excitation(log=log, run=run, plant=true, program=program, model=m)
 
 
+def check_reference_duration(duration: float, sample_time: float = 1e-3) -> int:
+    """The rows of a reference of ``duration`` [s] at ``sample_time`` [s] for a real drive, checked before anything is
+    written or run: a drive's log of more than :data:`~gearctl.logs.MAX_LOG_SAMPLES` samples is one identify refuses.
+
+    Raises
+    ------
+    InputError
+        Naming ``duration`` and the longest allowed.
+    """
+    n = int(round(duration / sample_time)) + 1
+    if n > MAX_LOG_SAMPLES:
+        raise InputError(f"duration = {duration:g} s is too long for a reference: {n:,} samples at {sample_time:g} s, "
+                         f"and the drive's log of it more than identify reads ({MAX_LOG_SAMPLES:,}); expected at most "
+                         f"{(MAX_LOG_SAMPLES - 1) * sample_time:.10g} s", field="duration")
+    check_output_size(n, 4, field="duration", fix="a shorter --duration")
+    return n
+
+
 def write_reference(path: str | Path, program: ExcitationProgram, *, sample_time: float = 1e-3,
                     duration: float | None = None) -> int:
     """Write a program's reference for a real drive: ``t, reference, velocity, acceleration`` per sample.
@@ -292,8 +310,7 @@ def write_reference(path: str | Path, program: ExcitationProgram, *, sample_time
     Returns the number of rows written.
     """
     T = program.duration if duration is None else duration
-    n = int(round(T / sample_time)) + 1
-    check_output_size(n, 4, field="duration", fix="a shorter --duration")
+    n = check_reference_duration(T, sample_time)
     t = np.arange(n, dtype=np.float64) * sample_time
     r, v, a = program.at(t)
     cols: list[NDArray[np.float64]] = [t, r, v, a]

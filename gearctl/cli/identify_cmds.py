@@ -16,7 +16,7 @@ __all__ = ["register"]
 
 def _cmd_excite(args: argparse.Namespace) -> int:
     from ..catalog import load_model
-    from ..excite import AMPLITUDE, excitation, record_excitation, write_reference
+    from ..excite import AMPLITUDE, check_reference_duration, excitation, record_excitation, write_reference
     from ..logs import write_log
 
     if not args.out and not args.reference_only:
@@ -28,15 +28,20 @@ def _cmd_excite(args: argparse.Namespace) -> int:
         noise = {"motor_noise": args.noise} | ({"load_noise": args.noise} if model.sensors.load_encoder else {})
         model = load_model(args.model, **noise)
     program = excitation(args.motion, duration=args.duration, amplitude=args.amplitude)
+    if args.reference_only:  # checked before anything is written or run
+        check_reference_duration(args.duration)
+    ex = None
+    if args.out:  # run before the reference is written: a log record_excitation refuses leaves no file behind
+        with progress_bar("gearctl excite", expected_s=args.duration * 0.05):
+            ex = record_excitation(model, motion=args.motion, duration=args.duration, amplitude=args.amplitude,
+                                   seed=args.seed, plant=args.plant, controller=args.controller,
+                                   backlash=args.backlash)
     if args.reference_only:
         n = write_reference(args.reference_only, program, duration=args.duration)
         print(f"{model.name}: {args.motion} motion, {args.duration:g} s, amplitude {args.amplitude:g} rad")
         say_written((args.reference_only, f"reference, {n} samples: t, reference, velocity, acceleration"))
-    if not args.out:
+    if ex is None:
         return 0
-    with progress_bar("gearctl excite", expected_s=args.duration * 0.05):
-        ex = record_excitation(model, motion=args.motion, duration=args.duration, amplitude=args.amplitude,
-                               seed=args.seed, plant=args.plant, controller=args.controller, backlash=args.backlash)
     write_log(args.out, ex.log)
     run, p = ex.run, ex.plant
     modes = run.mode[run.mode != 0]
