@@ -46,6 +46,9 @@ def main(argv: list[str] | None = None) -> None:
             CROSSING_TIME.check("--crossing-time", args.crossing_time)
         model = load_model(args.model)
         plant = build_plant(model)
+        if plant.lost_motion <= 0.0:
+            raise InputError(f"--model {args.model}: no stage has backlash (backlash = 0 on every stage): there is no "
+                             "crossing to trace; expected a model with a backlash > 0", field="--model")
         ctrl = load_controller(args.controller, plant, sensors=model.sensors)
         if args.crossing_time is not None:
             if not hasattr(ctrl, "set_crossing_time"):
@@ -77,20 +80,24 @@ def main(argv: list[str] | None = None) -> None:
     run = simulate_closed_loop(plant, ctrl, ref, args.duration, sensors=model.sensors)
     n, w = plant.n_stages, len(plant.shafts)
     to_load = [plant.gear_ratio / math.prod(s.ratio for s in plant.stages[:j]) for j in range(w)]
-    gaps = plant.gaps(run.x) / np.array(plant.backlashes).reshape(-1, 1)
+    # each stage's gap over its backlash; a stage without backlash (it cannot separate) is left out
+    loose = [i for i in range(n) if plant.backlashes[i] > 0.0]
+    gaps = plant.gaps(run.x)[loose] / np.array([plant.backlashes[i] for i in loose]).reshape(-1, 1)
     speeds = run.x[w:] / np.array(to_load).reshape(-1, 1)  # each shaft's speed reflected to the load shaft
     q = (run.x[0] / plant.gear_ratio - run.x[n]) / (0.5 * plant.lost_motion)
     error = run.reference - run.x[n]
     m = t.size
     cols = {"t": run.t, "reference": run.reference, "error": error,
-            **{f"s{i + 1}_over_b": gaps[i] for i in range(n)},
+            **{f"s{i + 1}_over_b": gaps[j] for j, i in enumerate(loose)},
             **{f"omega{j}_at_load": speeds[j] for j in range(w)},
             "q": q, "flank": flank[:m], "crossing": crossing[:m], "torque": run.torque}
 
     # --- one line per reversal, then the samples around the chosen one ---------------------------------------
     ev = run.event_log
     print(f"{args.model}: {args.controller}, sine, {args.duration:g} s; lost motion {plant.lost_motion:.4g} rad at "
-          f"the load, stages {', '.join(f'{x:.3g}' for x in plant.stage_lost_motions)} rad")
+          f"the load, stages {', '.join(f'{x:.3g}' for x in plant.stage_lost_motions)} rad"
+          + ("" if len(loose) == n else "; no backlash on stage "
+             f"{', '.join(str(i + 1) for i in range(n) if i not in loose)} (its gap is left out)"))
     for k, tr in enumerate(reversals, 1):
         near = (run.t >= tr - BEFORE) & (run.t <= tr + AFTER)
         hits = [int(np.sum((ev["t"] >= tr - BEFORE) & (ev["t"] <= tr + AFTER) & (ev["kind"] == 1) & (ev["where"] == i)))
@@ -98,7 +105,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"  reversal {k} at {tr:.3f} s: error {error[near].min() * 1e6:+.0f} .. {error[near].max() * 1e6:+.0f} "
               f"urad; impacts per stage {hits}")
     tr = reversals[args.reversal - 1]
-    names = ["t[ms]", "err[urad]", *(f"s{i + 1}/b" for i in range(n)), *(f"w{j}@load" for j in range(w)), "q",
+    names = ["t[ms]", "err[urad]", *(f"s{i + 1}/b" for i in loose), *(f"w{j}@load" for j in range(w)), "q",
              "flank", "cross", "u[mNm]"]
     print(" ".join(f"{h:>8s}" for h in names))
     for k in np.flatnonzero((run.t >= tr - BEFORE) & (run.t <= tr + AFTER)):
