@@ -39,7 +39,8 @@ MAX_LOG_BYTES = 100_000_000
 MAX_LOG_SAMPLES = 1_000_000
 #: Fewest samples a log must hold (0.5 s at 1 kHz).
 MIN_LOG_SAMPLES = 500
-#: Other columns kept in :attr:`EncoderLog.extra` (the first ones in the header that hold numbers throughout); any
+#: Other columns read, the first ones in the header (named once each); of these :attr:`EncoderLog.extra` keeps those
+#: that hold numbers throughout (a text column among them takes a place: a later numeric one is not read). Any
 #: further column is skipped unread, so a logger's hundreds of channels cost neither memory nor time (a 81 MB log of
 #: 200 000 empty columns held a 640 MB array and ran for more than 10 minutes).
 MAX_EXTRA_COLUMNS = 16
@@ -68,8 +69,8 @@ class EncoderLog:
     theta2 : ndarray or None, shape (n,)
         Load encoder reading [rad], or None without a load encoder.
     extra : mapping
-        Other columns, by name (ignored by the identification): the first :data:`MAX_EXTRA_COLUMNS` of the header
-        that hold numbers throughout.
+        Other columns, by name (ignored by the identification): those of the first :data:`MAX_EXTRA_COLUMNS` other
+        columns of the header that hold numbers throughout.
     sample_time : float
         The period [s].
     comments : tuple of str
