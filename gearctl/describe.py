@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from pathlib import Path
 from typing import Any
 
@@ -99,7 +100,9 @@ def dead_zone_factor(A: ArrayLike, b: float) -> Any:
     if np.any(np.isnan(A)) or np.any(A < 0):
         raise InputError(f"A = {short_repr(A.tolist())} is out of range: expected amplitudes >= 0 [m] (not NaN)",
                          field="A")
-    if not (isinstance(b, int | float | np.floating) and math.isfinite(b) and b >= 0):
+    if isinstance(b, bool) or not isinstance(b, numbers.Real):  # numpy's integers too; True is not a width
+        raise InputError(f"b = {b!r} is not a number: expected a finite number >= 0 [m]", field="b")
+    if not (math.isfinite(b) and b >= 0):
         raise InputError(f"b = {b!r} is out of range: expected a finite number >= 0 [m]", field="b")
     phi = np.arctan2(np.sqrt(np.maximum((A - b) * (A + b), 0.0)), b)
     x = 2.0 * phi
