@@ -346,8 +346,10 @@ def gap_limited_bandwidth(info: LoopInfo, *, bandwidth_hz: float, phase_margin_d
     return lo
 
 
-def sampled_margins(info: LoopInfo, gains: PIDGains, Ts: float, *, feedback: str = "motor") -> dict[str, float]:
-    """Design margins: the continuous PID, discretised by Tustin, on the contact-mode model with its ZOH.
+def sampled_margins(info: LoopInfo, gains: PIDGains, Ts: float, *, feedback: str = "motor",
+                    contact: Any = None) -> dict[str, float]:
+    """Design margins: the continuous PID, discretised by Tustin, on the contact-mode model with its ZOH
+    (``contact``: another contact-mode model with the same signals, e.g. a whole train's; default the design's).
 
     Notes
     -----
@@ -362,7 +364,8 @@ def sampled_margins(info: LoopInfo, gains: PIDGains, Ts: float, *, feedback: str
 
     out = 0 if feedback == "motor" else 1
     scale = 1.0 / info.N if feedback == "motor" else 1.0
-    G = ct.c2d(ct.ss(info.modes.contact[out, 0]) * scale, Ts, "zoh")
+    model = info.modes.contact if contact is None else contact
+    G = ct.c2d(ct.ss(model[out, 0]) * scale, Ts, "zoh")
     return loop_margins(ct.c2d(gains.tf(), Ts, "tustin") * G)
 
 
@@ -655,14 +658,9 @@ def train_margin_notes(info: LoopInfo, gains: PIDGains, Ts: float, feedback: str
     """
     if info.nominal.n_stages < 2:
         return ()
-    import control as ct
+    from ..modes import linearize_modes
 
-    from ..modes import linearize_modes, loop_margins
-
-    out = 0 if feedback == "motor" else 1
-    scale = 1.0 / info.N if feedback == "motor" else 1.0
-    G = ct.c2d(ct.ss(linearize_modes(info.nominal).contact[out, 0]) * scale, Ts, "zoh")
-    m = loop_margins(ct.c2d(gains.tf(), Ts, "tustin") * G)
+    m = sampled_margins(info, gains, Ts, feedback=feedback, contact=linearize_modes(info.nominal).contact)
     gm = m.get("gain_margin_db", math.inf)
     if not (isinstance(gm, float) and gm < TRAIN_GAIN_MARGIN_DB):
         return ()
