@@ -1531,16 +1531,9 @@ class MPC(Controller):
             phi_m = y_motor - m.kappa1 * s_m
             self._z = np.array([phi_m, 0.0, 0.0 if self._rigid else s_m, 0.0, 0.0])
             return note
-        z, u = self._z, self._u + self._f1  # the torque that acted on the motor: the drive's and its friction
-        phi, om, s, v, d = z.tolist()
-        tau = self._tau_load + d + self._f2
-        # the prediction: the gap with the separation model, the centre of inertia as the rigid train (any mode)
-        a0, a1, a2, a3, b0, b1, c0, c1, c2, c3, d0, d1 = self._gap_rows
-        s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau
-        v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau
-        k00, k01, k11, kb0, kb1, e0, e1 = self._centre_rows
-        phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau
-        om_p = k11 * om + kb1 * u + e1 * tau
+        z = self._z
+        d = float(z[4])
+        phi_p, om_p, s_p, v_p = self._prediction(z)
         # the gate: how far the readings are from the shaft angles the prediction puts them at, against how far the
         # last accepted ones were (a prediction that drifts off under a load step the estimate has not yet followed
         # moves the innovation a little every sample; a wild reading moves it at once)
@@ -1550,7 +1543,7 @@ class MPC(Controller):
         g1, g2 = self.reading_gate
         s_g = 0.0 if self._rigid else min(max(s_p, -b), b)
         inn1 = y_motor - (phi_p + m.kappa1 * s_g)
-        inn2 = (y_load - (phi_p / m.N - m.kappa2 * s_g)) if load else self._inn[1]
+        inn2 = (y_load - (phi_p / m.N - m.kappa2 * s_g)) if load and y_load is not None else self._inn[1]
         bad = not abs(inn1 - self._inn[0]) <= g1
         if load and not abs(inn2 - self._inn[1]) <= g2:
             bad = True
@@ -1571,13 +1564,7 @@ class MPC(Controller):
                                   f"{self._n_obs - self._restarts[0] + 1} samples (the readings follow no motion the "
                                   f"model allows: encoders too coarse, or broken): zero torque from now on")
                 return "reading far from the prediction on more than 4 samples: estimate restarted from it"
-            if self._rigid:
-                s_n, v_n = 0.0, 0.0
-            else:  # the prediction alone, the gap pinned at the flank it reaches (as without a load encoder)
-                s_n, v_n = s_p, v_p
-                if abs(s_n) >= b - tol:
-                    s_n, v_n = math.copysign(b, s_n), 0.0
-            z[0], z[1], z[2], z[3], z[4] = phi_p, om_p, s_n, v_n, d
+            self._predict_alone(z, phi_p, om_p, s_p, v_p)
             return "reading rejected (beyond reading_gate of the prediction): estimate predicted"
         self._rejects = 0
         if self._rigid:  # no gap: the rigid train (the mesh deflection F / k is below the encoders' resolution)
@@ -1649,26 +1636,37 @@ class MPC(Controller):
         if n > _MISSED_PREDICT:
             self._z = None
             return
-        z, b, tol = self._z, self._b, self._tol
+        z = self._z
         assert z is not None
-        a0, a1, a2, a3, b0, b1, c0, c1, c2, c3, d0, d1 = self._gap_rows
-        k00, k01, k11, kb0, kb1, e0, e1 = self._centre_rows
         for _ in range(n):
-            u = self._u + self._f1
-            phi, om, s, v, d = z.tolist()
-            tau = self._tau_load + d + self._f2
-            s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau
-            v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau
-            phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau
-            om_p = k11 * om + kb1 * u + e1 * tau
-            if self._rigid:
-                s_n, v_n = 0.0, 0.0
-            else:
-                s_n, v_n = s_p, v_p
-                if abs(s_n) >= b - tol:
-                    s_n, v_n = math.copysign(b, s_n), 0.0
-            z[0], z[1], z[2], z[3], z[4] = phi_p, om_p, s_n, v_n, d
+            self._predict_alone(z, *self._prediction(z))
             self._u = 0.0
+
+    def _prediction(self, z: NDArray[np.float64]) -> tuple[float, float, float, float]:
+        """The estimate one sample on, ``(phi, omega, s, v)``, under the torque that acted on the motor (the drive's
+        last and its friction) and the load torque: the gap with the separation model, the centre of inertia as the
+        rigid train (any mode)."""
+        u = self._u + self._f1
+        phi, om, s, v, d = z.tolist()
+        tau = self._tau_load + d + self._f2
+        a0, a1, a2, a3, b0, b1, c0, c1, c2, c3, d0, d1 = self._gap_rows
+        s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau
+        v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau
+        k00, k01, k11, kb0, kb1, e0, e1 = self._centre_rows
+        phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau
+        om_p = k11 * om + kb1 * u + e1 * tau
+        return phi_p, om_p, s_p, v_p
+
+    def _predict_alone(self, z: NDArray[np.float64], phi_p: float, om_p: float, s_p: float, v_p: float) -> None:
+        """Set the estimate ``z`` to the prediction alone (no reading used): the gap pinned at the flank it reaches
+        (as without a load encoder), none for the rigid plan; the disturbance kept."""
+        if self._rigid:
+            s_n, v_n = 0.0, 0.0
+        else:
+            s_n, v_n = s_p, v_p
+            if abs(s_n) >= self._b - self._tol:
+                s_n, v_n = math.copysign(self._b, s_n), 0.0
+        z[0], z[1], z[2], z[3] = phi_p, om_p, s_n, v_n
 
     def _brake_torque(self, y_motor: float) -> float:
         """Torque after a fault [N m]: the motor's speed from the changes of its reading alone (the estimate is not
