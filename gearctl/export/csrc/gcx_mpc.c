@@ -95,6 +95,37 @@ GCX_FN void gcx_mpc_start(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, doub
     S->z_set = 1;
 }
 
+/* MPC._prediction: the estimate one sample on, p = (phi, omega, s, v), under the torque that acted on the motor (the
+ * drive's last and its friction) and the load torque: the gap with the separation model, the centre of inertia as
+ * the rigid train (any mode) */
+GCX_FN void gcx_mpc_prediction(const gcx_mpc_p *P, const gcx_mpc_s *S, double p[4]) {
+    double u = S->u + S->f1;
+    double phi = S->z[0], om = S->z[1], s = S->z[2], v = S->z[3], d = S->z[4];
+    double tau = P->tau_load + d + S->f2;
+    const double *gr = P->gap_rows;
+    double a0 = gr[0], a1 = gr[1], a2 = gr[2], a3 = gr[3], b0 = gr[4], b1 = gr[5];
+    double c0 = gr[6], c1 = gr[7], c2 = gr[8], c3 = gr[9], d0 = gr[10], d1 = gr[11];
+    p[2] = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau;
+    p[3] = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau;
+    const double *cr = P->centre_rows;
+    double k00 = cr[0], k01 = cr[1], k11 = cr[2], kb0 = cr[3], kb1 = cr[4], e0 = cr[5], e1 = cr[6];
+    p[0] = k00 * phi + k01 * om + kb0 * u + e0 * tau;
+    p[1] = k11 * om + kb1 * u + e1 * tau;
+}
+
+/* MPC._predict_alone: the estimate set to the prediction p alone (no reading used), the gap pinned at the flank it
+ * reaches, none for the rigid plan; the disturbance kept */
+GCX_FN void gcx_mpc_predict_alone(const gcx_mpc_p *P, gcx_mpc_s *S, const double p[4]) {
+    double s_n, v_n;
+    if (P->rigid) {
+        s_n = 0.0, v_n = 0.0;
+    } else {
+        s_n = p[2], v_n = p[3];
+        if (fabs(s_n) >= P->b - P->tol) s_n = copysign(P->b, s_n), v_n = 0.0;
+    }
+    S->z[0] = p[0], S->z[1] = p[1], S->z[2] = s_n, S->z[3] = v_n;
+}
+
 /* MPC._observe: z = [phi, omega, s, v, d] from the encoders. A non-finite load reading, or one that puts the gap
  * beyond gap_limit, is a missing one (the motor encoder alone); a reading farther from its predicted shaft angle
  * than the gate is rejected (the prediction alone), and one rejected on more than GCX_GATE_PERSIST samples in a
@@ -112,19 +143,10 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
         gcx_mpc_start(P, S, y_motor, s_m);
         return note;
     }
-    double u = S->u + S->f1; /* the torque that acted on the motor: the drive's and its friction */
-    double phi = S->z[0], om = S->z[1], s = S->z[2], v = S->z[3], d = S->z[4];
-    double tau = P->tau_load + d + S->f2;
-    /* the prediction: the gap with the separation model, the centre of inertia as the rigid train (any mode) */
-    const double *gr = P->gap_rows;
-    double a0 = gr[0], a1 = gr[1], a2 = gr[2], a3 = gr[3], b0 = gr[4], b1 = gr[5];
-    double c0 = gr[6], c1 = gr[7], c2 = gr[8], c3 = gr[9], d0 = gr[10], d1 = gr[11];
-    double s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau;
-    double v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau;
-    const double *cr = P->centre_rows;
-    double k00 = cr[0], k01 = cr[1], k11 = cr[2], kb0 = cr[3], kb1 = cr[4], e0 = cr[5], e1 = cr[6];
-    double phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau;
-    double om_p = k11 * om + kb1 * u + e1 * tau;
+    double d = S->z[4];
+    double pred[4];
+    gcx_mpc_prediction(P, S, pred);
+    double phi_p = pred[0], om_p = pred[1], s_p = pred[2], v_p = pred[3];
     /* the gate: how far the readings are from the shaft angles the prediction puts them at, against how far the
      * last accepted ones were (a drifting prediction moves the innovation a little; a wild reading at once) */
     /* (the gap where the readings put it: within the flanks, and none for the rigid plan) */
@@ -147,13 +169,7 @@ GCX_FN int gcx_mpc_observe(const gcx_mpc_p *P, gcx_mpc_s *S, double y_motor, dou
             if (S->n_obs - S->restarts[0] < GCX_FAULT_WINDOW) S->fault = 1;
             return 1;
         }
-        if (P->rigid) {
-            s_n = 0.0, v_n = 0.0;
-        } else { /* the prediction alone, the gap pinned at the flank it reaches */
-            s_n = s_p, v_n = v_p;
-            if (fabs(s_n) >= b - tol) s_n = copysign(b, s_n), v_n = 0.0;
-        }
-        S->z[0] = phi_p, S->z[1] = om_p, S->z[2] = s_n, S->z[3] = v_n, S->z[4] = d;
+        gcx_mpc_predict_alone(P, S, pred);
         return 1;
     }
     S->rejects = 0;
@@ -473,27 +489,10 @@ GCX_FN void gcx_mpc_predict_missed(const gcx_mpc_p *P, gcx_mpc_s *S, int64_t n) 
         S->z_set = 0;
         return;
     }
-    double b = P->b, tol = P->tol;
-    const double *gr = P->gap_rows, *cr = P->centre_rows;
-    double a0 = gr[0], a1 = gr[1], a2 = gr[2], a3 = gr[3], b0 = gr[4], b1 = gr[5];
-    double c0 = gr[6], c1 = gr[7], c2 = gr[8], c3 = gr[9], d0 = gr[10], d1 = gr[11];
-    double k00 = cr[0], k01 = cr[1], k11 = cr[2], kb0 = cr[3], kb1 = cr[4], e0 = cr[5], e1 = cr[6];
     for (int64_t j = 0; j < n; j++) {
-        double u = S->u + S->f1;
-        double phi = S->z[0], om = S->z[1], s = S->z[2], v = S->z[3], d = S->z[4];
-        double tau = P->tau_load + d + S->f2;
-        double s_p = a0 * phi + a1 * om + a2 * s + a3 * v + b0 * u + b1 * tau;
-        double v_p = c0 * phi + c1 * om + c2 * s + c3 * v + d0 * u + d1 * tau;
-        double phi_p = k00 * phi + k01 * om + kb0 * u + e0 * tau;
-        double om_p = k11 * om + kb1 * u + e1 * tau;
-        double s_n, v_n;
-        if (P->rigid) {
-            s_n = 0.0, v_n = 0.0;
-        } else {
-            s_n = s_p, v_n = v_p;
-            if (fabs(s_n) >= b - tol) s_n = copysign(b, s_n), v_n = 0.0;
-        }
-        S->z[0] = phi_p, S->z[1] = om_p, S->z[2] = s_n, S->z[3] = v_n, S->z[4] = d;
+        double pred[4];
+        gcx_mpc_prediction(P, S, pred);
+        gcx_mpc_predict_alone(P, S, pred);
         S->u = 0.0;
     }
 }
