@@ -266,12 +266,7 @@ GCX_FN void gcx_obs_update(const gcx_obs_p *P, gcx_obs_s *O, double theta, doubl
 /* Not in Python (it never misses a sample): the observer carried over a sample the C API missed, with the torque
  * that acted then (the API wrote u = 0) and no correction. */
 GCX_FN void gcx_obs_predict(const gcx_obs_p *P, gcx_obs_s *O, double u, double friction) {
-    if (!O->set) return;
-    double th = O->x[0], om = O->x[1], d = O->x[2];
-    const double *A = P->A, *B = P->B;
-    double tau = P->N * u + P->tl - friction;
-    O->x[0] = A[0] * th + A[1] * om + A[2] * d + B[0] * tau;
-    O->x[1] = A[3] * th + A[4] * om + A[5] * d + B[1] * tau;
+    if (O->set) gcx_obs_update(P, O, O->x[0], u, friction, 1); /* no innovation, the disturbance held */
 }
 
 /* ---- dead-zone inverse (deadzone.py: DeadzoneInverse) ------------------------------------------------- */
