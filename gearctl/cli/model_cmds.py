@@ -275,9 +275,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     # the torques the run applied: the case's, and on the load the model's load_torque too (simulate adds it)
     summary["torque"] = {"motor": tq["torque1"], "load": tq["torque2"] + plant.load_torque}
     limit = plant.torque_limit
-    if math.isfinite(limit) and (abs(tq["torque1"]) > limit or abs(tq["torque2"]) > plant.gear_ratio * limit):
+    # what the motor would have to hold on the load is the whole load torque: the case's and the model's
+    on_load = summary["torque"]["load"]
+    if math.isfinite(limit) and (abs(tq["torque1"]) > limit or abs(on_load) > plant.gear_ratio * limit):
+        with_model = ("" if plant.load_torque == 0.0 else
+                      f", {on_load:g} N m with the model's load_torque {plant.load_torque:g}")
         warn("simulate", [f"the {args.case} case's torques ({tq['torque1']:g} N m on the motor, {tq['torque2']:g} N m "
-                          f"on the load) exceed what this servo's motor gives ([servo] torque_limit = {limit:g} N m, "
+                          f"on the load{with_model}) exceed what this servo's motor gives ([servo] torque_limit = "
+                          f"{limit:g} N m, "
                           f"{plant.gear_ratio * limit:.3g} N m at the load): the run is the report's open-loop "
                           "experiment, not the servo's; choose --torque1, --torque2 to match"])
     module = min(sm.pair.module for sm in model.stages)
