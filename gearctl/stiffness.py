@@ -33,6 +33,7 @@ __all__ = [
     "iso6336_mesh_stiffness",
     "stiffness_note",
     "restitution_coefficient",
+    "restitution_note",
     "yang_sun_damping_factor",
 ]
 
@@ -595,6 +596,49 @@ def restitution_coefficient(impact_velocity: float) -> float:
     """
     v = abs(impact_velocity) / 0.0254  # eq 37 in in/s (see Notes)
     return min(1.0, max(0.05, 1.0 - 0.022 * v**0.36))
+
+
+#: Young's modulus [Pa] of the steels whose impacts eq 37's restitution fits (Goldsmith's data, see
+#: :func:`restitution_coefficient`): a Yang-Sun plant of another material extrapolates it (:func:`restitution_note`).
+STEEL_YOUNG_MODULUS = (1.8e11, 2.3e11)
+
+
+def restitution_note(pair: GearPair) -> str | None:
+    """A note where eq 37's restitution, a fit for steel, is applied to a pair of another material.
+
+    Parameters
+    ----------
+    pair : GearPair
+        The gear pair (its ``young_modulus`` [Pa] tells the material).
+
+    Returns
+    -------
+    str or None
+        ``None`` for a steel's modulus (:data:`STEEL_YOUNG_MODULUS`), else one line for the Yang-Sun plant's users:
+        its impact damping (eqs 36-37) is extrapolated to this material, where the improved and tvms plants damp the
+        mesh by the model's damping ratio.
+
+    Notes
+    -----
+    Yang & Sun's restitution ``e = 1 - 0.022 V^0.36`` is a fit of Goldsmith's impact data for steel
+    (:func:`restitution_coefficient`); Hunt & Crossley's fit of the same data gives bronze up to 4 times steel's loss,
+    and polymers (POM, PA) lose far more per impact. No other material's law is in the report, so the plant is
+    kept and the user told.
+
+    Examples
+    --------
+    >>> p = GearPair(teeth1=20, teeth2=80, module=0.002, pressure_angle=math.radians(20), face_width=0.01,
+    ...              backlash=5e-5, young_modulus=2.8e9, poisson_ratio=0.35, density=1410.0)
+    >>> restitution_note(p)[:37]
+    'young_modulus = 2.8e+09 Pa is outside'
+    """
+    lo, hi = STEEL_YOUNG_MODULUS
+    E = pair.young_modulus
+    if lo <= E <= hi:
+        return None
+    return (f"young_modulus = {E:.4g} Pa is outside steel's {lo:.3g} .. {hi:.3g} Pa: the yang-sun plant's restitution "
+            "e = 1 - 0.022 V^0.36 (eq 37) is a fit of impacts on steel, so its impact damping is extrapolated to "
+            "this material (the improved and tvms plants damp the mesh by the model's damping_ratio)")
 
 
 def yang_sun_damping_factor(k: float, impact_velocity: float) -> float:

@@ -518,6 +518,24 @@ def ratio_changed(nominal: Any, true: Any) -> list[str]:
             "stays nominal; vary the teeth of the model file itself to design for the new ratio)"]
 
 
+def yang_sun_notes(model: Any, plant: str) -> list[str]:
+    """Notes for a Yang-Sun ``plant`` of ``model`` whose material is not steel (:func:`gearctl.stiffness.
+    restitution_note`): its restitution law is steel's (a review's POM train ran on it without a word). One note per
+    distinct material, naming the stages of a train."""
+    if str(plant) != "yang-sun":
+        return []
+    from ..stiffness import restitution_note
+
+    by_note: dict[str, list[int]] = {}
+    for i, sm in enumerate(model.stages, start=1):
+        note = restitution_note(sm.pair)
+        if note is not None:
+            by_note.setdefault(note, []).append(i)
+    if model.n_stages == 1:
+        return list(by_note)
+    return [f"stage{'s' if len(st) > 1 else ''} {', '.join(map(str, st))}: {note}" for note, st in by_note.items()]
+
+
 def separated_past_flank(plant: Any, s: Any, mode: Any) -> float:
     """The largest ``(|s| - b) / b`` of a stage labelled separated at an output time (0 if none): a contact the
     kernel missed, the teeth passing through each other (``simulate`` and ``track --json``, the fuzzer's oracle;

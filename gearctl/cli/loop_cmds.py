@@ -33,6 +33,7 @@ from .common import (
     warn,
     write_csv_stream,
     write_whole,
+    yang_sun_notes,
 )
 
 __all__ = ["register"]
@@ -50,6 +51,15 @@ def _refuse_backlash_twice(args: argparse.Namespace) -> None:
                          "(--backlash the model's, design included; --set the true plant's alone): give one; for a "
                          "design estimate other than the true backlash use --estimate B with --set backlash=...",
                          field="backlash")
+
+
+def _true_model(args: argparse.Namespace) -> Any:
+    """The model of ``args`` with its ``--set`` keys: the true plant's (the design's is the file's)."""
+    from ..catalog import load_model
+    from ..runs import true_model
+
+    model = load_model(args.model)
+    return true_model(args.model, model, dict(args.set), args.plant) if args.set else model
 
 
 def _cmd_track(args: argparse.Namespace) -> int:
@@ -100,6 +110,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     warn("track", [f"{ctrl['name']}: {n}" for n in ctrl.get("design_notes", ())], kind="note")
     warn("track", unused_estimate(ctrl.get("kind"), args.estimate), kind="note")
     warn("track", ratio_changed(run.design.nominal, plant), kind="note")
+    warn("track", yang_sun_notes(_true_model(args), args.plant), kind="note")
     warn("track", m.health.warnings)
     too_large = unholdable_load_step(plant, run.reference)
     if too_large:
@@ -190,6 +201,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     warn("precision", [f"{ctrl.name}: {n}" for n in out["controller"].get("design_notes", ())], kind="note")
     warn("precision", unused_estimate(out["controller"].get("kind"), args.estimate), kind="note")
     warn("precision", ratio_changed(nominal, plant), kind="note")
+    warn("precision", yang_sun_notes(true_model, args.plant), kind="note")
     warn("precision", health.warnings)
     if args.plot:
         from ..plots import plot_precision
@@ -290,6 +302,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     result["jobs"] = None if where else local_processes(result["tasks"], args.jobs)
     text = bench_table(result)
     notes, warnings = bench_notes(result), bench_warnings(result)
+    if "yang-sun" in spec.plants:  # a plant of another material than its restitution law's (steel)
+        from ..catalog import load_model
+
+        notes += [f"{name}: {n}" for name in spec.models for n in yang_sun_notes(load_model(name), "yang-sun")]
     tables = sys.stderr if to_stdout else sys.stdout
     # the files first, what is printed after: a reader that closed standard output early (`| head`) ends the
     # command quietly at the first print, and the JSON file and the --out report written after it were lost

@@ -28,6 +28,7 @@ from .common import (
     spec_arg,
     warn,
     write_csv_stream,
+    yang_sun_notes,
 )
 
 __all__ = ["register"]
@@ -285,6 +286,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                           f"{limit:g} N m, "
                           f"{plant.gear_ratio * limit:.3g} N m at the load): the run is the report's open-loop "
                           "experiment, not the servo's; choose --torque1, --torque2 to match"])
+    warn("simulate", yang_sun_notes(model, args.plant), kind="note")
     module = min(sm.pair.module for sm in model.stages)
     if res.max_penetration > PENETRATION_WARNING * module:  # a tooth deflects a few um at its rated load
         warn("simulate", [f"the teeth interpenetrate by up to {res.max_penetration * 1e6:.4g} um, "

@@ -22,6 +22,7 @@ from .common import (
     warn,
     write_json,
     write_whole,
+    yang_sun_notes,
 )
 
 __all__ = ["register"]
@@ -249,6 +250,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                            f"one does not (its keys or runs differ)"], kind="note")
     design = result.settings.get("design", {})
     warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
+    warn("sweep", yang_sun_notes(load_model(args.model), args.plant), kind="note")
     if not args.vary:
         warn("sweep", ["nothing varied (no --vary): every run is the nominal plant, the runs differ only in their "
                        "sensor-noise seeds"], kind="note")
