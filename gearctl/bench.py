@@ -69,7 +69,8 @@ class BenchSpec:
     seed : int
         Sensor-noise seed.
     cross_design : bool
-        Also run each controller designed on the Yang–Sun plant against the improved plant (sine).
+        Also run each controller designed on the Yang–Sun plant against the improved plant (sine), where
+        ``plants`` holds both.
     realtime : bool
         Optimisations that overrun their time budget fall back, as on the target (default False:
         overruns are counted and the results are deterministic for a seed).
@@ -146,7 +147,10 @@ class BenchSpec:
             for c in ctrls:
                 spec, label = controller_spec(c)
                 cells = [(p, "improved", r) for r in self.references for p in (*self.plants, FREE)]
-                if self.cross_design and "sine" in self.references and "yang-sun" in self.plants:
+                # on the improved plant beside its own design's run: both plants asked for (with yang-sun alone the
+                # cross cell looked up an improved plant that was never built: KeyError)
+                if (self.cross_design and "sine" in self.references and "yang-sun" in self.plants
+                        and "improved" in self.plants):
                     cells.append(("improved", "yang-sun", "sine"))
                 for p, d, r in cells:
                     design = Design(spec=spec, nominal=nominal[FREE] if p == FREE else nominal[d], label=label,
