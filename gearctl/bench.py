@@ -89,6 +89,19 @@ class BenchSpec:
     precision: bool = True
 
     def __post_init__(self) -> None:
+        # none asked for ran nothing (exit 0, empty tables), twice ran each run twice and named the controller its
+        # own runner-up: both refused rather than changed
+        kinds = (("plants", self.plants, ", ".join(k.value for k in PlantKind)),
+                 ("references", self.references, ", ".join(REFERENCES)))
+        for field, values, allowed in kinds:
+            if not values:
+                raise InputError(f"{field}: none given: expected one or more of {allowed}", field=field)
+        for field, values in (*((f, v) for f, v, _ in kinds), ("models", self.models),
+                              ("controllers", self.controllers)):
+            twice = sorted({v for v in values if values.count(v) > 1})
+            if twice:
+                raise InputError(f"{field}: {', '.join(map(repr, twice))} given more than once: expected each once "
+                                 "(every run would run twice)", field=field)
         for p in self.plants:
             try:
                 PlantKind(p)

@@ -37,3 +37,28 @@ def test_cli_bench_yang_sun_alone(capsys: pytest.CaptureFixture[str]) -> None:
     result = json.loads(out)
     assert {r["plant"] for r in result["runs"]} == {"yang-sun", "backlash-free"}
     assert result["ratios"]["cross_design"] == {}
+
+
+@pytest.mark.parametrize(("argv", "field", "match"), [
+    (["--plants", ""], "plants", "none given: expected one or more of improved, yang-sun, tvms"),
+    (["--references", ""], "references", "none given: expected one or more of sine"),
+    (["--plants", "improved,improved"], "plants", "'improved' given more than once"),
+    (["--references", "sine,move,sine"], "references", "'sine' given more than once"),
+    (["--controllers", "pid", "pid"], "controllers", "'pid' given more than once"),
+])
+def test_empty_or_repeated_lists_are_refused(argv: list[str], field: str, match: str,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    # before: an empty list ran nothing (or the backlash-free limit alone) with exit 0; a repeated entry ran every
+    # run twice and named the PID its own runner-up
+    code = main(["bench", "shing1993_servo", "--no-precision", "--jobs", "1", "--quiet", "--duration", "0.05", *argv])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert err.startswith("gearctl bench: error: ") and f"{field}: " in err and match in err
+    assert "Traceback" not in err and len(err.splitlines()) == 1
+
+
+def test_repeated_model_is_refused_in_the_api() -> None:
+    from gearctl import InputError
+
+    with pytest.raises(InputError, match="models: 'shing1993_servo' given more than once"):
+        BenchSpec(models=("shing1993_servo", "shing1993_servo"))
