@@ -234,6 +234,14 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
             _check_scalable(key, value, [nominal])
             value = float(value) * float(nominal)
         per[owner][key] = value
+    # an every-stage key that a stageN. key overrides on every stage changes nothing: refused, not dropped (a pair's
+    # `--set stage1.backlash=3e-5 --set backlash=1e-5` ran with 3e-5 and said nothing of the 1e-5)
+    for key in (*scaled, *per[GearPair], *per[MeshDynamics]):
+        if all(key in one.get(i, {}) for i in range(len(model.stages))):
+            named = ", ".join(f"stage{i + 1}.{key}" for i in range(len(model.stages)))
+            many = len(model.stages) > 1
+            raise InputError(f"{key} and {named}: the stage key{'s set every' if many else ' sets the'} stage's "
+                             f"{key} after {key}, so {key} would change nothing: give one of them", field=key)
     values = {key: stage_values(key, model) for key in scaled}
 
     def stage_fields(cls: type, i: int) -> dict[str, Any]:
