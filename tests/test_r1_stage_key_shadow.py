@@ -41,3 +41,13 @@ def test_cli_track_refuses(capsys: pytest.CaptureFixture[str]) -> None:
     _, err = capsys.readouterr()
     assert code == 2
     assert err.startswith("gearctl track: error: backlash and stage1.backlash") and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("cmd", [["track", "--duration", "0.05"], ["precision", "--cycles", "1", "--targets", "2"]])
+@pytest.mark.parametrize("key", ["backlash", "stage1.backlash"])
+def test_cli_set_key_twice_is_refused(cmd: list[str], key: str, capsys: pytest.CaptureFixture[str]) -> None:
+    # before: the last value won and the first was dropped without a word (sweep's --vary refused it already)
+    code = main([cmd[0], "shing1993_servo", "pid", *cmd[1:], "--set", f"{key}=3e-5", "--set", f"{key}=1e-5"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert err == f"gearctl {cmd[0]}: error: --set {key} is given twice: give each key once\n"

@@ -40,11 +40,17 @@ __all__ = ["register"]
 
 
 def _refuse_backlash_twice(args: argparse.Namespace) -> None:
-    """``--backlash`` beside ``--set backlash=...`` (or a stage's): two values for one key, refused by name.
+    """``--backlash`` beside ``--set backlash=...`` (or a stage's), or a ``--set`` key given twice: two values for one
+    key, refused by name.
 
     ``--backlash`` sets the plant's backlash after the ``--set`` keys, so the ``--set`` value was dropped without a
     word (``track ... --backlash 1e-5 --set backlash=2e-5`` ran the 10 um plant).
     """
+    seen: set[str] = set()
+    for k, _ in args.set:  # a key twice: the last value won, the first was dropped without a word
+        if k in seen:
+            raise InputError(f"--set {k} is given twice: give each key once", field=k)
+        seen.add(k)
     keys = [k for k, _ in args.set if k == "backlash" or k.endswith(".backlash")]
     if args.backlash is not None and keys:
         raise InputError(f"--backlash {args.backlash:g} and --set {keys[0]}=...: both set the true plant's backlash "
