@@ -205,6 +205,22 @@ def unholdable_load_step(plant: Plant, ref: Reference) -> str | None:
             f"the load (ratio x torque_limit = {hold:.3g} N m): no controller can hold it")
 
 
+def unholdable_load_torque(plant: Plant) -> str | None:
+    """A warning when the model's constant ``load_torque`` reaches what the motor can put on the load, else None.
+
+    The motor puts at most ``gear_ratio x torque_limit`` [N m] on the load shaft; a constant load torque as large
+    drives the load away under any controller and on every reference (a review's gravity servo with 6 N m on a
+    ratio-5, 1 N m drive ran 145 rad off on the sine, and ``track`` said only that the loop did not follow).
+    """
+    hold = plant.gear_ratio * plant.torque_limit
+    static = float(getattr(plant, "load_torque", 0.0))
+    if not (static != 0.0 and np.isfinite(hold) and abs(static) >= hold * (1.0 - 1e-9)):
+        return None
+    return (f"[servo] load_torque = {static:g} N m is {abs(static) / hold:.3g} times the torque the motor can put on "
+            f"the load (ratio x torque_limit = {hold:.3g} N m): no controller can hold it, the load runs away; "
+            f"expected |load_torque| below {hold:.3g} N m (a larger torque_limit or ratio)")
+
+
 def make_run(model: str | Path, controller: str | Path, *, plant: str = "improved", reference_kind: str = "sine",
              duration: float | None = None, seed: int = 0, backlash: float | None = None,
              estimate: float | None = None, realtime: bool = False, design_plant: str = "improved",

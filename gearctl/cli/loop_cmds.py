@@ -69,7 +69,7 @@ def _true_model(args: argparse.Namespace) -> Any:
 
 
 def _cmd_track(args: argparse.Namespace) -> int:
-    from ..runs import design_controller, execute, make_run, unholdable_load_step
+    from ..runs import design_controller, execute, make_run, unholdable_load_step, unholdable_load_torque
 
     _refuse_backlash_twice(args)
     if args.exported is not None and args.estimate is not None:
@@ -118,7 +118,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     warn("track", ratio_changed(run.design.nominal, plant), kind="note")
     warn("track", yang_sun_notes(_true_model(args), args.plant), kind="note")
     warn("track", m.health.warnings)
-    too_large = unholdable_load_step(plant, run.reference)
+    too_large = unholdable_load_step(plant, run.reference) or unholdable_load_torque(plant)
     if too_large:
         warn("track", [too_large])
     if not out.ok:
@@ -172,6 +172,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     from ..plant import build_plant
     from ..precision import precision_health, precision_test
     from ..runs import true_model as true_model_of
+    from ..runs import unholdable_load_torque
 
     _refuse_backlash_twice(args)
     model = load_model(args.model)
@@ -209,6 +210,7 @@ def _cmd_precision(args: argparse.Namespace) -> int:
     warn("precision", ratio_changed(nominal, plant), kind="note")
     warn("precision", yang_sun_notes(true_model, args.plant), kind="note")
     warn("precision", health.warnings)
+    warn("precision", [w for w in (unholdable_load_torque(plant),) if w])
     if args.plot:
         from ..plots import plot_precision
 

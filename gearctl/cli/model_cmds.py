@@ -107,12 +107,16 @@ def _print_stage(s: dict[str, Any], indent: str = "  ") -> None:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
+    from ..plant import build_plant
+    from ..runs import unholdable_load_torque
     from ..summary import model_summary
 
-    s = model_summary(load_model(args.model))
+    model = load_model(args.model)
+    s = model_summary(model)
     stages = s["stages"] if s["stages_count"] > 1 else [s]
     warn("info", [(f"stage {i}: " if len(stages) > 1 else "") + st["stiffness_note"]
                   for i, st in enumerate(stages, start=1) if st["stiffness_note"]])
+    warn("info", [w for w in (unholdable_load_torque(build_plant(model)),) if w])
     if args.json:
         print(dump_json(s))
         return 0
