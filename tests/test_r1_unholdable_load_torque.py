@@ -3,7 +3,7 @@
 ``tests/data/r1_gravity_beyond_motor.toml``: 6 N m of gravity-like load torque on a ratio-5 pair with a 1 N m motor
 (5 N m at the load). Every run runs the load away (the sine: 145 rad off); ``track`` warned only that the loop did
 not follow, ``info`` said nothing. The step reference's load step was already checked against what the motor holds
-(with the model's load torque); the model's torque alone now is too, by ``info``, ``track`` and ``precision``.
+(with the model's load torque); the model's torque alone now is too, by ``info``, ``track``, ``precision`` and ``bench``.
 """
 
 from __future__ import annotations
@@ -35,12 +35,15 @@ def test_unholdable_load_torque_against_ratio_times_limit() -> None:
 
 
 @pytest.mark.parametrize("argv", [["info"], ["track", "pid", "--duration", "0.3"],
-                                  ["precision", "pid", "--cycles", "1", "--targets", "2"]])
+                                  ["precision", "pid", "--cycles", "1", "--targets", "2"],
+                                  ["bench", "--controllers", "pid", "--plants", "improved", "--references", "step",
+                                   "--duration", "0.3", "--no-precision", "--jobs", "1", "--quiet"]])
 def test_commands_warn(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     code = main([argv[0], BEYOND, *argv[1:]])
     _, err = capsys.readouterr()
     assert code == 0, err
-    assert f"gearctl {argv[0]}: warning: [servo] load_torque = -6 N m is 1.2 times" in err
+    name = f"{BEYOND}: " if argv[0] == "bench" else ""  # bench names the model of each warning
+    assert f"gearctl {argv[0]}: warning: {name}[servo] load_torque = -6 N m is 1.2 times" in err
 
 
 def test_info_quiet_within_reach(capsys: pytest.CaptureFixture[str]) -> None:

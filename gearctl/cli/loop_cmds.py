@@ -310,10 +310,14 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     result["jobs"] = None if where else local_processes(result["tasks"], args.jobs)
     text = bench_table(result)
     notes, warnings = bench_notes(result), bench_warnings(result)
-    if "yang-sun" in spec.plants:  # a plant of another material than its restitution law's (steel)
-        from ..catalog import load_model
+    from ..catalog import load_model
+    from ..plant import build_plant
+    from ..runs import unholdable_load_torque
 
+    if "yang-sun" in spec.plants:  # a plant of another material than its restitution law's (steel)
         notes += [f"{name}: {n}" for name in spec.models for n in yang_sun_notes(load_model(name), "yang-sun")]
+    # a model no controller can hold: its figures are a runaway's
+    warnings += [f"{name}: {w}" for name in spec.models if (w := unholdable_load_torque(build_plant(load_model(name))))]
     tables = sys.stderr if to_stdout else sys.stdout
     # the files first, what is printed after: a reader that closed standard output early (`| head`) ends the
     # command quietly at the first print, and the JSON file and the --out report written after it were lost
