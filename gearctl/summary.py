@@ -22,6 +22,22 @@ from .stiffness import (
 __all__ = ["model_summary"]
 
 
+#: ISO's recommended least tooth thickness at the tip, in modules (0.4 for case-hardened gears)
+TIP_THICKNESS_MIN = 0.2
+
+
+def _tip_note(pair: GearPair, s_a: tuple[float, float]) -> str | None:
+    """A note where a tooth tip is thinner than :data:`TIP_THICKNESS_MIN` modules, else None: the model stays defined
+    down to a pointed tip (which :func:`~gearctl.geometry.pair_geometry` refuses), but such a tip breaks or wears in
+    service (a review's 13-tooth pinion with ``x1 = 0.9`` had 0.059 m)."""
+    thin = [(j, sa) for j, sa in enumerate(s_a, start=1) if sa < TIP_THICKNESS_MIN * pair.module]
+    if not thin:
+        return None
+    return "; ".join(f"gear {j}'s tooth tip is {sa / pair.module:.3g} modules thick ({sa * 1e3:.3g} mm), under the "
+                     f"{TIP_THICKNESS_MIN:g} m usually asked (0.4 m case-hardened): a smaller profile shift x{j} or "
+                     f"addendum_coefficient thickens it" for j, sa in thin)
+
+
 def _stage_summary(pair: GearPair, dynamics: MeshDynamics, plant: Plant, i: int) -> dict[str, Any]:
     """Geometry, stiffness and damping of one stage (a pair's whole ``info``, a train's ``stages[i]``)."""
     geo = pair_geometry(pair)
@@ -58,6 +74,7 @@ def _stage_summary(pair: GearPair, dynamics: MeshDynamics, plant: Plant, i: int)
         "mesh_stiffness_iso6336": iso6336_mesh_stiffness(pair),
         # where the plant uses the computed mean: a note if the report's beam makes it far too soft
         "stiffness_note": None if dynamics.mesh_stiffness is not None else stiffness_note(pair, ms.mean),
+        "tip_note": _tip_note(pair, geo.tooth_thickness_addendum),
         "damping_coefficient": st.c,
         "damping_coefficient_given": dynamics.damping_coefficient is not None,
         "plant_stiffness": st.k,
@@ -88,7 +105,8 @@ def model_summary(model: GearModel) -> dict[str, Any]:
         shafts' inertias: the mesh mode's, which the plant's damping uses), ``mesh_stiffness`` {mean, c1, c2,
         min, max} [N/m] (eq 21 over the mesh cycle), ``mesh_stiffness_per_width`` [N/(mm um)],
         ``mesh_stiffness_iso6336`` [N/m] (ISO 6336-1's estimate, a cross-check), ``stiffness_note`` (a warning
-        where the plant's computed stiffness is under half of ISO's for a large gear, else null),
+        where the plant's computed stiffness is under half of ISO's for a large gear, else null), ``tip_note`` (a
+        note where a tooth tip is under 0.2 modules thick, ISO's usual least, else null),
         ``damping_coefficient`` [N s/m] (the
         plant's c: the file's value or eq 38 from the plant's k; ``damping_coefficient_given`` says which),
         ``plant_stiffness`` [N/m] (the plant's k: the file's ``mesh_stiffness`` if given, which

@@ -117,6 +117,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
     warn("info", [(f"stage {i}: " if len(stages) > 1 else "") + st["stiffness_note"]
                   for i, st in enumerate(stages, start=1) if st["stiffness_note"]])
     warn("info", [w for w in (unholdable_load_torque(build_plant(model)),) if w])
+    warn("info", [(f"stage {i}: " if len(stages) > 1 else "") + st["tip_note"]
+                  for i, st in enumerate(stages, start=1) if st["tip_note"]], kind="note")
     if args.json:
         print(dump_json(s))
         return 0
