@@ -46,6 +46,12 @@
 #include <math.h>
 #include <string.h>
 
+/* No fused multiply-adds (see Reproducibility in gearctl_qp.h): clang contracts within an expression in every mode
+ * wherever the target has FMA; GCC's ISO mode does not, and GCC ignores this standard pragma (warning with -Wall). */
+#if defined(__clang__) || !defined(__GNUC__)
+#pragma STDC FP_CONTRACT OFF
+#endif
+
 /* states of a constraint (one int8 per constraint: bounds of x first, then rows) */
 enum {
     ST_INACTIVE = 0, /* an inequality not in W */

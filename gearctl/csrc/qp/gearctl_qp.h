@@ -30,8 +30,8 @@
  * (exact zeros). An equality's multiplier has either sign.
  *
  * Reproducibility: the same source compiled without floating-point contraction or reassociation
- * (ISO C mode, e.g. -std=c99, which implies -ffp-contract=off in GCC; no -ffast-math) gives the same
- * bits on any IEEE-754 target.
+ * (ISO C mode, e.g. -std=c99, which implies -ffp-contract=off in GCC; clang's default contraction is turned off
+ * in gearctl_qp.c by #pragma STDC FP_CONTRACT OFF; no -ffast-math) gives the same bits on any IEEE-754 target.
  */
 #ifndef GEARCTL_QP_H
 #define GEARCTL_QP_H
