@@ -220,11 +220,11 @@ def header_text(spec: KindSpec) -> str:
 {wild} *
  * The step is the Python controller's step at t = k * GEARCTL_TS, k the number of steps since init. No
  * dynamic memory, no I/O, no writable globals; only <math.h>, <string.h>, <stdint.h>, <float.h> (a compile-time
- * check of IEEE doubles). Reentrant: distinct instances may be stepped at once from different threads or
- * interrupts (they share nothing); one instance must not be entered twice at once (there is no lock). RAM:
- * sizeof(gearctl_ctrl_t) per instance, the parameters being static const. No recursion and no variable-length
- * array: the stack is bounded (gcc 12 -O2 -fcallgraph-info=su, x86-64: the PID 16 B, the inverses about
- * 0.5 kB, the MPC about 1.3 kB; measure on the target). Compile as ISO C
+ * check of IEEE doubles, without x87 excess precision). Reentrant: distinct instances may be stepped at once
+ * from different threads or interrupts (they share nothing); one instance must not be entered twice at once
+ * (there is no lock). RAM: sizeof(gearctl_ctrl_t) per instance, the parameters being static const. No recursion
+ * and no variable-length array: the stack is bounded (gcc 12 -O2 -fcallgraph-info=su, x86-64: the PID 16 B, the
+ * inverses about 0.5 kB, the MPC about 1.3 kB; measure on the target). Compile as ISO C
  * (e.g. {CFLAGS}, without -ffast-math or -ffp-contract=fast) to get the Python controller's torques
  * bit for bit; `make check` replays the recorded vectors and says whether they are (a compiler that fuses
  * multiply-adds, e.g. -ffp-contract=fast -march=native, gives 1e-13 relative or so, which it accepts up to 1e-9).
