@@ -3,7 +3,8 @@
 ``tests/data/r1_gravity_beyond_motor.toml``: 6 N m of gravity-like load torque on a ratio-5 pair with a 1 N m motor
 (5 N m at the load). Every run runs the load away (the sine: 145 rad off); ``track`` warned only that the loop did
 not follow, ``info`` said nothing. The step reference's load step was already checked against what the motor holds
-(with the model's load torque); the model's torque alone now is too, by ``info``, ``track``, ``precision`` and ``bench``.
+(with the model's load torque); the model's torque alone now is too, by ``info``, ``track``, ``precision`` and
+``bench``.
 """
 
 from __future__ import annotations
