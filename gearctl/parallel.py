@@ -27,7 +27,8 @@ from .limits import available_memory
 
 __all__ = ["Engine", "check_one_cluster", "map_tasks", "check_local_workers", "WORKER_BYTES",
            "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
-           "checked", "killed_worker_text", "CONNECT_TIMEOUT", "WORKER_TIMEOUT", "ANSWER_TIMEOUT"]
+           "checked", "killed_worker_text", "numerics_versions", "NUMERICS", "CONNECT_TIMEOUT", "WORKER_TIMEOUT",
+           "ANSWER_TIMEOUT"]
 
 #: Seconds to reach a scheduler, and for its first worker to join.
 CONNECT_TIMEOUT, WORKER_TIMEOUT = 10.0, 60.0
@@ -61,25 +62,63 @@ def code_id() -> str:
 
 _CODE_ID: str | None = None
 
+#: The packages besides gearctl whose versions decide a run's figures (with Python's): a worker on another numpy or
+#: SciPy can give other last digits, so a sweep's results would no longer be the serial run's.
+NUMERICS = ("numpy", "scipy", "control", "casadi")
 
-def checked(expected: str, fn: Callable[..., Any], *args: Any) -> Any:
-    """``fn(*args)`` on a worker that runs the gearctl ``expected`` (the client's :func:`code_id`), else an
-    :class:`~gearctl.InputError` naming the worker and both. :class:`Engine` checks the workers there when it opens,
-    but a worker that joined later (started from another checkout mid-sweep) ran the tasks it was given on its own
-    code, its figures mixed with the others' without a word (a review: 1260 of 3000 runs); every task goes through
-    here."""
+
+def numerics_versions() -> dict[str, str]:
+    """The versions of Python and of :data:`NUMERICS` that this process runs, as imported (``__version__``;
+    ``"not installed"`` where the import fails), e.g. ``{"python": "3.11.7", "numpy": "2.4.6", ...}``.
+
+    Workers must run the same ones as the client (:class:`Engine`, :func:`checked`): :func:`code_id` covers
+    gearctl's own code only, and a worker with another numpy ran its share of a sweep without a word."""
+    import importlib
+    import platform
+
+    out = {"python": platform.python_version()}
+    for name in NUMERICS:
+        try:
+            out[name] = str(getattr(importlib.import_module(name), "__version__", "unknown"))
+        except ImportError:
+            out[name] = "not installed"
+    return out
+
+
+def _numerics_differ(theirs: dict[str, str], mine: dict[str, str]) -> str:
+    """``"numpy 2.3.9 (this process: 2.4.6), ..."``: the packages whose versions differ, or ``""``."""
+    keys = sorted(set(theirs) | set(mine), key=lambda k: (k != "python", k))
+    return ", ".join(f"{k} {theirs.get(k, 'not reported')} (this process: {mine.get(k, 'not reported')})"
+                     for k in keys if theirs.get(k) != mine.get(k))
+
+
+def checked(expected: str, fn: Callable[..., Any], *args: Any, numerics: dict[str, str] | None = None) -> Any:
+    """``fn(*args)`` on a worker that runs the gearctl ``expected`` (the client's :func:`code_id`) and, where
+    ``numerics`` (the client's :func:`numerics_versions`) is given, the same Python, numpy, SciPy, python-control
+    and CasADi; else an :class:`~gearctl.InputError` naming the worker and both. :class:`Engine` checks the
+    workers there when it opens, but a worker that joined later (started from another checkout mid-sweep) ran the
+    tasks it was given on its own code, its figures mixed with the others' without a word (a review: 1260 of 3000
+    runs); every task goes through here."""
     mine = code_id()
-    if mine != expected:
+    differ = "" if numerics is None else _numerics_differ(numerics_versions(), numerics)
+    if mine != expected or differ:
         try:
             from distributed import get_worker
 
             who = f"the worker {get_worker().address}"
         except (ImportError, ValueError):
             who = "a worker"
-        raise InputError(f"{who}, which joined the cluster after its workers were checked, runs gearctl {mine}, this "
-                         f"is {expected} (version+code hash): install the same gearctl on every worker, and restart "
-                         f"workers started before an edit", field="scheduler")
+        if mine != expected:
+            raise InputError(f"{who}, which joined the cluster after its workers were checked, runs gearctl {mine}, "
+                             f"this is {expected} (version+code hash): install the same gearctl on every worker, and "
+                             f"restart workers started before an edit", field="scheduler")
+        raise InputError(f"{who}, which joined the cluster after its workers were checked, runs {differ}: "
+                         f"{_NUMERICS_FIX}", field="scheduler")
     return fn(*args)
+
+
+_NUMERICS_FIX = ("a run's figures depend on them (other versions give other last digits than the other workers and "
+                 "a serial run); run every worker with this process's Python, numpy, SciPy, python-control and CasADi")
 
 
 #: Dask's address schemes a scheduler may be given with.
@@ -420,6 +459,24 @@ class Engine:
                                  f"{self.where} run{'' if len(other) > 1 else 's'} gearctl {theirs}, this is "
                                  f"{code_id()} (version+code hash): install the same gearctl on every worker, and "
                                  f"restart workers started before an edit", field="scheduler")
+            # gearctl's code alone: a worker on another numpy (or SciPy, ...) passed, and its runs differed from a
+            # serial run's in their last digits without a word
+            try:
+                stacks = self.client.run(numerics_versions, on_error="return", callback_timeout=WORKER_TIMEOUT)
+            except Exception as exc:  # the same workers answered a moment ago: the cluster itself, in one line
+                self.close()
+                raise InputError(f"the workers of {self.where} did not report their package versions: "
+                                 f"{type(exc).__name__}: {exc}", field="scheduler") from None
+            mine = numerics_versions()
+            odd = {w: (f"runs {_numerics_differ(v, mine)}" if isinstance(v, dict) else
+                       f"could not report its package versions ({type(v).__name__}: {v})")
+                   for w, v in stacks.items() if not isinstance(v, dict) or _numerics_differ(v, mine)}
+            if odd:
+                self.close()
+                w, why = sorted(odd.items())[0]
+                others = sorted(odd)[1:]
+                more = f" (and the worker{'s' if len(others) > 1 else ''} {', '.join(others)})" if others else ""
+                raise InputError(f"the worker {w} of {self.where} {why}{more}: {_NUMERICS_FIX}", field="scheduler")
 
     @property
     def workers(self) -> int:
@@ -733,8 +790,8 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     results: list[Any] = [None] * n
     with Engine(workers=local_processes(n, workers), scheduler=scheduler) as eng:
         tag = uuid.uuid4().hex[:12]
-        mine = code_id()
-        futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False): k
+        mine, stack = code_id(), numerics_versions()
+        futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False, numerics=stack): k
                    for k, x in enumerate(items)}
         try:
             for done, (fut, got, exc) in enumerate(completed(eng.client, list(futures), where=eng.where), start=1):

@@ -93,6 +93,7 @@ from .parallel import (
     killed_worker_text,
     local_cluster,
     local_processes,
+    numerics_versions,
 )
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
@@ -1037,11 +1038,12 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         info.update(workers=w, threads=threads, where=eng.where, batch=size)
         tag = uuid.uuid4().hex[:12]
         futures = {}
-        mine = code_id()  # each task checks it on its worker: one may join mid-sweep (parallel.checked)
+        # each task checks them on its worker: one may join mid-sweep (parallel.checked)
+        mine, stack = code_id(), numerics_versions()
         for b, i0 in enumerate(range(0, n, size)):
             part = jobs[i0:i0 + size]
             fut = eng.client.submit(checked, mine, sweep_task, plan.context, part, key=f"gearctl-sweep-{tag}-{b}",
-                                    pure=False)
+                                    pure=False, numerics=stack)
             futures[fut] = part
         try:
             for fut, got, exc in completed(eng.client, list(futures), where=eng.where):
