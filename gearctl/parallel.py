@@ -68,19 +68,26 @@ NUMERICS = ("numpy", "scipy", "control", "casadi")
 
 
 def numerics_versions() -> dict[str, str]:
-    """The versions of Python and of :data:`NUMERICS` that this process runs, as imported (``__version__``;
-    ``"not installed"`` where the import fails), e.g. ``{"python": "3.11.7", "numpy": "2.4.6", ...}``.
+    """The versions of Python and of :data:`NUMERICS` that this process runs, e.g. ``{"python": "3.11.7",
+    "numpy": "2.4.6", ...}``: an imported module's ``__version__``, else its installed distribution's (importing
+    CasADi to ask took a second, in the client and in each worker, of a sweep that does not use it), else
+    ``"not installed"``.
 
     Workers must run the same ones as the client (:class:`Engine`, :func:`checked`): :func:`code_id` covers
     gearctl's own code only, and a worker with another numpy ran its share of a sweep without a word."""
-    import importlib
+    import importlib.metadata
     import platform
+    import sys
 
     out = {"python": platform.python_version()}
     for name in NUMERICS:
+        mod = sys.modules.get(name)
+        if mod is not None and getattr(mod, "__version__", None):
+            out[name] = str(mod.__version__)
+            continue
         try:
-            out[name] = str(getattr(importlib.import_module(name), "__version__", "unknown"))
-        except ImportError:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
             out[name] = "not installed"
     return out
 
