@@ -153,7 +153,10 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
         scheme, loc = (parse_address(address, strict=True) if not address.startswith("inproc://")
                        else ("inproc", address[len("inproc://"):]))  # (its own parse fails on a foreign form)
         if scheme not in _SCHEMES:
-            raise ValueError(f"unknown scheme {scheme!r}")
+            web = (" (an http:// address is a web page's, such as the Dask dashboard's; the scheduler itself "
+                   "listens on tcp://HOST:PORT, port 8786 unless it was started with another)"
+                   if scheme.lower() in ("http", "https") else "")
+            raise ValueError(f"unknown scheme {scheme!r}{web}")
         if scheme == "inproc":  # a scheduler inside one process: reachable from that process alone
             from distributed.comm.inproc import global_manager
 
@@ -171,7 +174,13 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
             if importlib.util.find_spec("ucp") is None and importlib.util.find_spec("distributed_ucxx") is None:
                 raise ValueError("ucx:// needs UCX for Dask (ucx-py or distributed-ucxx), which is not installed here")
         if scheme in ("tcp", "tls", "ws", "wss"):
-            port = parse_host_port(loc)[1]
+            try:
+                port = parse_host_port(loc)[1]
+            except ValueError as exc:  # Python's own words ("invalid literal for int() with base 10: '8786/'")
+                if "invalid literal" not in str(exc):
+                    raise
+                raise ValueError(f"the port {loc.rpartition(':')[2]!r} is not a whole number 1..65535 (with no "
+                                 f"path or '/' after it)") from None
             if not 0 < port < 65536:
                 raise ValueError(f"invalid port {port}: expected 1..65535")
     except (ValueError, TypeError) as exc:
