@@ -369,7 +369,8 @@ class Engine:
         :class:`~gearctl.InputError`: one of them was ignored). Without it, a scheduler, or ``DASK_SCHEDULER_ADDRESS``,
         dask's default client (one a script opened) is used if there is one, else a local cluster. A scheduler's
         address is checked first (:func:`probe_scheduler`), and its workers must run this gearctl
-        (:func:`code_id`).
+        (:func:`code_id`) on this process's Python, numpy, SciPy, python-control and CasADi
+        (:func:`numerics_versions`).
     """
 
     def __init__(self, *, workers: int | None = None, scheduler: str | None = None, client: Any = None) -> None:
