@@ -71,7 +71,9 @@ def numerics_versions() -> dict[str, str]:
     """The versions of Python and of :data:`NUMERICS` that this process runs, e.g. ``{"python": "3.11.7",
     "numpy": "2.4.6", ...}``: an imported module's ``__version__``, else its installed distribution's (importing
     CasADi to ask took a second, in the client and in each worker, of a sweep that does not use it), else
-    ``"not installed"``.
+    ``"not installed"``; and ``"gearctl kernel"``, ``"compiled C"`` or ``"pure Python"`` (no C compiler, or
+    ``GEARCTL_NO_COMPILE`` set: its mirror of the kernel differs from the compiled one in the last digits, about
+    1e-10 of a run's RMS error).
 
     Workers must run the same ones as the client (:class:`Engine`, :func:`checked`): :func:`code_id` covers
     gearctl's own code only, and a worker with another numpy ran its share of a sweep without a word."""
@@ -79,7 +81,10 @@ def numerics_versions() -> dict[str, str]:
     import platform
     import sys
 
-    out = {"python": platform.python_version()}
+    from .kernel import compiled_available
+
+    out = {"python": platform.python_version(),
+           "gearctl kernel": "compiled C" if compiled_available() else "pure Python"}
     for name in NUMERICS:
         mod = sys.modules.get(name)
         if mod is not None and getattr(mod, "__version__", None):
@@ -94,7 +99,7 @@ def numerics_versions() -> dict[str, str]:
 
 def _numerics_differ(theirs: dict[str, str], mine: dict[str, str]) -> str:
     """``"numpy 2.3.9 (this process: 2.4.6), ..."``: the packages whose versions differ, or ``""``."""
-    keys = sorted(set(theirs) | set(mine), key=lambda k: (k != "python", k))
+    keys = sorted(set(theirs) | set(mine), key=lambda k: (k != "python", k.startswith("gearctl"), k))
     return ", ".join(f"{k} {theirs.get(k, 'not reported')} (this process: {mine.get(k, 'not reported')})"
                      for k in keys if theirs.get(k) != mine.get(k))
 
@@ -125,7 +130,9 @@ def checked(expected: str, fn: Callable[..., Any], *args: Any, numerics: dict[st
 
 
 _NUMERICS_FIX = ("a run's figures depend on them (other versions give other last digits than the other workers and "
-                 "a serial run); run every worker with this process's Python, numpy, SciPy, python-control and CasADi")
+                 "a serial run); run every worker with this process's Python, numpy, SciPy, python-control and "
+                 "CasADi, and its gearctl kernel (compiled C where a C compiler is found and GEARCTL_NO_COMPILE is "
+                 "not set, else pure Python)")
 
 
 #: Dask's address schemes a scheduler may be given with.
@@ -369,8 +376,8 @@ class Engine:
         :class:`~gearctl.InputError`: one of them was ignored). Without it, a scheduler, or ``DASK_SCHEDULER_ADDRESS``,
         dask's default client (one a script opened) is used if there is one, else a local cluster. A scheduler's
         address is checked first (:func:`probe_scheduler`), and its workers must run this gearctl
-        (:func:`code_id`) on this process's Python, numpy, SciPy, python-control and CasADi
-        (:func:`numerics_versions`).
+        (:func:`code_id`) on this process's Python, numpy, SciPy, python-control and CasADi, its kernel
+        compiled alike (:func:`numerics_versions`).
     """
 
     def __init__(self, *, workers: int | None = None, scheduler: str | None = None, client: Any = None) -> None:
