@@ -90,6 +90,15 @@ PRIOR_SHARE = 0.25
 SPAN_SHARE = 0.8
 #: Runs of plateaus (in time order) whose means bound the backlash interval from below (batch means).
 BATCHES = 5
+#: Width of the load-angle bins in which the flanks are compared at the same angle [rad]: an encoder's error that
+#: depends on the angle (a once-per-turn eccentricity) moves ``s`` by under 1 % of its amplitude within one.
+POSITION_BIN = 0.02
+#: Fewest load-angle bins with contact on both flanks for the position-matched estimate of b.
+POSITION_SHARED = 5
+#: Load-angle bins averaged (running mean) before the range a flank moves over along the travel is taken.
+POSITION_RUN = 5
+#: A load-angle bin counts only where the top tenth of its samples lies within this many flank widths above its flank.
+POSITION_PULL = 4.0
 #: Order of the friction and inertia parameters.
 PARAMS = ("J1", "J2", "d1", "d2", "tc1", "tc2")
 
@@ -928,13 +937,63 @@ def _flank_value(v: NDArray[np.float64], width: float, need: int) -> tuple[float
     return value, max(float(np.percentile(v, 90)) - value, 0.0)
 
 
+def _position_check(p: _Problem, contact: dict[int, list[NDArray[np.int_]]], s: NDArray[np.float64],
+                    force: NDArray[np.float64], width: float, need: int) -> tuple[float, int, float]:
+    """The flanks compared at the same load angle: b from the angles with contact on both flanks.
+
+    An encoder's error that depends on the angle (a once-per-turn eccentricity: a sine of a few counts) moves
+    ``s = r_b1 theta1 - r_b2 theta2`` on both flanks alike at one angle, so it cancels from half the distance between
+    the flanks there, but not between plateaus at different angles: a load that rests on the front flank at one end
+    of its travel and on the back flank at the other reads the difference of the error between the ends. The samples
+    in contact on each flank (those the plateaus use) are binned by the load angle (:data:`POSITION_BIN`), each bin's
+    flank found as a plateau's (:func:`_flank_value`; a bin pulled into the gap by more than :data:`POSITION_PULL`
+    widths is left out). Returns the median over the bins with both flanks of half their sum (NaN with fewer than
+    :data:`POSITION_SHARED` such bins), the number of those bins, and how far the flanks move along the travel (the
+    sum of the two flanks' ranges of a running mean over :data:`POSITION_RUN` bins) [m].
+    """
+    pl = p.nominal
+    x = p.log.theta2
+    assert x is not None
+    prof: dict[int, dict[int, float]] = {}
+    for sg in (1, -1):
+        idx = np.concatenate(contact[sg]) if contact[sg] else np.zeros(0, int)
+        v = sg * (s[idx] - force[idx] / pl.k)
+        k = np.floor(x[idx] / POSITION_BIN).astype(np.int64)
+        order = np.argsort(k, kind="stable")
+        keys, starts = np.unique(k[order], return_index=True)
+        prof[sg] = {}
+        for key, sel in zip(keys, np.split(v[order], starts[1:]), strict=True):
+            if sel.size >= need:
+                value, pull = _flank_value(sel, width, need)
+                # a bin whose samples spread far into the gap holds no resting flank (a load coasting off it under a
+                # load torque near its friction: tests/test_identify_load_torque.py's log, pulls of 5.5 and 11 um,
+                # bins 6-12 um inside the flank)
+                if math.isfinite(value) and pull <= POSITION_PULL * width:
+                    prof[sg][int(key)] = value
+    # how far each flank moves along the travel: the range of its bins' running mean over POSITION_RUN bins in the
+    # order of the angle (an eccentricity moves a flank smoothly from bin to bin; a loop that rattles scatters single
+    # bins by as much, 1.3 um on other_sim_rattling_pd.csv, whose b is right); a flank with fewer bins shows none
+    spread = 0.0
+    for pr in prof.values():
+        if len(pr) >= POSITION_RUN:
+            vals = np.array([pr[key] for key in sorted(pr)])
+            spread += float(np.ptp(np.convolve(vals, np.full(POSITION_RUN, 1.0 / POSITION_RUN), mode="valid")))
+    shared = sorted(set(prof[1]) & set(prof[-1]))
+    if len(shared) < POSITION_SHARED:
+        return math.nan, len(shared), spread
+    return float(np.median([0.5 * (prof[1][key] + prof[-1][key]) for key in shared])), len(shared), spread
+
+
 def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[int, int, int]]
-                      ) -> tuple[float, tuple[float, float], float, NDArray, NDArray, float, tuple[int, int]]:
+                      ) -> tuple[float, tuple[float, float], float, NDArray, NDArray, float, tuple[int, int],
+                                 tuple[str | None, str | None]]:
     """Backlash from the plateaus of ``s`` on either flank, corrected for the mesh deflection ``F / k``.
 
     Returns ``b``, its 95 % interval, the centre of the gap, the estimate of each neighbouring pair of
-    plateaus with its time, the mean deflection correction, and how many rests on the front and the back flank
-    it used.
+    plateaus with its time, the mean deflection correction, how many rests on the front and the back flank
+    it used, and where the flanks move with the load angle (:func:`_position_check`) by more than the interval's
+    half-width a warning (the position-matched b differs) or the reason b is not identified (no angles to compare
+    the flanks at), each None otherwise.
     """
     pl = p.nominal
     ld = p.l
@@ -955,10 +1014,12 @@ def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[i
     corr = []
     pulls = []  # how far the top tenth of each plateau's samples lies above it (towards the flank)
     need = max(3, int(round(0.003 / p.Ts)))
+    contact: dict[int, list[NDArray[np.int_]]] = {1: [], -1: []}
     for i0, i1, sg in eps:
         a = i0 + p.settle
         # contact for sure: the mesh carries torque towards this flank and the flanks do not move apart
         idx = a + np.flatnonzero((sg * tau[a:i1] > h) & still[a:i1]) if i1 > a else np.zeros(0, int)
+        contact[sg].append(idx)
         v = sg * (s[idx] - force[idx] / pl.k)
         value, pull = _flank_value(v, width, need) if idx.size >= need else (math.nan, math.nan)
         if not math.isfinite(value):
@@ -1014,7 +1075,31 @@ def _plateau_backlash(p: _Problem, theta: NDArray[np.float64], eps: list[tuple[i
     if len(est) >= 2 * BATCHES:
         means = np.array([float(np.mean(c)) for c in np.array_split(np.array(est), BATCHES)])
         half = max(half, _t95(BATCHES - 1) * float(means.std(ddof=1)) / math.sqrt(BATCHES))
-    return b, (b - half, b + half), centre, np.array(est), np.array(times), defl, (front.size, back.size)
+    # an encoder's error that depends on the angle is no scatter of the plateaus where each flank rests at its own
+    # angles: r4's simulator with a load encoder 5 counts eccentric (2.2 um along the line of action) and moves of
+    # +-1.5 rad gave b 11.5 um [9.5, 13.5] for a true 10 where the flanks compared at the same angles give 10.01, and
+    # 6.70 um [6.07, 7.32] for a true 5 (tests/data/logs/r4/), where too few angles hold contact on both flanks to
+    # compare them at. The difference from the position-matched b enters the interval as a systematic error; without
+    # that b, flanks that move over the travel by more than the interval leave b not identified
+    b_pos, n_pos, spread = _position_check(p, contact, s, force, width, need)
+    note = unmatched = None
+    moves = (f"the flanks move with the load angle: r_b1 theta1 - r_b2 theta2 in contact varies by {spread * 1e6:.3g} "
+             f"um along the line of action over the travel, both flanks' ranges added (an encoder's error that "
+             f"depends on the angle, such as an eccentricity), and the plateaus lie at different angles on the two "
+             f"flanks")
+    if math.isfinite(b_pos):
+        sys_pos = abs(b - b_pos)
+        if sys_pos > half:
+            note = (f"{moves}; compared at the same angles ({n_pos} bins of {POSITION_BIN:g} rad) b is "
+                    f"{b_pos * 1e6:.4g} um against the plateaus' {b * 1e6:.4g} um: the interval includes the "
+                    f"difference")
+        half = math.hypot(half, sys_pos)
+    elif 0.5 * spread > half:
+        unmatched = (f"{moves}; fewer than {POSITION_SHARED} angles hold contact on both flanks to compare them at "
+                     f"(the plateaus give {b * 1e6:.4g} um with a half-width of {half * 1e6:.3g} um); record moves "
+                     f"that rest on both flanks at the same angles")
+    return (b, (b - half, b + half), centre, np.array(est), np.array(times), defl, (front.size, back.size),
+            (note, unmatched))
 
 
 def _gap_windows(p: _Problem, eps: list[tuple[int, int, int]], theta: NDArray[np.float64]) -> list[_Window]:
@@ -1652,6 +1737,7 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
     p = _Problem(lg, nominal, encoders, mdl.pair.module)
     _check_motion(p)
     # a load encoder that never leaves the motor's line (s within the noise: no gap crossing) is said first
+    pos_unmatched: str | None = None  # (both encoders) why b is not identified, where the flanks move with the angle
     episodes = _episodes(p) if encoders == "motor+load" else None
     _check_signals(p, mdl.servo.torque_limit)
     N = p.N
@@ -1717,7 +1803,9 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         theta_tx = theta.copy()
         if at_bound and p.tl != 0.0:
             theta_tx[:2] = mean[:2]
-        b, ci, centre, est, times, _, rests = _plateau_backlash(p, theta_tx, eps)
+        b, ci, centre, est, times, _, rests, (pos_note, pos_unmatched) = _plateau_backlash(p, theta_tx, eps)
+        if pos_note is not None:
+            notes.append(pos_note)
         if b < SPAN_SHARE * b0:
             # s reaches +-b0 (a median removes the impacts' spikes): plateaus well inside are not resting contact
             raise InputError(f"{lg.name}: column theta2: {len(eps) - 1} gap crossings, but the flanks never rest "
@@ -1889,6 +1977,9 @@ def identify(log: EncoderLog | str | Path, model: Any, *, encoders: str | None =
         # load under a loop with a sample's delay, gave 28.6 um [27.9, 29.3] for a true 30
         ni["backlash"] = (f"one rest on each flank: how far the rests scatter is not seen (b = {b * 1e6:.3g} um from "
                           f"a single pair of plateaus); record more reversals with dwells in contact")
+        lo, hi = 0.0, b_max
+    elif encoders == "motor+load" and pos_unmatched is not None:
+        ni["backlash"] = pos_unmatched
         lo, hi = 0.0, b_max
     prior = {names[k]: (max(float(mean[i] - 1.96 * sd[i]), 0.0), float(mean[i] + 1.96 * sd[i]))
              for i, k in enumerate(PARAMS)}
