@@ -20,7 +20,7 @@ import uuid
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from .errors import InputError
 from .limits import available_memory
@@ -448,24 +448,7 @@ class Engine:
             if before is None:
                 self.close()
                 raise _no_answer(self.where, CONNECT_TIMEOUT)
-            try:  # each worker's answer, or its exception: the refusal names the workers at fault
-                # within WORKER_TIMEOUT: a worker stopped or hung (kill -STOP) held the answer back, and the sweep
-                # with it, for good
-                ids = self.client.run(code_id, on_error="return", callback_timeout=WORKER_TIMEOUT)
-            except TimeoutError:
-                after = _scheduler_workers(self.client, CONNECT_TIMEOUT)
-                if after is None:  # the scheduler, not its workers
-                    self.close()
-                    raise _no_answer(self.where, CONNECT_TIMEOUT) from None
-                quiet = _silent_workers(before, after)
-                self.close()
-                raise InputError(f"the workers of {self.where} did not all answer within {WORKER_TIMEOUT:g} s "
-                                 f"(stopped or hung{': ' + ', '.join(quiet) if quiet else ''}): restart them, or "
-                                 f"stop them and run on the others", field="scheduler") from None
-            except Exception as exc:  # the cluster itself, not a worker: say it in one line
-                self.close()
-                raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",
-                                 field="scheduler") from None
+            ids = self._ask_workers(code_id, before)
             broken = {w: v for w, v in ids.items() if isinstance(v, BaseException)}
             if broken:
                 self.close()
@@ -485,12 +468,7 @@ class Engine:
                                  f"restart workers started before an edit", field="scheduler")
             # gearctl's code alone: a worker on another numpy (or SciPy, ...) passed, and its runs differed from a
             # serial run's in their last digits without a word
-            try:
-                stacks = self.client.run(numerics_versions, on_error="return", callback_timeout=WORKER_TIMEOUT)
-            except Exception as exc:  # the same workers answered a moment ago: the cluster itself, in one line
-                self.close()
-                raise InputError(f"the workers of {self.where} did not report their package versions: "
-                                 f"{type(exc).__name__}: {exc}", field="scheduler") from None
+            stacks = self._ask_workers(numerics_versions, before)
             mine = numerics_versions()
             odd = {w: (f"runs {_numerics_differ(v, mine)}" if isinstance(v, dict) else
                        f"could not report its package versions ({type(v).__name__}: {v})")
@@ -501,6 +479,28 @@ class Engine:
                 others = sorted(odd)[1:]
                 more = f" (and the worker{'s' if len(others) > 1 else ''} {', '.join(others)})" if others else ""
                 raise InputError(f"the worker {w} of {self.where} {why}{more}: {_NUMERICS_FIX}", field="scheduler")
+
+    def _ask_workers(self, fn: Callable[[], Any], before: Any) -> dict[str, Any]:
+        """Each worker's answer to ``fn()``, or its exception (the refusals name the workers at fault), within
+        :data:`WORKER_TIMEOUT`: a worker stopped or hung (``kill -STOP``) held the answer back, and the sweep with it,
+        for good. A scheduler that stops answering meanwhile is named as such (``before``: its workers' heartbeats
+        before the question, to name the silent ones)."""
+        try:
+            return cast("dict[str, Any]", self.client.run(fn, on_error="return", callback_timeout=WORKER_TIMEOUT))
+        except TimeoutError:
+            after = _scheduler_workers(self.client, CONNECT_TIMEOUT)
+            if after is None:  # the scheduler, not its workers
+                self.close()
+                raise _no_answer(self.where, CONNECT_TIMEOUT) from None
+            quiet = _silent_workers(before, after)
+            self.close()
+            raise InputError(f"the workers of {self.where} did not all answer within {WORKER_TIMEOUT:g} s "
+                             f"(stopped or hung{': ' + ', '.join(quiet) if quiet else ''}): restart them, or "
+                             f"stop them and run on the others", field="scheduler") from None
+        except Exception as exc:  # the cluster itself, not a worker: say it in one line
+            self.close()
+            raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",
+                             field="scheduler") from None
 
     @property
     def workers(self) -> int:
