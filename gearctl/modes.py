@@ -675,9 +675,10 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
     Returns
     -------
     dict
-        ``phase_margin`` [deg] at the *last* gain crossover (where ``|L|`` falls through 1 for good),
-        ``gain_crossover_hz``; ``gain_margin`` [1] and ``gain_margin_db``: the smallest distance of
-        ``|L|`` from 1 at the phase crossovers (-180 deg) above the gain crossover (``inf`` if none),
+        ``phase_margin`` [deg] at the *last* gain crossover (where ``|L|`` falls through 1 for good), in
+        (-180, 180] (negative: the phase there is below -180 deg), ``gain_crossover_hz``; ``gain_margin`` [1]
+        and ``gain_margin_db``: the smallest distance of ``|L|`` from 1 at the phase crossovers (-180 deg) above
+        the gain crossover (``inf`` if none),
         ``phase_crossover_hz``; ``lower_gain_margin_db``: for conditionally stable loops (type 2: phase
         below -180 deg at low frequency), by how much the gain may *drop* before the low-frequency
         crossover turns unstable (``inf`` if none).
@@ -725,15 +726,16 @@ def loop_margins(loop: Any, omega: Any = None) -> dict[str, float]:
     resp = ct.frequency_response(loop, omega)
     mag = np.squeeze(resp.magnitude)
     ph = np.degrees(np.unwrap(np.squeeze(resp.phase)))
-    # bring the phase to the branch where the high-frequency rigid part sits near -180 deg
     above = np.nonzero((mag[:-1] >= 1.0) & (mag[1:] < 1.0))[0]
     out = {"phase_margin": float("nan"), "gain_crossover_hz": float("nan"), "gain_margin": float("inf"),
            "gain_margin_db": float("inf"), "phase_crossover_hz": float("nan"), "lower_gain_margin_db": float("inf")}
     if above.size == 0:
         return out
     i = above[-1]
-    shift = 360.0 * np.round((ph[i] + 180.0) / 360.0 - 0.5) if ph[i] > 0 or ph[i] < -360 else 0.0
-    ph = ph - shift
+    # bring the phase at the crossover to (-360, 0] deg, so that the phase margin 180 + phase lies in (-180, 180]:
+    # a type-2 loop's phase starts at -180 deg, which the response may give as +180 (rounding of round((ph + 180)
+    # / 360 - 0.5) left a phase in (0, 180) where it was, and K / (s^2 (s / 10 + 1)) read +354.3 deg, not -5.7)
+    ph = ph - 360.0 * np.ceil(ph[i] / 360.0)
     out["phase_margin"] = float(180.0 + ph[i])
     out["gain_crossover_hz"] = float(omega[i] / (2 * math.pi))
     cross = np.nonzero(np.diff(np.sign(ph + 180.0)) != 0)[0]
