@@ -7,12 +7,13 @@ import dataclasses
 from typing import TYPE_CHECKING
 
 from ..controller import Controller
-from ..plant import Plant
+from ..errors import InputError, short_repr
+from ..plant import Plant, check_plant
 
 if TYPE_CHECKING:
     from ..modes import ContactModes
 
-__all__ = ["Controller", "LoopInfo", "loop_info"]
+__all__ = ["Controller", "LoopInfo", "loop_info", "check_loop_info"]
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -51,10 +52,38 @@ class LoopInfo:
 
 
 def loop_info(plant: Plant) -> LoopInfo:
-    """Design-time knowledge of a plant (a pair, or a train through its equivalent pair)."""
+    """Design-time knowledge of a plant (a pair, or a train through its equivalent pair).
+
+    Raises
+    ------
+    InputError
+        If ``plant`` is not a :class:`~gearctl.plant.Plant` (a gear model: build it first).
+    """
+    plant = check_plant(plant)
     eq = plant.equivalent_pair()
     N = eq.gear_ratio
     return LoopInfo(
         plant=eq, nominal=plant, N=N, J_eq=eq.J1 + eq.J2 / N**2, d_eq=eq.d1 + eq.d2 / N**2,
         torque_limit=eq.torque_limit,
     )
+
+
+def check_loop_info(info: object, *, field: str = "info") -> LoopInfo:
+    """``info`` itself if it is a :class:`LoopInfo`; else an :class:`~gearctl.errors.InputError` naming ``field``.
+
+    A plant or a gear model is the usual slip: the message says how to make the design knowledge from it.
+
+    Raises
+    ------
+    InputError
+        If ``info`` is not a :class:`LoopInfo`.
+    """
+    if isinstance(info, LoopInfo):
+        return info
+    if isinstance(info, Plant):
+        hint = "make it from the plant, gearctl.design.loop_info(plant)"
+    elif hasattr(info, "servo") and hasattr(info, "stages"):
+        hint = "make it from the built plant, gearctl.design.loop_info(gearctl.build_plant(model))"
+    else:
+        hint = "expected gearctl.design.loop_info(plant)"
+    raise InputError(f"{field} = {short_repr(info)} is not a LoopInfo: {hint}", field=field)

@@ -22,10 +22,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..controller import ReferenceLike
-from ..errors import InputError
+from ..errors import InputError, short_repr
 from ..files import Binding, Layout, build_dataclass, spec_values
-from ..units import SAMPLE_TIME, check_choice, quantity, validate_fields
-from .base import Controller, LoopInfo
+from ..units import SAMPLE_TIME, check_choice, check_number, quantity, validate_fields
+from .base import Controller, LoopInfo, check_loop_info
 
 if TYPE_CHECKING:
     import control as ct
@@ -181,6 +181,14 @@ def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float =
         scaled to load units, ZOH at ``Ts``): ``gain_margin_db``, ``phase_margin`` [deg],
         ``gain_crossover_hz``.
 
+    Raises
+    ------
+    InputError
+        If ``info`` is not a :class:`~gearctl.design.LoopInfo` (``gearctl.design.loop_info(plant)``), ``Ts`` not a
+        sample period (1e-6..1 s), ``bandwidth_hz`` not in (0, half the sample rate), ``phase_margin_deg`` not in
+        (0, 80) deg or ``integral_ratio`` not in 0..1 (the ranges of a controller file's ``[design]`` table), or
+        the gains for them are out of range on the model's rigid train.
+
     Notes
     -----
     Lead–lag design on ``G(s) = 1 / (N J_eq s^2 + N d_eq s)``: the lead ``(1 + s/z)/(1 + s/p)`` centred
@@ -188,6 +196,14 @@ def design_pid(info: LoopInfo, *, bandwidth_hz: float, phase_margin_deg: float =
     ``omega_i = integral_ratio omega_c``, and the gain that puts ``|L(j omega_c)| = 1``; then written in
     parallel form with the lead pole as derivative filter.
     """
+    info = check_loop_info(info)
+    Ts = SAMPLE_TIME.check("Ts", Ts)
+    spec = {f.name: f.metadata for f in dataclasses.fields(PIDDesign)}
+    bandwidth_hz = check_number("bandwidth_hz", bandwidth_hz, spec["bandwidth_hz"])
+    phase_margin_deg = check_number("phase_margin_deg", phase_margin_deg,
+                                    {**spec["phase_margin_deg"], "low": 0.0, "high": 80.0, "low_open": True,
+                                     "high_open": True})
+    integral_ratio = check_number("integral_ratio", integral_ratio, spec["integral_ratio"])
     if not (0.0 < bandwidth_hz < 0.5 / Ts):
         raise InputError(f"bandwidth_hz = {bandwidth_hz!r} is out of range: expected 0 < value < "
                          f"{0.5 / Ts:g} (half the sample rate) [Hz]", field="bandwidth_hz")
@@ -403,6 +419,12 @@ class PID(Controller):
     rdd_prev : float or None
         The reference acceleration of the last sample [rad/s^2] (None before the first sample).
 
+    Raises
+    ------
+    InputError
+        If ``info`` is not a :class:`~gearctl.design.LoopInfo`, ``gains`` not a :class:`PIDGains`, ``Ts`` not a
+        sample period (1e-6..1 s) or ``feedback`` neither ``"motor"`` nor ``"load"``.
+
     Notes
     -----
     The control law, per sample ``k`` (target ``r``, its speed ``v`` and acceleration ``a_k``; errors in
@@ -436,6 +458,11 @@ class PID(Controller):
     def __init__(self, info: LoopInfo, gains: PIDGains, *, Ts: float = 1e-3, feedback: str = "motor",
                  feedforward: bool = True, friction_feedforward: bool = True, name: str = "pid") -> None:
         super().__init__()
+        info = check_loop_info(info)
+        if not isinstance(gains, PIDGains):
+            raise InputError(f"gains = {short_repr(gains)} is not a PIDGains: expected e.g. "
+                             "gearctl.design.pid.PIDGains(kp=..., ki=..., kd=...) or design_pid(info, ...)[0]",
+                             field="gains")
         if feedback not in ("motor", "load"):
             raise InputError(f"feedback = {feedback!r}: expected 'motor' or 'load'", field="feedback")
         self.info, self.gains, self.Ts, self.feedback, self.feedforward = info, gains, Ts, feedback, feedforward
