@@ -10,7 +10,34 @@ from __future__ import annotations
 import abc
 from typing import Any, Protocol
 
-__all__ = ["Controller", "ReferenceLike"]
+__all__ = ["Controller", "ReferenceLike", "READING_LIMIT", "check_reading"]
+
+#: Readings and reference values beyond it [rad, rad/s, rad/s^2] (or not finite) are a bad input: the exported C
+#: API's ``GEARCTL_INPUT_LIMIT`` (:data:`gearctl.design.mpc.INPUT_LIMIT`).
+READING_LIMIT = 1e12
+
+
+def check_reading(name: str, t: float, value: Any, unit: str = "rad", *, field: str | None = None) -> None:
+    """Raise :class:`~gearctl.errors.InputError` naming ``name`` if ``value`` is not a finite number within
+    :data:`READING_LIMIT` [``unit``] (the PID family's :meth:`Controller.step`: a NaN reading would put NaN in its
+    integrator and filters, and every later torque would be NaN). ``field``: the name the error carries (default
+    ``name``).
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not a real number, not finite, or beyond :data:`READING_LIMIT`.
+    """
+    try:
+        ok = bool(abs(value) <= READING_LIMIT) and not isinstance(value, bool | str)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        from .errors import InputError, short_repr
+
+        raise InputError(f"{name} = {short_repr(value)} at t = {t!r} s: expected a finite number within "
+                         f"{READING_LIMIT:g} [{unit}]; the controller's state is unchanged (the MPC takes such a motor "
+                         "reading as a missed sample, returning 0)", field=field or name)
 
 
 class ReferenceLike(Protocol):
@@ -83,6 +110,14 @@ class Controller(abc.ABC):
             Load encoder reading ``theta2`` [rad], or None without a load encoder.
         ref : Reference
             The load-angle reference (the controller may read it ahead: :attr:`preview`).
+
+        Raises
+        ------
+        InputError
+            The PID family (pid, reversal offset, both inverses): for a ``y_motor``, a ``y_load`` it reads (the
+            adaptive inverse: one given) or a reference value ``(r, r', r'')`` not finite or beyond
+            :data:`READING_LIMIT`, before anything changes (:func:`check_reading`). The MPC takes such a motor
+            reading as a missed sample (torque 0, recorded in :attr:`fallbacks`), a load reading as a missing one.
         """
 
     def describe(self) -> dict[str, Any]:

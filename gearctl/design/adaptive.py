@@ -85,13 +85,14 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..controller import ReferenceLike
+from ..controller import READING_LIMIT, ReferenceLike
 from ..errors import InputError
 from ..files import Layout, build_dataclass, spec_values
 from ..params import Sensors
 from ..units import BACKLASH, BACKLASH_FLOOR, quantity, validate_fields
 from . import deadzone
 from .base import Controller, LoopInfo
+from .pid import check_readings
 
 __all__ = ["AdaptationSettings", "AdaptiveInverse", "KIND", "LAYOUT", "build", "MAX_HISTORY",
            "CONVERGED_MEASUREMENTS"]
@@ -141,6 +142,14 @@ class AdaptationSettings:
         if self.diverged_tolerance < self.converged_tolerance:
             raise InputError(f"diverged_tolerance = {self.diverged_tolerance!r} is out of range: expected at least "
                              f"converged_tolerance = {self.converged_tolerance!r}", field="diverged_tolerance")
+
+
+def _within_limit(value: object) -> bool:
+    """Whether a reading is a finite number within :data:`~gearctl.controller.READING_LIMIT`."""
+    try:
+        return abs(float(value)) <= READING_LIMIT  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
 
 
 class AdaptiveInverse(Controller):
@@ -283,6 +292,14 @@ class AdaptiveInverse(Controller):
         self._flank = f
 
     def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
+        # the inner inverse's checks first (y_load too where it feeds it back), before anything changes; a load
+        # reading read only for the gap that is not finite or beyond the limit is a missing one, as in the exported
+        # API (GEARCTL_STEP_FALLBACK): no gap measured
+        check_readings(self.inner, t, y_motor, y_load, ref.at(t))
+        if y_load is not None and not _within_limit(y_load):
+            self.fallbacks.append({"t": float(t), "reason": "load reading missing (not finite or beyond 1e12 rad): "
+                                                            "no gap measured"})
+            y_load = None
         self._watch_flank()
         if y_load is not None:
             self._observe(t, self._rb1 * y_motor - self._rb2 * float(y_load) - self._u / (self._rb1 * self._k))

@@ -199,7 +199,7 @@ from ..params import Sensors
 from ..plant import Plant
 from ..units import BACKLASH, Spec, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
-from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, pid_from_values, restate
+from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, check_readings, pid_from_values, restate
 
 __all__ = ["DeadzoneInverse", "InverseSettings", "LoadObserver", "OffsetRamp", "RAMPS", "ramp_shape",
            "carried_by_motor", "offset_torque", "CROSSING_TIME", "KIND", "LAYOUT", "build"]
@@ -918,6 +918,7 @@ class DeadzoneInverse(Controller):
         if self.backlash == 0.0:  # no gap to invert: the PID itself
             return self.pid.step(t, y_motor, y_load, ref)
         r, rd, rdd = ref.at(t)
+        check_readings(self, t, y_motor, y_load, (r, rd, rdd))
         self._t = t
         self._watch_rattle(y_motor, rd)
         a = self.pid.reference_update(rd, rdd)  # at mid-sample (see PID)

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..controller import ReferenceLike
+from ..controller import READING_LIMIT, ReferenceLike, check_reading
 from ..errors import InputError, short_repr
 from ..files import Binding, Layout, build_dataclass, spec_values
 from ..units import SAMPLE_TIME, check_choice, check_number, quantity, validate_fields
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 
 __all__ = ["PIDGains", "PIDDesign", "LoopSettings", "PID", "design_pid", "KIND", "LAYOUT", "build",
            "LOOP_KEYS", "PID_TABLES", "pid_from_values", "restate", "gap_loop_stable", "gap_loop_pole",
-           "gap_limited_bandwidth"]
+           "gap_limited_bandwidth", "check_readings"]
 
 #: The controller-file kind this module builds (:mod:`gearctl.design.registry`).
 KIND = "pid"
@@ -125,6 +125,24 @@ class PIDGains:
         kp, kiT, kdT, a = self.discrete(Ts)
         z = ct.tf([1.0, 0.0], [1.0], Ts)
         return ct.tf(kp + kiT / (z - 1) + kdT * (z - 1) / (z - a), inputs="e", outputs=_signal(output), name="pid")
+
+
+def check_readings(controller: Controller, t: float, y_motor: Any, y_load: Any, r: tuple[Any, Any, Any]) -> None:
+    """The PID family's step: ``y_motor``, ``y_load`` if the controller feeds it back, and the reference ``r``
+    (``(r, r', r'')``) are finite numbers within the exported API's limit, else an InputError naming them
+    (:func:`gearctl.controller.check_reading`), before any state changes."""
+    lim = READING_LIMIT
+    try:  # the per-sample path: chained comparisons (a NaN fails them), a fraction of a microsecond
+        if (-lim <= y_motor <= lim and -lim <= r[0] <= lim and -lim <= r[1] <= lim and -lim <= r[2] <= lim
+                and (not controller.uses_load_encoder or -lim <= y_load <= lim)):  # type: ignore[operator]
+            return
+    except (TypeError, ValueError):
+        pass
+    check_reading("y_motor", t, y_motor)
+    if controller.uses_load_encoder:
+        check_reading("y_load", t, y_load)
+    for i, (v, unit) in enumerate(zip(r, ("rad", "rad/s", "rad/s^2"), strict=True)):
+        check_reading(f"ref.at(t)[{i}]", t, v, unit, field="ref")
 
 
 def _signal(name: Any) -> str:
@@ -568,6 +586,7 @@ class PID(Controller):
 
     def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
         r, rd, rdd = ref.at(t)
+        check_readings(self, t, y_motor, y_load, (r, rd, rdd))
         a = self.reference_update(rd, rdd)
         y = y_motor / self.N if self.feedback == "motor" else float(y_load)  # type: ignore[arg-type]
         return self.torque(t, r, rd, a, r - y, y, r - y)

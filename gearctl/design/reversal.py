@@ -58,7 +58,7 @@ from ..files import Layout, build_dataclass, spec_values
 from ..units import BACKLASH, Spec, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
 from .deadzone import RAMPS, OffsetRamp, offset_torque
-from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, pid_from_values, restate
+from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, check_readings, pid_from_values, restate
 
 __all__ = ["ReversalOffset", "ReversalSettings", "KIND", "LAYOUT", "build"]
 
@@ -151,6 +151,7 @@ class ReversalOffset(Controller):
 
     def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
         r, rd, rdd = ref.at(t)
+        check_readings(self, t, y_motor, y_load, (r, rd, rdd))
         if self._r_prev is not None:
             dr = r - self._r_prev
             if abs(dr) > 1e-12:
