@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputError, short_repr
 from .geometry import GearPair, Geometry, check_pair, involute, pair_geometry
-from .units import POINTS, Spec
+from .units import DAMPING_RATIO, MESH_STIFFNESS, POINTS, Spec
 
 __all__ = [
     "COMPONENTS",
@@ -200,7 +200,8 @@ def tooth_deflections(pair: GearPair, theta1: ArrayLike | None = None, *, points
     Raises
     ------
     InputError
-        If ``points`` is not a whole number in range (checked before any work, also when ``theta1`` is given).
+        If ``points`` is not a whole number in range (checked before any work, also when ``theta1`` is given), or
+        ``theta1`` not finite numbers.
 
     References
     ----------
@@ -210,7 +211,7 @@ def tooth_deflections(pair: GearPair, theta1: ArrayLike | None = None, *, points
     geo = pair_geometry(pair)
     if theta1 is None:
         theta1 = np.linspace(0.0, (geo.AD - geo.AC) / geo.base_radius[0], points)
-    th = np.asarray(theta1, dtype=float)
+    th = _angles(theta1)
     z = geo.AC + geo.base_radius[0] * th  # eq 32: alpha_11 = vartheta_1 + AC / r_b1
     a1, a2 = _roll_angles(geo, z)
     d1 = _components(pair, geo, 0, a1)
@@ -219,6 +220,18 @@ def tooth_deflections(pair: GearPair, theta1: ArrayLike | None = None, *, points
     return ToothDeflections(
         theta1=th, gear1=d1, gear2=d2, stiffness1=k1, stiffness2=k2, pair_stiffness=k1 * k2 / (k1 + k2)
     )
+
+
+def _angles(theta1: ArrayLike) -> NDArray[np.float64]:
+    """``theta1`` as a float array, or an InputError naming it if it is not finite numbers."""
+    try:
+        th = np.asarray(theta1, dtype=float)
+    except (TypeError, ValueError):
+        th = None
+    if th is None or not np.all(np.isfinite(th)):
+        raise InputError(f"theta1 = {short_repr(theta1)} is not finite: expected angles of gear 1 from C [rad], "
+                         "finite numbers", field="theta1")
+    return th
 
 
 def _pair_compliance(pair: GearPair, geo: Geometry, z: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -256,14 +269,11 @@ def mesh_stiffness_at(pair: GearPair, theta1: ArrayLike, geo: Geometry | None = 
     load, so the same code covers contact ratios above 2 (three pairs at once) as well as the
     report's double/single-tooth zones. Teeth in series, pairs in parallel (eq 21).
     """
+    if geo is not None and not isinstance(geo, Geometry):
+        raise InputError(f"geo = {short_repr(geo)} is not a Geometry: expected pair_geometry(pair) or None",
+                         field="geo")
     geo = pair_geometry(pair) if geo is None else geo
-    try:
-        th = np.asarray(theta1, dtype=float)
-    except (TypeError, ValueError):
-        th = None
-    if th is None or not np.all(np.isfinite(th)):
-        raise InputError(f"theta1 = {short_repr(theta1)} is not finite: expected angles of gear 1 from C [rad], "
-                         "finite numbers", field="theta1")
+    th = _angles(theta1)
     period = geo.mesh_period_angle
     phase = np.mod(th, period)
     # a whole number of cycles comes back as (period - rounding), not 0: the start of the cycle, where K jumps
@@ -443,11 +453,18 @@ def equivalent_mass(inertia1: float, inertia2: float, rb1: float, rb2: float) ->
     rb1, rb2 : float
         Base radii of the pinion and the gear [m].
 
+    Raises
+    ------
+    InputError
+        If an inertia or a base radius is not a positive finite number (named).
+
     Examples
     --------
     >>> round(equivalent_mass(1.0, 1.0, 1.0, 1.0), 3)
     0.5
     """
+    inertia1, inertia2 = _POSITIVE_INERTIA.check("inertia1", inertia1), _POSITIVE_INERTIA.check("inertia2", inertia2)
+    rb1, rb2 = _POSITIVE_RADIUS.check("rb1", rb1), _POSITIVE_RADIUS.check("rb2", rb2)
     return inertia1 * inertia2 / (inertia2 * rb1**2 + inertia1 * rb2**2)
 
 
@@ -462,6 +479,11 @@ def damping_coefficient(k: float, damping_ratio: float, m_eq: float) -> float:
         Damping ratio zeta of the mesh mode [1].
     m_eq : float
         Equivalent mass along the line of action (:func:`equivalent_mass`) [kg].
+
+    Raises
+    ------
+    InputError
+        If ``k`` is not in (0, 1e13] N/m, ``damping_ratio`` not in 0..2 or ``m_eq`` not a positive finite mass.
 
     Notes
     -----
@@ -487,7 +509,17 @@ def damping_coefficient(k: float, damping_ratio: float, m_eq: float) -> float:
     >>> round(damping_coefficient(1.0e8, 0.05, 0.05), 1)
     223.6
     """
+    k = MESH_STIFFNESS.check("k", k)
+    damping_ratio = DAMPING_RATIO.check("damping_ratio", damping_ratio)
+    m_eq = _MASS.check("m_eq", m_eq)
     return 2.0 * damping_ratio * math.sqrt(k * m_eq)
+
+
+#: An equivalent mass along the line of action (:func:`damping_coefficient`'s ``m_eq``), and what
+#: :func:`equivalent_mass` takes (positive and finite; no upper bound: a gear's own disk may exceed a shaft's range).
+_MASS = Spec(unit="kg", doc="equivalent mass", low=0.0, low_open=True)
+_POSITIVE_INERTIA = Spec(unit="kg m^2", doc="inertia", low=0.0, low_open=True)
+_POSITIVE_RADIUS = Spec(unit="m", doc="base radius", low=0.0, low_open=True)
 
 
 #: Below this share of ISO 6336-1's mesh stiffness, the report's beam (eqs 24-25) is taken as too long (see
@@ -555,6 +587,11 @@ def yang_sun_stiffness(pair: GearPair) -> float:
     pair : GearPair
         The gear data; only its ``young_modulus``, ``poisson_ratio`` and ``face_width`` enter.
 
+    Raises
+    ------
+    InputError
+        If ``pair`` is not a :class:`~gearctl.geometry.GearPair` (a gear model: ``model.pair``).
+
     Examples
     --------
     >>> from gearctl.geometry import GearPair
@@ -563,6 +600,7 @@ def yang_sun_stiffness(pair: GearPair) -> float:
     >>> f"{yang_sun_stiffness(p):.4e}"
     '1.7848e+09'
     """
+    pair = check_pair(pair)
     return math.pi * pair.young_modulus * pair.face_width / (4.0 * (1.0 - pair.poisson_ratio**2))
 
 
@@ -658,11 +696,21 @@ def yang_sun_damping_factor(k: float, impact_velocity: float) -> float:
         as ``V_i -> 0``, so impact speeds below 1 mm/s (grazing contact) are given the factor of a
         1 mm/s impact.
 
+    Raises
+    ------
+    InputError
+        If ``k`` is not in (0, 1e13] N/m or ``impact_velocity`` not a finite number.
+
     Examples
     --------
     >>> f"{yang_sun_damping_factor(1.0e9, 1.0):.3e}"
     '1.340e+08'
     """
+    if not (0.0 < k <= 1e13):  # the per-impact path: comparisons first, the named message only on failure
+        k = MESH_STIFFNESS.check("k", k)
+    if not abs(impact_velocity) < math.inf:
+        raise InputError(f"impact_velocity = {short_repr(impact_velocity)} is not a finite number: expected the "
+                         "relative velocity along the line of action at contact onset [m/s]", field="impact_velocity")
     v = max(abs(impact_velocity), 1e-3)
     e = restitution_coefficient(v)
     return 6.0 * (1.0 - e) / ((2.0 * e - 1.0) ** 2 + 3.0) * k / v
