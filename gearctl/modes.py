@@ -118,7 +118,7 @@ def mode_model(plant: Plant, loaded: Sequence[bool | Mode], *, name: str = "mode
     ------
     InputError
         If ``plant`` is not a Plant, or ``loaded`` has not one entry per stage, each a bool or a mode, or it
-        separates a stage without backlash.
+        separates a stage without backlash, or ``name`` is not a string.
     """
 
     plant = check_plant(plant)
@@ -126,7 +126,17 @@ def mode_model(plant: Plant, loaded: Sequence[bool | Mode], *, name: str = "mode
     states, inputs = signal_names(plant)
     C, D = _outputs(plant, loaded)
     return ct.ss(mode_matrices(plant, loaded), input_matrix(plant), C, D, states=states, inputs=inputs,
-                 outputs=output_names(plant), name=name)
+                 outputs=output_names(plant), name=_system_name(name))
+
+
+def _system_name(name: Any) -> str | None:
+    """``name`` for python-control (a string, or None for its generated name), or an InputError naming it
+    (python-control raised a TypeError from a regex)."""
+    if name is not None and not isinstance(name, str):
+        from .errors import InputError, short_repr
+
+        raise InputError(f"name = {short_repr(name)} is not a system name: expected a string (or None)", field="name")
+    return name
 
 
 def _loaded_flags(plant: Plant, loaded: Any) -> list[bool]:
@@ -241,7 +251,7 @@ def contact_mode_model(plant: Plant, *, name: str = "contact") -> ct.StateSpace:
     Raises
     ------
     InputError
-        If ``plant`` is not a :class:`~gearctl.plant.Plant`.
+        If ``plant`` is not a :class:`~gearctl.plant.Plant`, or ``name`` not a string.
     """
     plant = check_plant(plant)
     return mode_model(plant, [True] * plant.n_stages, name=name)
@@ -269,7 +279,7 @@ def separation_model(plant: Plant, *, name: str = "separation") -> ct.StateSpace
     Raises
     ------
     InputError
-        If ``plant`` is not a :class:`~gearctl.plant.Plant`.
+        If ``plant`` is not a :class:`~gearctl.plant.Plant`, or ``name`` not a string.
     """
     plant = check_plant(plant)
     return mode_model(plant, [b == 0.0 for b in plant.backlashes], name=name)
@@ -298,7 +308,7 @@ def rigid_model(plant: Plant, *, name: str = "rigid") -> ct.StateSpace:
     Raises
     ------
     InputError
-        If ``plant`` is not a :class:`~gearctl.plant.Plant`.
+        If ``plant`` is not a :class:`~gearctl.plant.Plant`, or ``name`` not a string.
     """
     p = check_plant(plant)
     n, w = p.n_stages, len(p.shafts)
@@ -327,7 +337,8 @@ def rigid_model(plant: Plant, *, name: str = "rigid") -> ct.StateSpace:
         Fc, Fd = rc / p.stages[i].rb2, rd / p.stages[i].rb2
         C[2 + n + i], D[2 + n + i] = Fc, Fd
     states = ["theta1", "omega1"] if n == 1 else ["theta0", "omega0"]
-    return ct.ss(A, B, C, D, states=states, inputs=signal_names(p)[1], outputs=output_names(p), name=name)
+    return ct.ss(A, B, C, D, states=states, inputs=signal_names(p)[1], outputs=output_names(p),
+                 name=_system_name(name))
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)

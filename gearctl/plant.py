@@ -943,12 +943,15 @@ def plant_nlsys(plant: Plant, *, name: str | None = None) -> Any:
         ``v_impact1..n`` for a train); inputs motor and load torque [N m]; outputs the states, then ``s``
         and ``force`` (``s1..sn``, ``force1..forcen`` for a train). The update function has
         python-control's ``(t, x, u, params)`` signature; ``params`` may override ``backlash``, ``k`` and
-        ``c`` of a pair. The servo's ``load_torque`` is added to the load torque input.
+        ``c`` of a pair, whose values the system declares (``sys.params``, python-control's defaults). The
+        servo's ``load_torque`` is added to the load torque input.
 
     Raises
     ------
     InputError
-        If ``plant`` is not a :class:`Plant` (a gear model: build it first with :func:`build_plant`).
+        If ``plant`` is not a :class:`Plant` (a gear model: build it first with :func:`build_plant`), or ``name``
+        is not a string (or None). When it is evaluated: a ``params`` value out of its range (named), or
+        ``backlash``, ``k`` or ``c`` given for a train (named ``params``).
 
     Notes
     -----
@@ -964,15 +967,22 @@ def plant_nlsys(plant: Plant, *, name: str | None = None) -> Any:
     import control as ct
 
     p = check_plant(plant)
+    if name is not None and not isinstance(name, str):
+        raise InputError(f"name = {short_repr(name)} is not a system name: expected a string (or None)", field="name")
     n, w = p.n_stages, len(p.shafts)
     ys = p.kind is PlantKind.YANG_SUN
+    # a pair's parameters with their values: python-control's declared defaults (sys.params)
+    declared = {"backlash": p.stages[0].backlash, "k": p.stages[0].k, "c": p.stages[0].c} if n == 1 else {}
     states, inputs = signal_names(p)
     suffix = [""] if n == 1 else [str(i + 1) for i in range(n)]
     if ys:
         states = states + [f"v_impact{sfx}" for sfx in suffix]
 
     def with_params(params: dict[str, Any]) -> Plant:
-        over = {k: params[k] for k in ("backlash", "k", "c") if k in params}
+        if n > 1 and any(k in params for k in ("backlash", "k", "c")):
+            raise InputError(f"params = {short_repr(params)}: backlash, k and c may be overridden on a pair only; "
+                             "this plant is a train (change its stages instead)", field="params")
+        over = {k: params[k] for k in ("backlash", "k", "c") if k in params and params[k] is not declared[k]}
         return dataclasses.replace(p, **over) if over else p
 
     def forces(q: Plant, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int_]]:
@@ -1008,5 +1018,5 @@ def plant_nlsys(plant: Plant, *, name: str | None = None) -> Any:
         return np.concatenate([x[:2 * w], q.gaps(x[:2 * w]), F])
 
     outputs = signal_names(p)[0] + [f"s{sfx}" for sfx in suffix] + [f"force{sfx}" for sfx in suffix]
-    return ct.nlsys(updfcn, outfcn, states=states, inputs=inputs, outputs=outputs,
+    return ct.nlsys(updfcn, outfcn, states=states, inputs=inputs, outputs=outputs, params=declared,
                     name=name or f"gear_{p.kind.value.replace('-', '_')}")
