@@ -20,8 +20,20 @@ READING_LIMIT = 1e12
 def check_reading(name: str, t: float, value: Any, unit: str = "rad", *, field: str | None = None) -> None:
     """Raise :class:`~gearctl.errors.InputError` naming ``name`` if ``value`` is not a finite number within
     :data:`READING_LIMIT` [``unit``] (the PID family's :meth:`Controller.step`: a NaN reading would put NaN in its
-    integrator and filters, and every later torque would be NaN). ``field``: the name the error carries (default
-    ``name``).
+    integrator and filters, and every later torque would be NaN).
+
+    Parameters
+    ----------
+    name : str
+        What the value is, for the message (``y_motor``, ``y_load``, ``ref.at(t)[1]``).
+    t : float
+        Sample time [s], for the message.
+    value : float
+        The reading or reference value.
+    unit : str
+        Its unit, for the message.
+    field : str, optional
+        The name the error carries (default ``name``).
 
     Raises
     ------

@@ -185,6 +185,11 @@ class MeshBacklash(ct.DescribingFunctionNonlinearity):
     def describing_function(self, A: float) -> float:
         """Return the describing function of the static spring, ``k eta(A)`` [N/m] (real).
 
+        Parameters
+        ----------
+        A : float
+            Amplitude of ``s`` [m].
+
         Raises
         ------
         ValueError

@@ -571,6 +571,11 @@ class ContactModes:
     def poles(self, name: str) -> np.ndarray:
         """Poles of :meth:`mode` ``(name)`` [rad/s], the rigid bodies' exactly (:func:`mode_poles`).
 
+        Parameters
+        ----------
+        name : str
+            As :meth:`mode` takes it.
+
         Raises
         ------
         InputError
@@ -589,6 +594,11 @@ class ContactModes:
     def mode(self, name: str) -> ct.StateSpace:
         """The model of ``"contact"``, ``"separation"``, ``"rigid"`` or, on a train, ``"stageK"`` (stage K separated,
         the others in contact: ``stage_separated[K - 1]``), the names ``gearctl linearize --mode`` takes.
+
+        Parameters
+        ----------
+        name : str
+            ``"contact"``, ``"separation"``, ``"rigid"`` or ``"stageK"``.
 
         Raises
         ------

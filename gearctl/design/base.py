@@ -54,6 +54,15 @@ class LoopInfo:
 def loop_info(plant: Plant) -> LoopInfo:
     """Design-time knowledge of a plant (a pair, or a train through its equivalent pair).
 
+    Parameters
+    ----------
+    plant : Plant
+        The nominal plant, from :func:`~gearctl.plant.build_plant`.
+
+    Returns
+    -------
+    LoopInfo
+
     Raises
     ------
     InputError
@@ -72,6 +81,13 @@ def check_loop_info(info: object, *, field: str = "info") -> LoopInfo:
     """``info`` itself if it is a :class:`LoopInfo`; else an :class:`~gearctl.errors.InputError` naming ``field``.
 
     A plant or a gear model is the usual slip: the message says how to make the design knowledge from it.
+
+    Parameters
+    ----------
+    info : LoopInfo
+        What to check.
+    field : str
+        The argument's name, for the message.
 
     Raises
     ------

@@ -571,6 +571,9 @@ class DeadzoneInverse(Controller):
         the model's known load torque alone).
     disturbance_threshold : float
         Estimated load torque beyond the static friction that enters the flank decision [N m].
+    jump_floor : float
+        Least threshold of the rattle guard on the motor speed's change over a sample [rad/s] (default 0: the
+        backlash sets it; the catalog build sets it from the encoders, :func:`jump_floor`).
     name : str
         Label.
 

@@ -45,7 +45,21 @@ INTEGRAL_BOUND = 2.0
 class PIDGains:
     """Parallel PID ``C(s) = kp + ki / s + kd s / (1 + s / (2 pi f_d))`` on the load-angle error.
 
-    Units: ``kp`` [N m/rad], ``ki`` [N m/(rad s)], ``kd`` [N m s/rad], ``derivative_filter_hz`` [Hz].
+    Parameters
+    ----------
+    kp : float
+        Proportional gain, 0..1e9 [N m/rad].
+    ki : float
+        Integral gain, 0..1e12 [N m/(rad s)] (default 0).
+    kd : float
+        Derivative gain, 0..1e9 [N m s/rad] (default 0).
+    derivative_filter_hz : float
+        Derivative filter corner ``f_d``, (0, 1e6] [Hz] (default 1000).
+
+    Raises
+    ------
+    InputError
+        For a gain out of its range (named).
     """
 
     kp: float = quantity(unit="N m/rad", doc="proportional gain", low=0.0, high=1e9)
@@ -61,9 +75,18 @@ class PIDGains:
     def tf(self, *, output: str = "xi1") -> ct.TransferFunction:
         """The continuous PID as a transfer function (error [rad] to torque [N m]), input ``e``, output ``output``.
 
-        ``output``: the name of the motor torque, ``xi1`` as a pair's mode models name it (``ct.interconnect``
-        connects them by name); a train's mode models name it ``xi0`` (their first input,
-        ``linearize_modes(plant).contact.input_labels[0]``): with ``xi1`` the PID's output is left unconnected there.
+        Parameters
+        ----------
+        output : str
+            The name of the motor torque, ``xi1`` as a pair's mode models name it (``ct.interconnect``
+            connects them by name); a train's mode models name it ``xi0`` (their first input,
+            ``linearize_modes(plant).contact.input_labels[0]``): with ``xi1`` the PID's output is left unconnected
+            there.
+
+        Raises
+        ------
+        InputError
+            If ``output`` is not a non-empty string.
         """
         import control as ct
 
@@ -130,7 +153,24 @@ class PIDGains:
 def check_readings(controller: Controller, t: float, y_motor: Any, y_load: Any, r: tuple[Any, Any, Any]) -> None:
     """The PID family's step: ``y_motor``, ``y_load`` if the controller feeds it back, and the reference ``r``
     (``(r, r', r'')``) are finite numbers within the exported API's limit, else an InputError naming them
-    (:func:`gearctl.controller.check_reading`), before any state changes."""
+    (:func:`gearctl.controller.check_reading`), before any state changes.
+
+    Parameters
+    ----------
+    controller : Controller
+        The controller stepping (its ``uses_load_encoder`` says whether ``y_load`` is read).
+    t : float
+        Sample time [s] (for the message).
+    y_motor, y_load : float
+        The encoder readings [rad].
+    r : tuple of float
+        ``(r, r', r'')`` of the reference at ``t`` [rad, rad/s, rad/s^2].
+
+    Raises
+    ------
+    InputError
+        Naming the first value that is not a finite number within the limit (``y_motor``, ``y_load``, ``ref``).
+    """
     lim = READING_LIMIT
     try:  # the per-sample path: chained comparisons (a NaN fails them), a fraction of a microsecond
         if (-lim <= y_motor <= lim and -lim <= r[0] <= lim and -lim <= r[1] <= lim and -lim <= r[2] <= lim
@@ -158,6 +198,18 @@ class PIDDesign:
     """What a PID is designed for (the ``[design]`` table): crossover, phase margin, integral zero.
 
     The crossover must also lie below half the sample rate (checked by :func:`design_pid`).
+
+    Parameters
+    ----------
+    bandwidth_hz : float
+        Open-loop crossover, (0, 1e6] [Hz] (default 20).
+    phase_margin_deg : float
+        Phase margin, 1..79 [deg] (default 50).
+    integral_ratio : float
+        Integral zero over the crossover, 0..1 [1] (default 0.1).
+    gap_gain_margin_db : float
+        Gain margin the motor alone keeps under a motor-side PID when the load lets go in the gap, 0..40 [dB]
+        (default 6; 0: not checked).
     """
 
     bandwidth_hz: float = quantity(unit="Hz", doc="open-loop crossover", low=0.0, low_open=True, high=1e6,
@@ -469,7 +521,7 @@ class PID(Controller):
 
     Without ``feedforward`` the law is the textbook one (``u_ff = 0``, ``a_m`` unused), whose sampled
     transfer function :meth:`PIDGains.sampled_tf` states. A wrapper (the dead-zone inverse, the
-    reversal offset) calls :meth:`reference_acceleration` once per sample and :meth:`torque` with its own
+    reversal offset) calls :meth:`reference_update` once per sample and :meth:`torque` with its own
     target and, where the model is not the rigid train, its own feedforward and feedback scale.
     """
 
@@ -511,10 +563,21 @@ class PID(Controller):
     def reference_update(self, rd: float, rdd: float) -> float:
         """Per-sample bookkeeping of the reference (call once per sample, before :meth:`torque`).
 
-        Returns the acceleration to feed forward: ``rdd`` extrapolated to the middle of the sample the torque
-        is held over, from this sample's and the last one's [rad/s^2]. When a move starts (``r'`` leaves 0)
-        with friction feedforward, releases what the integrator took on at rest against static friction (see
-        Notes of :class:`PID`).
+        Parameters
+        ----------
+        rd, rdd : float
+            The reference's speed [rad/s] and acceleration [rad/s^2] at this sample.
+
+        Returns
+        -------
+        float
+            The acceleration to feed forward: ``rdd`` extrapolated to the middle of the sample the torque
+            is held over, from this sample's and the last one's [rad/s^2].
+
+        Notes
+        -----
+        When a move starts (``r'`` leaves 0) with friction feedforward, it releases what the integrator took on at
+        rest against static friction (see Notes of :class:`PID`).
         """
         prev = self.rdd_prev if self.rdd_prev is not None else rdd
         self.rdd_prev = rdd
@@ -530,7 +593,15 @@ class PID(Controller):
 
     def feedforward_torque(self, v: float, a: float) -> float:
         """The rigid train's torque at the motor for the target speed ``v`` and acceleration ``a`` [N m]:
-        ``N (J_eq a + d_eq v) + (T_c1 + T_c2 / N) sign(v) - load_torque / N`` (0 without feedforward)."""
+        ``N (J_eq a + d_eq v) + (T_c1 + T_c2 / N) sign(v) - load_torque / N`` (0 without feedforward).
+
+        Parameters
+        ----------
+        v : float
+            Target speed of the load [rad/s].
+        a : float
+            Target acceleration of the load [rad/s^2].
+        """
         if not self.feedforward:
             return 0.0
         info = self.info
@@ -549,7 +620,7 @@ class PID(Controller):
             Sample time [s].
         r, v, a : float
             The target [rad], its speed [rad/s] and the acceleration to feed forward [rad/s^2] (from
-            :meth:`reference_acceleration`, plus the wrapper's own terms).
+            :meth:`reference_update`, plus the wrapper's own terms).
         e_p, y_p, e_i : float
             Proportional error, the signal differentiated, integral error, in load-angle units [rad].
         ff : float, optional
