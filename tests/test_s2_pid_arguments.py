@@ -7,7 +7,10 @@ import pytest
 import gearctl
 from gearctl import InputError
 from gearctl.design import loop_info
+from gearctl.design.deadzone import DeadzoneInverse
+from gearctl.design.mpc import MPC
 from gearctl.design.pid import PID, PIDGains, design_pid
+from gearctl.design.reversal import ReversalOffset
 
 
 @pytest.fixture(scope="module")
@@ -66,3 +69,25 @@ def test_loop_info_names_a_gear_model() -> None:
     with pytest.raises(InputError, match=r"^plant = .* is not a Plant: build it first") as err:
         loop_info(gearctl.load_model("shing1993_servo"))
     assert err.value.field == "plant"
+
+
+@pytest.mark.parametrize(("build", "field"), [
+    # the wrappers took anything for their PID: AttributeError 'str' object has no attribute 'info' / 'Ts'
+    (lambda info, pid: DeadzoneInverse("pid", backlash=5e-5), "pid"),
+    (lambda info, pid: DeadzoneInverse(pid.gains, backlash=5e-5), "pid"),
+    (lambda info, pid: ReversalOffset(None, backlash=5e-5), "pid"),
+    # a negative rattle-guard floor was taken without a word
+    (lambda info, pid: DeadzoneInverse(pid, backlash=5e-5, jump_floor=-1.0), "jump_floor"),
+    # the MPC: AttributeError 'Plant' object has no attribute 'plant' / 'dict' object has no attribute 'backlash'
+    (lambda info, pid: MPC(info.plant), "info"),
+    (lambda info, pid: MPC(info, {"horizon": 10}), "settings"),
+    # a string flag was truthy: feedforward="no" ran with feedforward
+    (lambda info, pid: PID(info, pid.gains, feedforward="no"), "feedforward"),
+    (lambda info, pid: PID(info, pid.gains, friction_feedforward="off"), "friction_feedforward"),
+])
+def test_controllers_built_in_python_name_a_bad_argument(servo, build, field) -> None:  # noqa: ANN001
+    info = loop_info(servo)
+    pid = PID(info, design_pid(info, bandwidth_hz=20.0)[0])
+    with pytest.raises(InputError, match=rf"^{field} = ") as err:
+        build(info, pid)
+    assert err.value.field == field

@@ -591,7 +591,11 @@ class DeadzoneInverse(Controller):
                  crossing_time: float = 0.01, observer_hz: float = 5.0, disturbance_threshold: float | None = None,
                  jump_floor: float = 0.0, name: str = "deadzone_inverse") -> None:
         super().__init__()
+        _check_pid(pid)
         check_choice("rule", rule, ("torque", "velocity"))
+        if isinstance(jump_floor, bool) or not (isinstance(jump_floor, int | float) and 0.0 <= jump_floor < math.inf):
+            raise InputError(f"jump_floor = {jump_floor!r} is out of range: expected a finite number >= 0 [rad/s]",
+                             field="jump_floor")
         BACKLASH.check("backlash", backlash)
         self.pid, self.backlash, self.rule, self.name = pid, backlash, rule, name
         # the torque rule's defaults follow the torque the load itself needs: the benchmark servo's 5e-4 and 0.02 N m,
@@ -1136,6 +1140,13 @@ class DeadzoneInverse(Controller):
 #: The keys of a ``deadzone_inverse`` controller file and the settings fields they feed.
 LAYOUT: Layout = {"": {**LOOP_KEYS, **{f.name: (InverseSettings, f.name) for f in dataclasses.fields(InverseSettings)}},
                   **PID_TABLES}
+
+
+def _check_pid(pid: object) -> None:
+    """The wrapped controller of the inverse and the reversal offset: a :class:`~gearctl.design.pid.PID`."""
+    if not isinstance(pid, PID):
+        raise InputError(f"pid = {pid!r} is not a PID: expected gearctl.design.pid.PID(info, gains, ...) (for gains "
+                         "alone: PID(gearctl.design.loop_info(plant), gains))", field="pid")
 
 
 def jump_floor(sensors: Sensors | None, Ts: float) -> float:

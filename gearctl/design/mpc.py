@@ -396,7 +396,7 @@ from ..limits import MAX_OUTPUT_BYTES, available_memory
 from ..params import FrictionLaw, Sensors
 from ..plant import Plant, input_matrix, mode_matrices
 from ..units import BACKLASH, check_choice, quantity, validate_fields
-from .base import Controller, LoopInfo
+from .base import Controller, LoopInfo, check_loop_info
 from .mpc_solvers import SOLVERS, _make_qp, _plugin_loads, installed_solvers
 
 __all__ = ["MPC", "MPCSettings", "build_mpc", "SOLVERS", "installed_solvers", "KIND", "LAYOUT"]
@@ -1041,6 +1041,11 @@ class MPC(Controller):
                  load_std: float | None = None, scaled_smoothing: bool = False,
                  progress: Callable[[float], Any] | None = None) -> None:
         super().__init__()
+        info = check_loop_info(info)
+        if settings is not None and not isinstance(settings, MPCSettings):
+            raise InputError(f"settings = {settings!r} is not an MPCSettings: expected "
+                             "gearctl.design.mpc.MPCSettings(horizon=..., ...) or None (the defaults)",
+                             field="settings")
         st = settings if settings is not None else MPCSettings()
         # None: the design plant's (see MPCSettings.backlash)
         backlash: float = info.plant.backlash if st.backlash is None else st.backlash

@@ -493,7 +493,8 @@ class PID(Controller):
     ------
     InputError
         If ``info`` is not a :class:`~gearctl.design.LoopInfo`, ``gains`` not a :class:`PIDGains`, ``Ts`` not a
-        sample period (1e-6..1 s) or ``feedback`` neither ``"motor"`` nor ``"load"``.
+        sample period (1e-6..1 s), ``feedback`` neither ``"motor"`` nor ``"load"``, or ``feedforward`` or
+        ``friction_feedforward`` not a bool.
 
     Notes
     -----
@@ -535,6 +536,9 @@ class PID(Controller):
                              field="gains")
         if feedback not in ("motor", "load"):
             raise InputError(f"feedback = {feedback!r}: expected 'motor' or 'load'", field="feedback")
+        for flag, value in (("feedforward", feedforward), ("friction_feedforward", friction_feedforward)):
+            if not isinstance(value, bool | np.bool_):  # a string such as "no" would read as True
+                raise InputError(f"{flag} = {value!r} is not a bool: expected True or False", field=flag)
         self.info, self.gains, self.Ts, self.feedback, self.feedforward = info, gains, Ts, feedback, feedforward
         self.friction_feedforward = bool(friction_feedforward)
         self.name = name

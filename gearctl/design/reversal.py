@@ -57,7 +57,7 @@ from ..errors import InputError
 from ..files import Layout, build_dataclass, spec_values
 from ..units import BACKLASH, Spec, check_choice, quantity, validate_fields
 from .base import Controller, LoopInfo
-from .deadzone import RAMPS, OffsetRamp, offset_torque
+from .deadzone import RAMPS, OffsetRamp, _check_pid, offset_torque
 from .pid import LOOP_KEYS, PID, PID_TABLES, LoopSettings, check_readings, pid_from_values, restate
 
 __all__ = ["ReversalOffset", "ReversalSettings", "KIND", "LAYOUT", "build"]
@@ -122,6 +122,7 @@ class ReversalOffset(Controller):
     def __init__(self, pid: PID, *, backlash: float, take_up_time: float = DEFAULT_TAKE_UP_TIME,
                  ramp: str = "sin2", gain: float = 1.0, name: str = "reversal_offset") -> None:
         super().__init__()
+        _check_pid(pid)
         BACKLASH.check("backlash", backlash)
         check_choice("ramp", ramp, RAMPS)
         TAKE_UP_TIME.check("take_up_time", take_up_time)
