@@ -174,7 +174,7 @@ def check_readings(controller: Controller, t: float, y_motor: Any, y_load: Any, 
     lim = READING_LIMIT
     try:  # the per-sample path: chained comparisons (a NaN fails them), a fraction of a microsecond
         if (-lim <= y_motor <= lim and -lim <= r[0] <= lim and -lim <= r[1] <= lim and -lim <= r[2] <= lim
-                and (not controller.uses_load_encoder or -lim <= y_load <= lim)):  # type: ignore[operator]
+                and (not controller.uses_load_encoder or -lim <= y_load <= lim)):
             return
     except (TypeError, ValueError):
         pass
