@@ -294,14 +294,17 @@ def check_run(run: Any) -> Run:
 
 
 @overload
-def execute(run: Run, *, keep: Literal[False] = ...) -> RunResult: ...
+def execute(run: Run, *, keep: Literal[False] = ..., progress: Callable[[float], Any] | None = None) -> RunResult: ...
 @overload
-def execute(run: Run, *, keep: Literal[True]) -> tuple[RunResult, ClosedLoopResult | None]: ...
+def execute(run: Run, *, keep: Literal[True], progress: Callable[[float], Any] | None = None,
+            ) -> tuple[RunResult, ClosedLoopResult | None]: ...
 @overload
-def execute(run: Run, *, keep: bool) -> RunResult | tuple[RunResult, ClosedLoopResult | None]: ...
+def execute(run: Run, *, keep: bool, progress: Callable[[float], Any] | None = None,
+            ) -> RunResult | tuple[RunResult, ClosedLoopResult | None]: ...
 
 
-def execute(run: Run, *, keep: bool = False) -> RunResult | tuple[RunResult, ClosedLoopResult | None]:
+def execute(run: Run, *, keep: bool = False, progress: Callable[[float], Any] | None = None,
+            ) -> RunResult | tuple[RunResult, ClosedLoopResult | None]:
     """Run one closed loop; a failure is a result too, never an exception.
 
     Parameters
@@ -309,6 +312,8 @@ def execute(run: Run, *, keep: bool = False) -> RunResult | tuple[RunResult, Clo
     run : Run
     keep : bool
         Also return the whole :class:`ClosedLoopResult` (None for a run that failed before it started).
+    progress : callable, optional
+        Called with the fraction of the closed loop done (``simulate_closed_loop``'s ``progress``).
 
     Returns
     -------
@@ -326,22 +331,25 @@ def execute(run: Run, *, keep: bool = False) -> RunResult | tuple[RunResult, Clo
         out = RunResult(run=run, ok=False, message=str(exc), metrics=None, controller={}, trace_t=np.zeros(0),
                         trace_error=np.zeros(0))
         return (out, None) if keep else out
-    return execute_controller(run, ctrl, keep=keep)
+    return execute_controller(run, ctrl, keep=keep, progress=progress)
 
 
 @overload
 def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,
-                       keep: Literal[False] = ...) -> RunResult: ...
+                       keep: Literal[False] = ..., progress: Callable[[float], Any] | None = None) -> RunResult: ...
 @overload
 def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,
-                       keep: Literal[True]) -> tuple[RunResult, ClosedLoopResult | None]: ...
+                       keep: Literal[True], progress: Callable[[float], Any] | None = None,
+                       ) -> tuple[RunResult, ClosedLoopResult | None]: ...
 @overload
 def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,
-                       keep: bool) -> RunResult | tuple[RunResult, ClosedLoopResult | None]: ...
+                       keep: bool, progress: Callable[[float], Any] | None = None,
+                       ) -> RunResult | tuple[RunResult, ClosedLoopResult | None]: ...
 
 
 def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., ClosedLoopResult] | None = None,
-                       keep: bool = False) -> RunResult | tuple[RunResult, ClosedLoopResult | None]:
+                       keep: bool = False, progress: Callable[[float], Any] | None = None,
+                       ) -> RunResult | tuple[RunResult, ClosedLoopResult | None]:
     """:func:`execute` with the controller given (designed, compiled or exported) and, optionally, the loop.
 
     Parameters
@@ -354,11 +362,14 @@ def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., Cl
         :func:`gearctl.closedloop.simulate_closed_loop`; the compiled batch loop passes its own).
     keep : bool
         Also return the whole :class:`ClosedLoopResult`.
+    progress : callable, optional
+        Passed to ``simulate`` as ``progress=`` (when given): called with the fraction done.
     """
     ctrl.realtime = run.realtime
+    extra = {} if progress is None else {"progress": progress}
     try:
         res = (simulate or simulate_closed_loop)(run.plant, ctrl, run.reference, run.duration, sensors=run.sensors,
-                                                 seed=run.seed)
+                                                 seed=run.seed, **extra)
         ok, message = True, "ok"
     except GearctlError as exc:
         part = getattr(exc, "result", None)

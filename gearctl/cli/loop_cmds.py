@@ -91,13 +91,13 @@ def _cmd_track(args: argparse.Namespace) -> int:
     if args.exported is None:  # the design first, with its own bar: an MPC's long horizon takes minutes
         with progress_bar("gearctl track: design", expected_s=None) as bar, contextlib.suppress(GearctlError):
             design_controller(run.design, progress=bar)  # (a design that fails is reported by execute)
-    with progress_bar("gearctl track", expected_s=run.duration * 0.02):
+    with progress_bar("gearctl track", expected_s=run.duration * 0.02) as bar:  # (it stood at 0 % when not passed)
         if args.exported is None:
-            out, res = execute(run, keep=True)
+            out, res = execute(run, keep=True, progress=bar if bar.bar else None)
         else:  # software in the loop: the folder's C in place of the Python controller, the same closed loop
             from ..export.sil import execute_exported, exported_notes
 
-            out, res = execute_exported(run, args.exported, keep=True)
+            out, res = execute_exported(run, args.exported, keep=True, progress=bar if bar.bar else None)
             warn("track", exported_notes(args.exported, run.tags["model"], args.backlash), kind="note")
     if res is None or out.metrics is None:
         raise InputError(out.message)
@@ -183,8 +183,10 @@ def _cmd_precision(args: argparse.Namespace) -> int:
         ctrl = load_controller(args.controller, nominal, backlash=args.estimate, sensors=model.sensors, progress=bar)
     TARGETS.check("targets", args.targets)
     CYCLES.check("cycles", args.cycles)
-    res = precision_test(plant, ctrl, targets=args.targets, cycles=args.cycles, travel=args.travel,
-                         dwell=args.dwell, sensors=true_model.sensors, seed=args.seed)
+    with progress_bar("gearctl precision", expected_s=None) as bar:  # shown once the run has taken 2 s
+        res = precision_test(plant, ctrl, targets=args.targets, cycles=args.cycles, travel=args.travel,
+                             dwell=args.dwell, sensors=true_model.sensors, seed=args.seed,
+                             progress=bar if bar.bar else None)
     st = res.stats
     health = precision_health(res, plant.lost_motion, args.travel)
     out = {

@@ -14,6 +14,7 @@ import ctypes
 import json
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -227,7 +228,8 @@ def load_exported(folder: str | Path) -> ExportedController:
     return ExportedController(lib, man, Path(folder))
 
 
-def execute_exported(run: Any, folder: str | Path, *, keep: bool = False) -> Any:
+def execute_exported(run: Any, folder: str | Path, *, keep: bool = False,
+                     progress: Callable[[float], Any] | None = None) -> Any:
     """:func:`gearctl.runs.execute` with an exported folder's C in place of the run's Python controller.
 
     The run's plant, reference, duration, seed and sensors are used; its design names the controller the
@@ -240,6 +242,8 @@ def execute_exported(run: Any, folder: str | Path, *, keep: bool = False) -> Any
         A folder written by ``gearctl export``.
     keep : bool
         Also return the :class:`~gearctl.closedloop.ClosedLoopResult` (None if the run failed before it started).
+    progress : callable, optional
+        Called with the fraction of the closed loop done.
 
     Returns
     -------
@@ -266,4 +270,4 @@ def execute_exported(run: Any, folder: str | Path, *, keep: bool = False) -> Any
         raise InputError(f"{folder} holds a controller exported for gear ratio {float(ratio):.10g} (model "
                          f"{ctrl.manifest.get('model')!r}); this plant's ratio is {run.plant.gear_ratio:.10g}: export "
                          f"it for this model", field="exported")
-    return execute_controller(run, ctrl, keep=keep)
+    return execute_controller(run, ctrl, keep=keep, progress=progress)
