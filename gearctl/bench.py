@@ -22,12 +22,13 @@ from typing import Any, TypedDict
 import numpy as np
 
 from .catalog import controller_names, load_model, resolve
+from .closedloop import loop_bytes
 from .errors import GearctlError, InputError
 from .kernel import compiled_available
 from .parallel import check_one_cluster, map_tasks
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, reference
-from .runs import Design, Run, controller_spec, design_controller, execute, unholdable_load_step
+from .runs import Design, Run, controller_spec, design_controller, execute, run_sample_time, unholdable_load_step
 from .units import DURATION, SEED
 
 __all__ = ["BenchSpec", "run_bench", "bench_table", "bench_notes", "bench_warnings", "grouped_warnings",
@@ -278,7 +279,10 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     compiled_available()  # compile the kernel once before the workers start
     tasks: list[tuple[Callable[[Any], dict[str, Any]], Any]] = [(_row, r) for r in runs]
     tasks += [(_precision_row, j) for j in iso]
-    results = map_tasks(_task, tasks, workers=jobs, scheduler=scheduler, progress=progress, name="gearctl-bench")
+    # each local worker holds one run at once: the largest, at its controller file's sample time
+    task_bytes = max((loop_bytes(r.plant, r.duration, run_sample_time(r)) for r in runs), default=0)
+    results = map_tasks(_task, tasks, workers=jobs, scheduler=scheduler, progress=progress, name="gearctl-bench",
+                        task_bytes=task_bytes)
     rows = [r for r in results[:len(runs)] if r is not None]
     rows.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
     iso_rows = [r for r in results[len(runs):] if r is not None]

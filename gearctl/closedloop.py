@@ -175,6 +175,13 @@ def check_loop_memory(plant: Plant, duration: float, Ts: float = DEFAULT_TS, *, 
     check_output_size(int(round(duration / Ts)) + 1, -(-per // 8), field=field, fix=fix, what="the closed loop")
 
 
+def loop_bytes(plant: Plant, duration: float, Ts: float = DEFAULT_TS) -> int:
+    """Memory a closed loop of ``duration`` [s] sampled every ``Ts`` [s] takes while it runs [bytes]: what
+    :func:`check_loop_memory` weighs (a local cluster's workers each hold one such run at once)."""
+    per = LOOP_SAMPLE_BYTES + LOOP_STATE_BYTES * plant.nx
+    return 8 * (int(round(duration / Ts)) + 1) * -(-per // 8)
+
+
 #: Memory a closed-loop sample takes while the run lasts [bytes]: a fixed part and a part per state (see
 #: loop_samples): 736 B for a pair, 832 B for a three-stage train, against 488-600 B and 705-718 B measured
 #: (tracemalloc's peak over 1e5 samples, PID, inverse and MPC).

@@ -239,11 +239,13 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
 WORKER_BYTES = 200_000_000
 
 
-def check_local_workers(workers: int) -> None:
+def check_local_workers(workers: int, task_bytes: int = 0) -> None:
     """Refuse a local cluster whose worker processes would not fit in half the available memory.
 
     ``gearctl sweep --workers 1000`` (in its range, 1..1024) started a thousand processes on a two-core machine
-    with 23 GB, until the kernel's out-of-memory killer ended processes of the whole machine.
+    with 23 GB, until the kernel's out-of-memory killer ended processes of the whole machine. Each worker also
+    holds the run it is running: ``task_bytes``, the largest task's memory (``bench --jobs 8 --duration 5000``
+    passed with each run's 3.7 GB under the one-run cap, 30 GB at once).
 
     Raises
     ------
@@ -251,12 +253,18 @@ def check_local_workers(workers: int) -> None:
         With the figure and the most workers that fit (``error.field``: ``workers``).
     """
     avail = available_memory()
-    if avail is None or workers * WORKER_BYTES <= avail / 2:
+    each = WORKER_BYTES + max(0, int(task_bytes))
+    if avail is None or workers * each <= avail / 2:
         return
-    most = max(1, int(avail / 2 // WORKER_BYTES))
+    most = int(avail / 2 // each)
+    what = (f"{WORKER_BYTES / 1e9:g} GB each" if task_bytes <= 0 else
+            f"{WORKER_BYTES / 1e9:g} GB each and {task_bytes / 1e9:.3g} GB for the run each holds at once")
+    ask = (f"at most {most} (--workers / --jobs)" if most >= 1 else "fewer workers (--workers / --jobs)")
+    if task_bytes > 0:
+        ask += " or shorter runs (--duration)"
     raise InputError(f"workers = {workers}: {workers} local worker processes would take about "
-                     f"{workers * WORKER_BYTES / 1e9:.3g} GB ({WORKER_BYTES / 1e9:g} GB each), more than half the "
-                     f"{avail / 1e9:.3g} GB available; ask for at most {most} (--workers / --jobs)", field="workers")
+                     f"{workers * each / 1e9:.3g} GB ({what}), more than half the {avail / 1e9:.3g} GB available; "
+                     f"ask for {ask}", field="workers")
 
 
 def local_cluster(workers: int) -> Any:
@@ -378,9 +386,13 @@ class Engine:
         address is checked first (:func:`probe_scheduler`), and its workers must run this gearctl
         (:func:`code_id`) on this process's Python, numpy, SciPy, python-control and CasADi, its kernel
         compiled alike (:func:`numerics_versions`).
+    task_bytes : int
+        Memory one task holds while it runs [bytes]: a local cluster of ``workers`` processes must fit them all
+        at once (:func:`check_local_workers`).
     """
 
-    def __init__(self, *, workers: int | None = None, scheduler: str | None = None, client: Any = None) -> None:
+    def __init__(self, *, workers: int | None = None, scheduler: str | None = None, client: Any = None,
+                 task_bytes: int = 0) -> None:
         import distributed
 
         check_one_cluster(client, scheduler)
@@ -420,7 +432,7 @@ class Engine:
             from .kernel import compiled_available
 
             n = workers or default_workers()
-            check_local_workers(n)
+            check_local_workers(n, task_bytes)
             compiled_available()  # compile the kernel once, before the workers start
             self.cluster = local_cluster(n)
             self.client = distributed.Client(self.cluster, set_as_default=False)
@@ -776,7 +788,7 @@ def local_processes(tasks: int, workers: int | None = None) -> int:
 
 def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | None = None,
               scheduler: str | None = None, progress: Callable[[int, int], Any] | None = None,
-              name: str = "gearctl") -> list[Any]:
+              name: str = "gearctl", task_bytes: int = 0) -> list[Any]:
     """``[fn(x) for x in items]``, in parallel on Dask; in this process when one worker would do.
 
     Parameters
@@ -791,6 +803,8 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
         ``progress(done, total)`` as tasks finish.
     name : str
         Prefix of the Dask task keys (shown on the dashboard).
+    task_bytes : int
+        Memory of the largest task while it runs [bytes] (see :class:`Engine`).
 
     Returns
     -------
@@ -812,7 +826,7 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     from distributed import KilledWorker
 
     results: list[Any] = [None] * n
-    with Engine(workers=local_processes(n, workers), scheduler=scheduler) as eng:
+    with Engine(workers=local_processes(n, workers), scheduler=scheduler, task_bytes=task_bytes) as eng:
         tag = uuid.uuid4().hex[:12]
         mine, stack = code_id(), numerics_versions()
         futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False, numerics=stack): k

@@ -19,7 +19,7 @@ from typing import Any, Literal, overload
 import numpy as np
 
 from .catalog import load_model, read_toml, resolve
-from .closedloop import ClosedLoopResult, simulate_closed_loop
+from .closedloop import DEFAULT_TS, ClosedLoopResult, simulate_closed_loop
 from .controller import Controller
 from .design.registry import build_controller
 from .errors import GearctlError, InputError, short_repr
@@ -283,6 +283,14 @@ def make_run(model: str | Path, controller: str | Path, *, plant: str = "improve
 def _trace(res: ClosedLoopResult) -> tuple[np.ndarray, np.ndarray]:
     step = max(1, res.t.size // 600)
     return res.t[::step].copy(), res.error[::step].copy()
+
+
+def run_sample_time(run: Run) -> float:
+    """The sample time [s] of ``run``'s controller as its file gives it, before the design (the catalog's 1 ms when
+    it gives none, or a bad one, which is the design's error): what a run is sized at (``bench``)."""
+    ts = (run.design.spec or {}).get("sample_time", DEFAULT_TS)
+    ok = isinstance(ts, int | float) and not isinstance(ts, bool) and ts > 0
+    return float(ts) if ok else DEFAULT_TS
 
 
 def check_run(run: Any) -> Run:

@@ -65,7 +65,7 @@ from typing import Any
 import numpy as np
 
 from .catalog import load_model
-from .closedloop import check_loop_memory
+from .closedloop import check_loop_memory, loop_bytes
 from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
 from .model import GearModel
@@ -1029,7 +1029,10 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     if client is None and not (scheduler or env_scheduler()):
         # a local cluster of no more processes than tasks (3 runs: 3, not 8; 2 runs in one --batch 1000 task: 1)
         workers = local_processes(math.ceil(n / batch) if batch else n, workers)
-    eng = Engine(workers=workers, scheduler=scheduler, client=client)
+    # each local worker holds one run at once (a run of --duration 5000 is 3.7 GB: two of them fit no 8 GB machine)
+    ctx = plan.context
+    task_bytes = loop_bytes(ctx.design.nominal, ctx.duration, design_controller(ctx.design).Ts)
+    eng = Engine(workers=workers, scheduler=scheduler, client=client, task_bytes=task_bytes)
     try:
         w, threads = eng.workers, eng.threads
         # four tasks per thread: sized per worker, a cluster of `dask worker` (a thread per core) left most of its

@@ -270,14 +270,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     runs = spec.runs(skipped)
     n = len(runs)
     tasks = n + len(spec.precision_runs(skipped))  # what the bar counts: the ISO rows are tasks too
-    from ..closedloop import DEFAULT_TS, check_loop_memory
+    from ..closedloop import check_loop_memory
+    from ..runs import run_sample_time as sample_time  # the file's (a 0.1 ms PID's 1000 s runs all failed, exit 0)
 
-    def sample_time(run: Any) -> float:  # the controller file's (a 0.1 ms PID's 1000 s runs all failed, exit 0)
-        ts = (run.design.spec or {}).get("sample_time", DEFAULT_TS)
-        ok = isinstance(ts, int | float) and not isinstance(ts, bool) and ts > 0
-        return float(ts) if ok else DEFAULT_TS  # a bad one is the design's error, with its file
-
-    # a run that would not fit: refused first
+    # a run that would not fit: refused first (and all the local workers' runs at once, in run_bench)
     for r in {(id(run.plant), run.duration, sample_time(run)): run for run in runs}.values():
         check_loop_memory(r.plant, r.duration, sample_time(r))
     to_stdout = args.json == "-"  # the JSON on standard output, the tables then on standard error
