@@ -158,7 +158,7 @@ Columns = Callable[[int, int], Iterable[Sequence[Any] | NDArray[Any]]]
 
 
 def _write_rows(fh: Any, header: Sequence[str], columns: Columns, n: int,
-                chunk: int) -> None:
+                chunk: int, progress: Callable[[float], Any] | None = None) -> None:
     w = csv.writer(fh, lineterminator="\n")  # Unix lines: `cut` and `awk` see no \r
     w.writerow(header)
     for i0 in range(0, n, chunk):
@@ -166,13 +166,17 @@ def _write_rows(fh: Any, header: Sequence[str], columns: Columns, n: int,
         text = [c if isinstance(c, list) else np.char.mod("%.10g", np.asarray(c, dtype=float)).tolist()
                 for c in cols]
         w.writerows(zip(*text, strict=True))
+        if progress is not None:
+            progress(min(i0 + chunk, n) / n)
 
 
 def write_csv_stream(path: str, header: Sequence[str], columns: Columns,
                      n: int, *, chunk: int = 20_000) -> None:
     """Write a CSV in chunks of rows: ``columns(i0, i1)`` gives the columns of rows ``i0..i1``.
 
-    Floats are written with 10 significant digits; memory stays bounded by one chunk.
+    Floats are written with 10 significant digits; memory stays bounded by one chunk. On a terminal a bar shows
+    the rows written once the writing has taken 2 s (about 1 us a value: ``stiffness --points 1000000`` wrote
+    253 MB for 15-20 s without a word).
 
     Raises
     ------
@@ -183,15 +187,17 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Columns,
         it propagates to :func:`gearctl.cli.main`, which ends quietly as for any closed output pipe.
     """
     try:
-        if path == "-":  # standard output (main sends the command's other output to stderr meanwhile)
-            out = CSV_STDOUT or sys.stdout
-            _write_rows(out, header, columns, n, chunk)
-            out.flush()
-            return
-        p = Path(path)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        with open(p, "w", newline="") as fh:
-            _write_rows(fh, header, columns, n, chunk)
+        with progress_bar(f"writing {'standard output' if path == '-' else path}", expected_s=None) as bar:
+            step = bar if bar.bar else None
+            if path == "-":  # standard output (main sends the command's other output to stderr meanwhile)
+                out = CSV_STDOUT or sys.stdout
+                _write_rows(out, header, columns, n, chunk, step)
+                out.flush()
+                return
+            p = Path(path)
+            p.parent.mkdir(parents=True, exist_ok=True)
+            with open(p, "w", newline="") as fh:
+                _write_rows(fh, header, columns, n, chunk, step)
     except BrokenPipeError:
         raise
     except OSError as exc:
