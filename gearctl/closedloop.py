@@ -155,8 +155,8 @@ def loop_samples(plant: Plant, controller: Controller, duration: float, seed: in
         raise InputError(f"duration = {duration!r} is shorter than one sample ({controller.Ts:g} s)",
                          field="duration")
     # what a sample costs while the loop runs, not only the arrays it returns: the per-sample lists of the loop and
-    # of the controller (torques, statuses, solve and step times), measured at 488 B (a pair's PID), 600 B (its MPC)
-    # and 715 B (the three-stage train's inverse) per sample. The arrays alone, nx + 8 doubles, let a reviewer's
+    # of the controller (torques, statuses, solve and step times): the peak RSS grew by 581 B (a pair's PID), 736 B
+    # (its MPC) and 1173 B (the three-stage train's MPC) per sample. The arrays alone, nx + 8 doubles, let a reviewer's
     # 97 000 s ISO program through that would have needed about 57 GB (3.3 GB measured for 5568 s)
     check_loop_memory(plant, duration, controller.Ts)
     return n
@@ -183,9 +183,11 @@ def loop_bytes(plant: Plant, duration: float, Ts: float = DEFAULT_TS) -> int:
 
 
 #: Memory a closed-loop sample takes while the run lasts [bytes]: a fixed part and a part per state (see
-#: loop_samples): 736 B for a pair, 832 B for a three-stage train, against 488-600 B and 705-718 B measured
-#: (tracemalloc's peak over 1e5 samples, PID, inverse and MPC).
-LOOP_SAMPLE_BYTES, LOOP_STATE_BYTES = 640, 24
+#: loop_samples): 840 B for a pair, 1080 B for a two-stage and 1320 B for a three-stage train, against the peak RSS's
+#: growth per sample of 581-736 B, 725-1002 B and 863-1173 B measured (track and precision, PID, inverse and MPC).
+#: (640 B + 24 B per state had been set from tracemalloc's peak, which counts the bytes asked for, not what malloc
+#: holds for them: the three-stage train's MPC took 1.4x its 832 B.)
+LOOP_SAMPLE_BYTES, LOOP_STATE_BYTES = 360, 120
 
 
 def check_controller(controller: Any) -> None:

@@ -245,7 +245,7 @@ def check_local_workers(workers: int, task_bytes: int = 0) -> None:
     ``gearctl sweep --workers 1000`` (in its range, 1..1024) started a thousand processes on a two-core machine
     with 23 GB, until the kernel's out-of-memory killer ended processes of the whole machine. Each worker also
     holds the run it is running: ``task_bytes``, the largest task's memory (``bench --jobs 8 --duration 5000``
-    passed with each run's 3.7 GB under the one-run cap, 30 GB at once).
+    passed with each run's 4.2 GB under the one-run cap, 34 GB at once).
 
     Raises
     ------

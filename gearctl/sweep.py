@@ -1029,7 +1029,7 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     if client is None and not (scheduler or env_scheduler()):
         # a local cluster of no more processes than tasks (3 runs: 3, not 8; 2 runs in one --batch 1000 task: 1)
         workers = local_processes(math.ceil(n / batch) if batch else n, workers)
-    # each local worker holds one run at once (a run of --duration 5000 is 3.7 GB: two of them fit no 8 GB machine)
+    # each local worker holds one run at once (a pair's 5000 s run is 4.2 GB: two of them fit no 8 GB machine)
     ctx = plan.context
     task_bytes = loop_bytes(ctx.design.nominal, ctx.duration, design_controller(ctx.design).Ts)
     eng = Engine(workers=workers, scheduler=scheduler, client=client, task_bytes=task_bytes)

@@ -345,7 +345,7 @@ def test_a_run_that_would_not_fit_at_its_controllers_sample_time_is_refused(tmp_
             "--references", "sine", "--no-precision", "--quiet", "--jobs", "1", "--duration", "1000"]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "(10,000,001 samples of 832 bytes)" in err
+    assert err.count("\n") == 1 and "(10,000,001 samples of 1320 bytes)" in err
 
 
 def test_the_progress_bar_counts_the_iso_rows_too(monkeypatch: pytest.MonkeyPatch,

@@ -1,7 +1,7 @@
 """A local cluster is sized with the runs its workers hold at once, not at 0.2 GB a worker alone.
 
 Each run was checked against the one-run cap and the workers at 0.2 GB each, so ``gearctl bench --jobs 8
---duration 5000`` (3.7 GB a run, under the cap) passed both checks and would hold 30 GB at once.
+--duration 5000`` (4.2 GB a run, under the cap) passed both checks and would hold 34 GB at once.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from gearctl import parallel
 from gearctl.catalog import load_model
 from gearctl.cli import main
-from gearctl.closedloop import check_loop_memory, loop_bytes
+from gearctl.closedloop import LOOP_SAMPLE_BYTES, LOOP_STATE_BYTES, check_loop_memory, loop_bytes
 from gearctl.errors import InputError
 from gearctl.plant import build_plant
 
@@ -32,7 +32,7 @@ def small_machine(monkeypatch):
 def test_loop_bytes_is_what_the_one_run_check_weighs():
     plant = build_plant(load_model("shing1993_servo"))
     b = loop_bytes(plant, 2000.0, 1e-3)
-    assert b == pytest.approx(2_000_001 * 736)  # 640 B + 24 B per state, 4 states
+    assert b == 2_000_001 * (LOOP_SAMPLE_BYTES + 4 * LOOP_STATE_BYTES)  # a pair: 4 states
     assert loop_bytes(plant, 4000.0, 1e-3) == pytest.approx(2 * b, rel=1e-6)
     check_loop_memory(plant, 2000.0, 1e-3)  # one such run alone fits
 
@@ -47,7 +47,7 @@ def test_check_local_workers_counts_each_workers_run(small_machine):
 
 
 def test_bench_refuses_jobs_whose_runs_do_not_fit(small_machine, capsys):
-    # a 2000 s run is 1.47 GB, under the one-run cap; three workers holding one each are 5 GB, over half of 8 GB
+    # a 2000 s run is 1.7 GB, under the one-run cap; three workers holding one each are 5.6 GB, over half of 8 GB
     assert main(["bench", "--controllers", "pid", "--plants", "improved", "--references", "sine,move,step",
                  "--no-precision", "--duration", "2000", "--jobs", "3"]) == 2
     err = capsys.readouterr().err
