@@ -378,19 +378,31 @@ def _cmd_perf(args: argparse.Namespace) -> int:
     from ..sweep import sweep_perf
 
     out: dict[str, Any] = {}
-    scen = {name: sim_speed(name) for name in ("free", "pd")}
-    keys = ("gearctl_sim_per_wall", "python_control_sim_per_wall", "ratio", "gearctl_error", "python_control_error")
-    # the contract keys at the top of "sim" are the harder case, the 1 kHz closed loop; both scenarios below
-    out["sim"] = {**{k: scen["pd"][k] for k in keys}, "free": scen["free"], "pd": scen["pd"]}
-    out["trains"] = train_speed()
-    out["standstill"] = standstill_cost()
-    out["mpc"] = mpc_timing() if "mpc" in controller_names() else None
-    out["export"] = export_timing(batch=False) if "mpc" in controller_names() else None
-    # one worker: the Dask path's own cost against the plain loop (two workers on a machine whose two cores give
-    # about one core of throughput inflate each other's CPU time, which is not Dask's)
-    out["sweep"] = None if args.no_sweep else sweep_perf(("pid", "reversal_offset", "deadzone_inverse", "mpc"),
-                                                         runs=args.sweep_runs, workers=1)
-    out["bench"] = None if args.no_bench else bench_wall_time(jobs=args.jobs)
+    # several minutes, printed at the end: a bar on a terminal counts the sections done (it said nothing for 4 min)
+    with progress_bar("gearctl perf", expected_s=60.0, total=8) as bar:
+        scen = {}
+        for k, name in enumerate(("free", "pd"), start=1):
+            scen[name] = sim_speed(name)
+            bar(k / 8)
+        keys = ("gearctl_sim_per_wall", "python_control_sim_per_wall", "ratio", "gearctl_error",
+                "python_control_error")
+        # the contract keys at the top of "sim" are the harder case, the 1 kHz closed loop; both scenarios below
+        out["sim"] = {**{k: scen["pd"][k] for k in keys}, "free": scen["free"], "pd": scen["pd"]}
+        out["trains"] = train_speed()
+        bar(3 / 8)
+        out["standstill"] = standstill_cost()
+        bar(4 / 8)
+        out["mpc"] = mpc_timing() if "mpc" in controller_names() else None
+        bar(5 / 8)
+        out["export"] = export_timing(batch=False) if "mpc" in controller_names() else None
+        bar(6 / 8)
+        # one worker: the Dask path's own cost against the plain loop (two workers on a machine whose two cores give
+        # about one core of throughput inflate each other's CPU time, which is not Dask's)
+        out["sweep"] = None if args.no_sweep else sweep_perf(("pid", "reversal_offset", "deadzone_inverse", "mpc"),
+                                                             runs=args.sweep_runs, workers=1)
+        bar(7 / 8)
+        out["bench"] = None if args.no_bench else bench_wall_time(jobs=args.jobs)
+        bar(1.0)
     if args.json:
         print(dump_json(out))
         return 0
