@@ -374,7 +374,7 @@ def execute_controller(run: Run, ctrl: Controller, *, simulate: Callable[..., Cl
         Passed to ``simulate`` as ``progress=`` (when given): called with the fraction done.
     """
     ctrl.realtime = run.realtime
-    extra = {} if progress is None else {"progress": progress}
+    extra: dict[str, Any] = {} if progress is None else {"progress": progress}
     try:
         res = (simulate or simulate_closed_loop)(run.plant, ctrl, run.reference, run.duration, sensors=run.sensors,
                                                  seed=run.seed, **extra)
