@@ -9,10 +9,17 @@ independent tight reference (solve_ivp with events), and the ratios. The same fi
 
 from __future__ import annotations
 
+import argparse
+
 from gearctl.perf import sim_speed
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    # --- arguments: none but --help (an unknown one is refused before the minute of runs) ---------------------
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.parse_args(argv)
+
+    # --- both scenarios, gearctl against python-control ----------------------------------------------------
     for scenario in ("free", "pd"):
         r = sim_speed(scenario)
         print(f"{scenario}: {r['model']}, outputs every {r['output_interval'] * 1e6:g} us")

@@ -32,6 +32,6 @@ def test_benchmark_report(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_simulator_benchmark(capsys: pytest.CaptureFixture[str]) -> None:
-    _main("02_simulator_benchmark")()
+    _main("02_simulator_benchmark")([])
     out = capsys.readouterr().out
     assert out.count("python-control (rtol 1e-10)") == 2
