@@ -225,6 +225,11 @@ def load_model(name_or_path: str | Path, **overrides: Any) -> GearModel:
     """
     path = resolve(name_or_path, "models")
     data = read_toml(path)
+    # `gearctl info controllers/pid.toml`: a controller file where the model goes
+    if isinstance(data.get("kind"), str) and not ({"gear1", "stage"} & set(data)):
+        raise InputError(f"{path}: a controller file (kind = {data['kind']!r}), not a model: a model file has the "
+                         f"tables [gear1], [gear2], [pair], ... or [[stage]] (gearctl models lists the catalog's)",
+                         field="model")
     train = "stage" in data
     pair_tables = set(PAIR_TABLES) - {"material", "dynamics"}
     known = ["stage", "material", "dynamics", *_COMMON_TABLES, "source"] if train else [

@@ -73,19 +73,32 @@ def resolve(name_or_path: str | Path, kind: str) -> Path:
         what = ("is a folder, not a file" if p.is_dir() else
                 "is not a regular file (a device, pipe or socket): expected a TOML file" if p.exists() else
                 "does not exist")
+        # `gearctl info shing1993_servo.toml` in a folder without that file: the catalog entry was meant
+        if what == "does not exist" and len(p.parts) == 1 and p.suffix == ".toml":
+            if p.stem in catalog_names(kind):
+                what += f"; did you mean the catalog name {p.stem} (without .toml)?"
+            elif p.stem in catalog_names(_OTHER[kind]):
+                what += f" (and {p.stem} is a catalog {_OTHER[kind][:-1]}, not a {kind[:-1]})"
         raise InputError(f"{kind[:-1]} file {str(p)!r} {what}", field=kind[:-1])
     for d in catalog_dirs(kind):
         cand = d / f"{p.name}.toml"
         if cand.is_file():
             return cand
     names = catalog_names(kind)
+    # a controller's name where a model goes (`gearctl info pid`), or the reverse: say which it is
+    other = f"{str(name_or_path)!r} is a {_OTHER[kind][:-1]}, not a {kind[:-1]}; " if (
+        p.name in catalog_names(_OTHER[kind])) else ""
     close = difflib.get_close_matches(str(name_or_path), names, n=3)
     hint = f"; did you mean {', '.join(close)}?" if close else ""
     raise InputError(
-        f"unknown {kind[:-1]} {str(name_or_path)!r}: expected a catalog name ({', '.join(names)}) or a path "
+        f"unknown {kind[:-1]} {str(name_or_path)!r}: {other}expected a catalog name ({', '.join(names)}) or a path "
         f"to a .toml file{hint}",
         field=kind[:-1],
     )
+
+
+#: the catalog kind a name of the other was mistaken for
+_OTHER = {"models": "controllers", "controllers": "models"}
 
 
 def toml_value(v: Any) -> str:

@@ -3,12 +3,25 @@ newcomer makes (found by running them in a fresh virtual environment).
 
 - ``python examples/02_simulator_benchmark.py --help`` ran the whole benchmark (about a minute of runs) and printed
   its figures instead of a usage line; any other argument was ignored the same way.
+- A controller where a model goes: ``gearctl track pid`` said which is which, but ``gearctl info pid`` (and
+  ``stiffness``, ``simulate``, ``linearize``, ``bench``, ``identify --model``) said only "unknown model 'pid':
+  expected a catalog name (...)", and ``gearctl info controllers/pid.toml`` "key kind = 'pid' outside any
+  section"; ``gearctl info shing1993_servo.toml`` (the catalog name with the file's suffix, in a folder without
+  it) said "does not exist" without pointing at the catalog entry. In Python, a model file given to
+  ``load_controller`` was "missing key kind".
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from support import example_main
+
+import gearctl
+from gearctl.cli import main as cli_main
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def _no_runs(*args: object, **kwargs: object) -> None:
@@ -34,3 +47,46 @@ def test_simulator_benchmark_refuses_an_unknown_argument(monkeypatch: pytest.Mon
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "unrecognized arguments: --out" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("argv", [
+    ["info", "pid"],
+    ["stiffness", "deadzone_inverse"],
+    ["simulate", "mpc", "--duration", "0.001"],
+    ["linearize", "pid_load"],
+    ["bench", "pid", "--quiet"],
+])
+def test_a_controller_name_where_a_model_goes_is_named(argv: list[str], tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    name = argv[1]
+    assert cli_main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"'{name}' is a controller, not a model" in err, err
+
+
+def test_a_controller_file_where_a_model_goes_is_named(capsys: pytest.CaptureFixture[str]) -> None:
+    path = REPO / "controllers" / "pid.toml"
+    assert cli_main(["info", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "a controller file (kind = 'pid'), not a model" in err, err
+
+
+def test_a_model_file_given_as_a_controller_is_named() -> None:
+    plant = gearctl.build_plant(gearctl.load_model("shing1993_servo"))
+    with pytest.raises(gearctl.InputError, match="a model file .*not a controller"):
+        gearctl.load_controller(REPO / "models" / "shing1993_servo.toml", plant)
+    with pytest.raises(gearctl.InputError, match="'shing1993_servo' is a model, not a controller"):
+        gearctl.load_controller("shing1993_servo", plant)
+
+
+def test_a_catalog_name_typed_as_a_file_points_at_the_entry(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert cli_main(["info", "shing1993_servo.toml"]) == 2
+    err = capsys.readouterr().err
+    assert "'shing1993_servo.toml' does not exist" in err and "did you mean the catalog name shing1993_servo" in err
+    assert cli_main(["info", "nonesuch.toml"]) == 2  # no hint where there is no such entry
+    assert "did you mean" not in capsys.readouterr().err

@@ -72,6 +72,9 @@ def build_controller(spec: dict[str, Any], plant: Plant, *, path: Path | str = "
     """
     path = Path(path)
     kind = spec.get("kind")
+    if kind is None and ("gear1" in spec or "stage" in spec):  # load_controller("models/shing1993_servo.toml", ...)
+        raise InputError(f"{path}: a model file ([gear1] or [[stage]] tables), not a controller: a controller file "
+                         f"has kind = one of {', '.join(MODULES)}", field="kind")
     if kind is None:
         raise InputError(f"{path}: missing key kind: expected one of {', '.join(MODULES)} (kind = \"pid\", ...)",
                          field="kind")
