@@ -9,6 +9,8 @@ newcomer makes (found by running them in a fresh virtual environment).
   section"; ``gearctl info shing1993_servo.toml`` (the catalog name with the file's suffix, in a folder without
   it) said "does not exist" without pointing at the catalog entry. In Python, a model file given to
   ``load_controller`` was "missing key kind".
+- A unit typed with a value (``--duration 10s``, ``--backlash 50um``) was "'10s' is not a number", and a misspelt
+  choice (``gearctl trak``, ``--reference sin``, ``--plant yangsun``) listed the choices without the one meant.
 """
 
 from __future__ import annotations
@@ -89,4 +91,35 @@ def test_a_catalog_name_typed_as_a_file_points_at_the_entry(tmp_path: Path, monk
     err = capsys.readouterr().err
     assert "'shing1993_servo.toml' does not exist" in err and "did you mean the catalog name shing1993_servo" in err
     assert cli_main(["info", "nonesuch.toml"]) == 2  # no hint where there is no such entry
+    assert "did you mean" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("argv", "said"), [
+    (["track", "shing1993_servo", "pid", "--duration", "10s"],
+     "'10s' is not a number: give the value in s (SI) as a plain number, without the unit (10)"),
+    (["simulate", "shing1993", "--duration", "0.01sec"], "in s (SI) as a plain number, without the unit (0.01)"),
+    # another unit than the one expected: no number offered (10 ms is not 10 s)
+    (["track", "shing1993_servo", "pid", "--duration", "10ms"], "in s (SI) as a plain number, without the unit (usage"),
+    (["track", "shing1993_servo", "pid", "--backlash", "50um"], "in m (SI) as a plain number, without the unit (usage"),
+    (["precision", "shing1993_servo_friction", "pid", "--dwell", "0.3s"], "without the unit (0.3)"),
+    (["simulate", "shing1993", "--dt", "1e-6s"], "without the unit (1e-6)"),
+    (["precision", "shing1993_servo_friction", "pid", "--targets", "5x"], "give the number alone, without 'x'"),
+    (["trak"], "invalid choice: 'trak' (choose from "),
+    (["track", "shing1993_servo", "pid", "--reference", "sin"], "; did you mean 'sine'?"),
+    (["track", "shing1993_servo", "pid", "--plant", "yangsun"], "; did you mean 'yang-sun'?"),
+])
+def test_first_timer_typos_are_told_the_fix(argv: list[str], said: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli_main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert said in err, err
+    if argv == ["trak"]:
+        assert "did you mean 'track'?" in err
+
+
+def test_a_word_that_is_no_number_is_not_told_of_units(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli_main(["track", "shing1993_servo", "pid", "--duration", "ten"]) == 2
+    err = capsys.readouterr().err
+    assert "'ten' is not a number (usage" in err
+    assert cli_main(["track", "shing1993_servo", "pid", "--plant", "xyz"]) == 2  # nothing close: no suggestion
     assert "did you mean" not in capsys.readouterr().err

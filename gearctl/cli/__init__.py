@@ -47,8 +47,17 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         """A bad value of a named option or argument (``argument --duration: -1 is out of range: ...``) is one line
         with a pointer to ``-h``, as every other input error is; the rest (an unknown option, a missing argument)
-        keeps argparse's usage above it. Exit status 2 either way."""
+        keeps argparse's usage above it. Exit status 2 either way. A misspelt choice (``gearctl trak``,
+        ``--reference sin``) is told the closest one (Python 3.11's argparse lists them all, without a suggestion)."""
         if message.startswith("argument "):
+            m = re.search(r"invalid choice: '(.*)' \(choose from (.*)\)$", message)
+            if m is not None:
+                import difflib
+
+                choices = re.findall(r"'([^']*)'", m.group(2))
+                close = difflib.get_close_matches(m.group(1), choices, n=1, cutoff=0.6)
+                if close:
+                    message += f"; did you mean {close[0]!r}?"
             self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} -h)\n")
         super().error(message)
 

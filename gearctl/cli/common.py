@@ -51,7 +51,7 @@ def spec_arg(spec: Spec) -> Callable[[str], Any]:
         try:
             v = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+            raise not_a_number(text, spec.unit) from None
         try:
             spec.check("value", v)
         except InputError as exc:
@@ -63,12 +63,33 @@ def spec_arg(spec: Spec) -> Callable[[str], Any]:
     return parse
 
 
+#: a number followed by a unit or a word (``10s``, ``50 um``, ``0.3sec``)
+_NUMBER_AND_UNIT = re.compile(r"\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\d\s.+-][^=,;]*?)\s*")
+
+
+def not_a_number(text: str, unit: str | None = None) -> argparse.ArgumentTypeError:
+    """The error for ``text`` that is no number; a number typed with a unit (``--duration 10s``) is told to drop
+    it, with the number to give where the unit typed is the one expected (``10s`` -> ``10``; ``10ms`` for seconds
+    is not ``10``, so only the unit is named)."""
+    m = _NUMBER_AND_UNIT.fullmatch(text)
+    if m is None:
+        return argparse.ArgumentTypeError(f"{text!r} is not a number")
+    number, typed = m.groups()
+    if unit is None or unit == "1":
+        return argparse.ArgumentTypeError(f"{text!r} is not a number: give the number alone, without {typed!r}")
+    same = typed.replace(" ", "") == unit.replace(" ", "") or (unit == "s" and typed in ("sec", "secs", "second",
+                                                                                       "seconds"))
+    example = f" ({number})" if same else ""
+    return argparse.ArgumentTypeError(f"{text!r} is not a number: give the value in {unit} (SI) as a plain number, "
+                                      f"without the unit{example}")
+
+
 def finite_float(text: str) -> float:
     """A finite number."""
     try:
         v = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        raise not_a_number(text) from None
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"{text} is out of range: expected a finite number")
     return v
@@ -87,6 +108,10 @@ def positive_quantity(unit: str) -> Callable[[str], float]:
     a number > 0 [s]")."""
 
     def parse(text: str) -> float:
+        try:
+            float(text)
+        except ValueError:
+            raise not_a_number(text, unit) from None
         try:
             return positive_float(text)
         except argparse.ArgumentTypeError as err:
