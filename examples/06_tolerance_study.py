@@ -15,10 +15,9 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from distributed import Client, LocalCluster
 
 from gearctl.errors import InputError
-from gearctl.parallel import check_local_workers
+from gearctl.parallel import Engine, check_local_workers
 from gearctl.plots import plot_sweep_compare, save
 from gearctl.sweep import GRID_POINTS, compare_grids, sweep
 from gearctl.units import DURATION, Spec
@@ -57,21 +56,19 @@ def main(argv: list[str] | None = None) -> None:
     except InputError as exc:
         ap.error(str(exc))
 
-    # --- one Dask client for the three sweeps (a local cluster, or the one at --scheduler) ------------------
-    cluster = None if args.scheduler else LocalCluster(n_workers=args.workers, threads_per_worker=1,
-                                                       dashboard_address="127.0.0.1:0")
-    client = Client(args.scheduler or cluster)
+    # --- one Dask client for the three sweeps (gearctl's local cluster, or the one at --scheduler) ----------
+    # (gearctl's: workers' logs quiet, Ctrl-C handled; a scheduler probed first, one line if it does not answer)
     try:
+        engine = Engine(workers=args.workers, scheduler=args.scheduler)
+    except InputError as exc:
+        ap.error(str(exc))
+    with engine:
         # --- the sweeps: the PID over backlash, the compensators over backlash x estimate error ---------------
         wear = "backlash=0.5x:3x"
-        common = {"grid": True, "runs": args.points, "duration": args.duration, "client": client}
+        common = {"grid": True, "runs": args.points, "duration": args.duration, "client": engine.client}
         results = {"pid": sweep(MODEL, "pid", vary=[wear], **common)}
         for name in ("deadzone_inverse", "mpc"):
             results[name] = sweep(MODEL, name, vary=[wear, f"estimate_error={args.errors}"], **common)
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
 
     # --- where each stops being worth it -------------------------------------------------------------------
     cmp = compare_grids(results, baseline="pid")

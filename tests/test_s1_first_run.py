@@ -11,10 +11,17 @@ newcomer makes (found by running them in a fresh virtual environment).
   ``load_controller`` was "missing key kind".
 - A unit typed with a value (``--duration 10s``, ``--backlash 50um``) was "'10s' is not a number", and a misspelt
   choice (``gearctl trak``, ``--reference sin``, ``--plant yangsun``) listed the choices without the one meant.
+- ``examples/06_tolerance_study.py`` made its own ``LocalCluster`` with Dask's default logging: on a loaded
+  machine a worker's "Failed to communicate with scheduler during heartbeat" and a 30-line traceback came after
+  the results; ``--scheduler tcp://HOST:8786`` (its docstring's example) waited Dask's 30 s connect timeout and
+  ended in an ``OSError`` traceback. It now opens gearctl's :class:`~gearctl.parallel.Engine`, as ``gearctl
+  sweep`` does: quiet workers, and a scheduler that does not answer is one usage line at once.
 """
 
 from __future__ import annotations
 
+import logging
+import time
 from pathlib import Path
 
 import pytest
@@ -123,3 +130,34 @@ def test_a_word_that_is_no_number_is_not_told_of_units(capsys: pytest.CaptureFix
     assert "'ten' is not a number (usage" in err
     assert cli_main(["track", "shing1993_servo", "pid", "--plant", "xyz"]) == 2  # nothing close: no suggestion
     assert "did you mean" not in capsys.readouterr().err
+
+
+def test_tolerance_study_unreachable_scheduler_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    t0 = time.perf_counter()
+    with pytest.raises(SystemExit) as exc:
+        example_main("06_tolerance_study")(["--scheduler", "tcp://127.0.0.1:1", "--points", "2", "--out", str(out)])
+    assert exc.value.code == 2 and time.perf_counter() - t0 < 20  # (Dask's own connect waited 30 s)
+    err = capsys.readouterr().err
+    assert "error: cannot reach the Dask scheduler at tcp://127.0.0.1:1" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+class _Started(Exception):
+    pass
+
+
+def test_tolerance_study_local_cluster_keeps_worker_logs_quiet(tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: dict[str, object] = {}
+
+    def cluster(*args: object, **kwargs: object) -> None:
+        seen.update(kwargs)
+        raise _Started
+
+    monkeypatch.setattr("distributed.LocalCluster", cluster)
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    with pytest.raises(_Started):
+        example_main("06_tolerance_study")(["--workers", "1", "--points", "2", "--out", str(tmp_path / "out")])
+    # Dask's default (WARN) let a closing worker's heartbeat error and its traceback through
+    assert isinstance(seen.get("silence_logs"), int) and seen["silence_logs"] >= logging.CRITICAL
