@@ -114,6 +114,7 @@ def test_a_catalog_name_typed_as_a_file_points_at_the_entry(tmp_path: Path, monk
     (["trak"], "invalid choice: 'trak' (choose from "),
     (["track", "shing1993_servo", "pid", "--reference", "sin"], "; did you mean 'sine'?"),
     (["track", "shing1993_servo", "pid", "--plant", "yangsun"], "; did you mean 'yang-sun'?"),
+    (["linearize", "shing1993_servo", "--mode", "sep"], "; did you mean 'separation'?"),
 ])
 def test_first_timer_typos_are_told_the_fix(argv: list[str], said: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert cli_main(argv) == 2

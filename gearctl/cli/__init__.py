@@ -55,7 +55,10 @@ class _Parser(argparse.ArgumentParser):
                 import difflib
 
                 choices = re.findall(r"'([^']*)'", m.group(2))
-                close = difflib.get_close_matches(m.group(1), choices, n=1, cutoff=0.6)
+                # the one choice it begins (`--mode sep`), else the closest spelling
+                close = [c for c in choices if m.group(1) and c.startswith(m.group(1))]
+                close = close if len(close) == 1 else difflib.get_close_matches(m.group(1), choices, n=1,
+                                                                                  cutoff=0.6)
                 if close:
                     message += f"; did you mean {close[0]!r}?"
             self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} -h)\n")
