@@ -429,7 +429,12 @@ def _number(token: str, where: str, nominal: float | None, key: str, *, relative
             allow_inf: bool = False) -> float:
     m = _NUM.match(token)
     if not m:
-        raise InputError(f"{where}: {token.strip()!r} is not a number (e.g. 2e-5, 1.5x)", field=key)
+        # `--vary backlash=0.5x-2x`: a range written with a dash (not an exponent's sign: 2e-5-1e-4)
+        ranges = [(token[:i].strip(), token[i + 1:].strip()) for i, c in enumerate(token)
+                  if c == "-" and i > 0 and token[i - 1] not in "eE" and _NUM.match(token[:i]) and
+                  _NUM.match(token[i + 1:])]
+        hint = f"; a range is LOW:HIGH ({ranges[0][0]}:{ranges[0][1]})" if ranges else ""
+        raise InputError(f"{where}: {token.strip()!r} is not a number (e.g. 2e-5, 1.5x){hint}", field=key)
     v = float(m.group(1))
     if math.isinf(v) and not allow_inf:
         raise InputError(f"{where}: {token.strip()!r}: inf is allowed only as a truncation bound", field=key)

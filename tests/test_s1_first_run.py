@@ -10,7 +10,8 @@ newcomer makes (found by running them in a fresh virtual environment).
   it) said "does not exist" without pointing at the catalog entry. In Python, a model file given to
   ``load_controller`` was "missing key kind".
 - A unit typed with a value (``--duration 10s``, ``--backlash 50um``) was "'10s' is not a number", and a misspelt
-  choice (``gearctl trak``, ``--reference sin``, ``--plant yangsun``) listed the choices without the one meant.
+  choice (``gearctl trak``, ``--reference sin``, ``--plant yangsun``) listed the choices without the one meant;
+  ``--travel 5deg`` was not told the radians, ``sweep --vary backlash=0.5x-2x`` not that a range is ``LOW:HIGH``.
 - ``examples/06_tolerance_study.py`` made its own ``LocalCluster`` with Dask's default logging: on a loaded
   machine a worker's "Failed to communicate with scheduler during heartbeat" and a 30-line traceback came after
   the results; ``--scheduler tcp://HOST:8786`` (its docstring's example) waited Dask's 30 s connect timeout and
@@ -110,6 +111,10 @@ def test_a_catalog_name_typed_as_a_file_points_at_the_entry(tmp_path: Path, monk
     (["track", "shing1993_servo", "pid", "--backlash", "50um"], "in m (SI) as a plain number, without the unit (usage"),
     (["precision", "shing1993_servo_friction", "pid", "--dwell", "0.3s"], "without the unit (0.3)"),
     (["simulate", "shing1993", "--dt", "1e-6s"], "without the unit (1e-6)"),
+    (["precision", "shing1993_servo_friction", "pid", "--travel", "5deg"],
+     "in rad (SI) as a plain number, without the unit (5 deg = 0.0872665 rad)"),
+    (["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x-2x"], "; a range is LOW:HIGH (0.5x:2x)"),
+    (["sweep", "shing1993_servo", "pid", "--vary", "backlash=2e-5-1e-4"], "; a range is LOW:HIGH (2e-5:1e-4)"),
     (["precision", "shing1993_servo_friction", "pid", "--targets", "5x"], "give the number alone, without 'x'"),
     (["trak"], "invalid choice: 'trak' (choose from "),
     (["track", "shing1993_servo", "pid", "--reference", "sin"], "; did you mean 'sine'?"),

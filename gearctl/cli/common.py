@@ -80,6 +80,8 @@ def not_a_number(text: str, unit: str | None = None) -> argparse.ArgumentTypeErr
     same = typed.replace(" ", "") == unit.replace(" ", "") or (unit == "s" and typed in ("sec", "secs", "second",
                                                                                        "seconds"))
     example = f" ({number})" if same else ""
+    if unit == "rad" and typed.lower() in ("deg", "degree", "degrees", "°"):  # SI units: radians on the command line
+        example = f" ({number} deg = {math.radians(float(number)):.6g} rad)"
     return argparse.ArgumentTypeError(f"{text!r} is not a number: give the value in {unit} (SI) as a plain number, "
                                       f"without the unit{example}")
 
