@@ -20,6 +20,7 @@ import numpy as np
 
 from gearctl import build_plant, load_model
 from gearctl.catalog import load_controller
+from gearctl.errors import GearctlError
 from gearctl.modes import linearize_modes, loop_margins
 from gearctl.plots import plot_bode, plot_step, save
 
@@ -30,9 +31,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--model", default="shing1993_servo", help="catalog name or TOML file (default shing1993_servo)")
     args = ap.parse_args(argv)
 
-    # --- model and its linear modes ---------------------------------------------------------------------
-    plant = build_plant(load_model(args.model))
-    modes = linearize_modes(plant)
+    # --- model, its linear modes and the catalog PID: a bad --model is a usage error before any figure -----
+    try:
+        model = load_model(args.model)
+        plant = build_plant(model)
+        modes = linearize_modes(plant)
+        pid = load_controller("pid", plant, sensors=model.sensors)
+    except GearctlError as exc:
+        ap.error(f"--model {args.model}: {exc}")
     motor, load = modes.contact.output_labels[:2]  # theta1, theta2 on a pair; theta0, thetan on a train
     xi = modes.contact.input_labels[0]  # the motor torque: xi1 on a pair, xi0 on a train
     force = "force" if plant.n_stages == 1 else "force1"  # the motor's mesh
@@ -52,7 +58,6 @@ def main(argv: list[str] | None = None) -> None:
     # --- margins of the catalog PID (motor feedback, scaled to load units) in each mode -------------------
     # the controller that runs (PIDGains.sampled_tf: PID.step's own difference equation), as a state-space model:
     # a TF times a many-state mode model is multiplied out into a badly conditioned high-order TF
-    pid = load_controller("pid", plant)
     C = ct.ss(pid.gains.sampled_tf(pid.Ts))
     for name in ("contact", "separation"):
         G = ct.c2d(ct.ss(modes.mode(name)[0, 0]) / plant.gear_ratio, pid.Ts, "zoh")

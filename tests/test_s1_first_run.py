@@ -17,6 +17,8 @@ newcomer makes (found by running them in a fresh virtual environment).
   the results; ``--scheduler tcp://HOST:8786`` (its docstring's example) waited Dask's 30 s connect timeout and
   ended in an ``OSError`` traceback. It now opens gearctl's :class:`~gearctl.parallel.Engine`, as ``gearctl
   sweep`` does: quiet workers, and a scheduler that does not answer is one usage line at once.
+- ``examples/03_bode_step_margins.py --model MODEL`` (the README's "another pair or a train") with a misspelt
+  name, or a controller's, ended in an ``InputError`` traceback (exit 1).
 """
 
 from __future__ import annotations
@@ -167,3 +169,15 @@ def test_tolerance_study_local_cluster_keeps_worker_logs_quiet(tmp_path: Path,
         example_main("06_tolerance_study")(["--workers", "1", "--points", "2", "--out", str(tmp_path / "out")])
     # Dask's default (WARN) let a closing worker's heartbeat error and its traceback through
     assert isinstance(seen.get("silence_logs"), int) and seen["silence_logs"] >= logging.CRITICAL
+
+
+@pytest.mark.parametrize("name", ["shing1993_srvo", "pid"])
+def test_bode_example_bad_model_is_a_usage_error(name: str, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exc:
+        example_main("03_bode_step_margins")(["--model", name, "--out", str(out)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"error: --model {name}: unknown model '{name}'" in err and "Traceback" not in err
+    assert not out.exists()
