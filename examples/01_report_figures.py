@@ -20,7 +20,8 @@ from gearctl.units import DURATION
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("out/figures"), help="folder for the PNG files")
+    ap.add_argument("--out", type=Path, default=Path("out/figures"),
+                    help="folder for the PNG files (default %(default)s)")
     ap.add_argument("--duration", type=float, default=0.01, help="simulated time [s] (report: about 10 ms)")
     args = ap.parse_args(argv)
     try:  # the arguments are checked before any work: a bad one is a usage error (exit 2) and writes nothing

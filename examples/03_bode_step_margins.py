@@ -27,7 +27,8 @@ from gearctl.plots import plot_bode, plot_step, save
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("out/analysis"))
+    ap.add_argument("--out", type=Path, default=Path("out/analysis"),
+                    help="folder for the Bode and step PNGs (default %(default)s)")
     ap.add_argument("--model", default="shing1993_servo", help="catalog name or TOML file (default shing1993_servo)")
     args = ap.parse_args(argv)
 

@@ -19,7 +19,8 @@ from gearctl.units import DURATION
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("docs/bench"), help="folder for report.md and PNGs")
+    ap.add_argument("--out", type=Path, default=Path("docs/bench"),
+                    help="folder for report.md and PNGs (default %(default)s)")
     ap.add_argument("--duration", type=float, default=None, help="simulated time per run [s] (default per reference)")
     args = ap.parse_args(argv)
     try:  # the arguments are checked before any work: a bad one is a usage error (exit 2) and writes nothing

@@ -38,7 +38,8 @@ def _verdict(x: np.ndarray, ratio: np.ndarray) -> str:
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("docs/tolerance"), help="folder for tolerance.png and report.md")
+    ap.add_argument("--out", type=Path, default=Path("docs/tolerance"),
+                    help="folder for tolerance.png and report.md (default %(default)s)")
     ap.add_argument("--points", type=int, default=6, help="backlash points from 0.5x to 3x nominal (default 6)")
     ap.add_argument("--errors", default="-0.5,-0.25,0,0.25,0.5",
                     help="relative errors of the backlash estimate (default -0.5,-0.25,0,0.25,0.5)")

@@ -27,7 +27,8 @@ from gearctl.units import DURATION
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("out/adaptive"))
+    ap.add_argument("--out", type=Path, default=Path("out/adaptive"),
+                    help="folder for adaptive_inverse.png (default %(default)s)")
     ap.add_argument("--duration", type=float, default=6.0, help="simulated time of each run [s]")
     args = ap.parse_args(argv)
     try:  # the arguments are checked before any work: a bad one is a usage error (exit 2) and writes nothing

@@ -37,7 +37,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--crossing-time", type=float, default=None, help="the inverse's crossing time [s]")
     ap.add_argument("--duration", type=float, default=3.0, help="simulated time [s]")
     ap.add_argument("--reversal", type=int, default=3, help="which reversal of the reference to print (1, 2, ...)")
-    ap.add_argument("--out", type=Path, default=Path("out/trace"))
+    ap.add_argument("--out", type=Path, default=Path("out/trace"),
+                    help="folder for trace.csv (default %(default)s)")
     args = ap.parse_args(argv)
     # --- the arguments, the model and the controller: checked before any work (a usage error, exit 2) ----------
     try:

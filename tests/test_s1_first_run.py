@@ -19,11 +19,13 @@ newcomer makes (found by running them in a fresh virtual environment).
   sweep`` does: quiet workers, and a scheduler that does not answer is one usage line at once.
 - ``examples/03_bode_step_margins.py --model MODEL`` (the README's "another pair or a train") with a misspelt
   name, or a controller's, ended in an ``InputError`` traceback (exit 1).
+- ``--help`` of examples 03, 04, 07 and 08 listed ``--out OUT`` with no words: not where the figures go by default.
 """
 
 from __future__ import annotations
 
 import logging
+import re
 import time
 from pathlib import Path
 
@@ -181,3 +183,26 @@ def test_bode_example_bad_model_is_a_usage_error(name: str, tmp_path: Path,
     err = capsys.readouterr().err
     assert f"error: --model {name}: unknown model '{name}'" in err and "Traceback" not in err
     assert not out.exists()
+
+
+_EXAMPLES = sorted(p.stem for p in (REPO / "examples").glob("[0-9][0-9]_*.py"))
+
+
+@pytest.mark.parametrize("name", _EXAMPLES)
+def test_example_help_describes_every_option(name: str, monkeypatch: pytest.MonkeyPatch,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr("gearctl.perf.sim_speed", _no_runs)  # (02 binds it when loaded)
+    main = example_main(name)
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    options = text.split("options:", 1)[1]
+    # each option's entry: its flags, then words (on the same line or the next, indented further)
+    entries = re.findall(r"^  (-[^\n]*?)(?:  +(\S[^\n]*))?\n((?:   +\S[^\n]*\n)*)", options, flags=re.MULTILINE)
+    assert entries, text
+    for flags, same_line, following in entries:
+        assert same_line or following.strip(), f"{name}: {flags.strip()} has no description:\n{text}"
+    if "--out" in options:
+        default = re.search(r"--out OUT\s+(.*?)(?=\n  -|\Z)", options, flags=re.DOTALL)
+        assert default and "(default" in default.group(1), f"{name}: --out does not say its default:\n{text}"
