@@ -115,6 +115,9 @@ def test_a_catalog_name_typed_as_a_file_points_at_the_entry(tmp_path: Path, monk
     (["track", "shing1993_servo", "pid", "--backlash", "50um"], "in m (SI) as a plain number, without the unit (usage"),
     (["precision", "shing1993_servo_friction", "pid", "--dwell", "0.3s"], "without the unit (0.3)"),
     (["simulate", "shing1993", "--dt", "1e-6s"], "without the unit (1e-6)"),
+    # a negative value with a unit was taken for an option: "argument --duration: expected one argument"
+    (["track", "shing1993_servo", "pid", "--duration", "-3s"], "'-3s' is not a number: give the value in s"),
+    (["simulate", "shing1993", "--omega1", "-50rad/s"], "without the unit (-50)"),
     (["precision", "shing1993_servo_friction", "pid", "--travel", "5deg"],
      "in rad (SI) as a plain number, without the unit (5 deg = 0.0872665 rad)"),
     (["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x-2x"], "; a range is LOW:HIGH (0.5x:2x)"),

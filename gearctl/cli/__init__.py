@@ -42,7 +42,9 @@ class _Parser(argparse.ArgumentParser):
 
     def __init__(self, *args: object, **kwargs: object) -> None:
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
-        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+        # (a unit typed after it, `--duration -3s`, is a value too: its type then says what is wrong with it, where
+        # argparse said "expected one argument")
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(\s*[^\W\d_][\w/°µ]*)?$")
 
     def error(self, message: str) -> NoReturn:
         """A bad value of a named option or argument (``argument --duration: -1 is out of range: ...``) is one line
