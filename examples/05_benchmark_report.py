@@ -9,12 +9,20 @@ backlash-free limit) and writes report.md, rms_by_controller.png and errors_<ref
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
+
+from tqdm import tqdm
 
 from gearctl.bench import BenchSpec, bench_notes, bench_table, bench_warnings, error_traces, run_bench
 from gearctl.errors import InputError
 from gearctl.plots import plot_bench_bars, plot_bench_errors, save
 from gearctl.units import DURATION
+
+
+def _advance(bar: tqdm, done: int, total: int) -> None:
+    bar.total = total
+    bar.update(done - bar.n)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -29,9 +37,10 @@ def main(argv: list[str] | None = None) -> None:
     except InputError as exc:
         ap.error(str(exc))
 
-    # --- run the default benchmark ----------------------------------------------------------------------
+    # --- run the default benchmark (a progress bar on a terminal, none in a pipe: tqdm's disable=None) ----
     spec = BenchSpec(duration=args.duration)
-    result = run_bench(spec)
+    with tqdm(desc="bench", unit="run", file=sys.stderr, leave=False, disable=None) as bar:
+        result = run_bench(spec, progress=lambda done, total: _advance(bar, done, total))
 
     # --- figures and the Markdown report -------------------------------------------------------------------
     save(plot_bench_bars(result), args.out / "rms_by_controller.png")

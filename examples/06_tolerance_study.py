@@ -12,9 +12,11 @@ Their RMS error over the PID's at the same backlash tells where each stops being
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from gearctl.errors import InputError
 from gearctl.parallel import Engine, check_local_workers
@@ -34,6 +36,11 @@ def _verdict(x: np.ndarray, ratio: np.ndarray) -> str:
     if worse.all():
         return "never pays"
     return "loses at " + ", ".join(f"{v:.2g}x" for v in x[worse])
+
+
+def _advance(bar: tqdm, done: int, total: int) -> None:
+    bar.total = total
+    bar.update(done - bar.n)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -67,9 +74,14 @@ def main(argv: list[str] | None = None) -> None:
         # --- the sweeps: the PID over backlash, the compensators over backlash x estimate error ---------------
         wear = "backlash=0.5x:3x"
         common = {"grid": True, "runs": args.points, "duration": args.duration, "client": engine.client}
-        results = {"pid": sweep(MODEL, "pid", vary=[wear], **common)}
-        for name in ("deadzone_inverse", "mpc"):
-            results[name] = sweep(MODEL, name, vary=[wear, f"estimate_error={args.errors}"], **common)
+        results = {}
+        for name in ("pid", "deadzone_inverse", "mpc"):
+            vary = [wear] if name == "pid" else [wear, f"estimate_error={args.errors}"]
+            runs = args.points * (1 if name == "pid" else len(args.errors.split(",")))
+            # a progress bar on a terminal, none in a pipe (tqdm's disable=None)
+            with tqdm(desc=name, total=runs, unit="run", file=sys.stderr, leave=False, disable=None) as bar:
+                results[name] = sweep(MODEL, name, vary=vary, progress=lambda d, n, b=bar: _advance(b, d, n),
+                                      **common)
 
     # --- where each stops being worth it -------------------------------------------------------------------
     cmp = compare_grids(results, baseline="pid")

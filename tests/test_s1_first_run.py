@@ -19,13 +19,17 @@ newcomer makes (found by running them in a fresh virtual environment).
   sweep`` does: quiet workers, and a scheduler that does not answer is one usage line at once.
 - ``examples/03_bode_step_margins.py --model MODEL`` (the README's "another pair or a train") with a misspelt
   name, or a controller's, ended in an ``InputError`` traceback (exit 1).
+- ``examples/05_benchmark_report.py`` (36 s) and ``06_tolerance_study.py`` (30 s) showed nothing on a terminal
+  until they ended; they now show a progress bar there (none in a pipe), as ``gearctl bench`` and ``sweep`` do.
 - ``--help`` of examples 03, 04, 07 and 08 listed ``--out OUT`` with no words: not where the figures go by default.
 """
 
 from __future__ import annotations
 
+import io
 import logging
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -209,3 +213,57 @@ def test_example_help_describes_every_option(name: str, monkeypatch: pytest.Monk
     if "--out" in options:
         default = re.search(r"--out OUT\s+(.*?)(?=\n  -|\Z)", options, flags=re.DOTALL)
         assert default and "(default" in default.group(1), f"{name}: --out does not say its default:\n{text}"
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("terminal", [True, False])
+def test_benchmark_report_example_shows_progress_on_a_terminal_only(terminal: bool, tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    err = _Terminal() if terminal else io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    monkeypatch.setattr("tqdm.std.tqdm.monitor_interval", 0)  # (no monitor thread left running)
+    example_main("05_benchmark_report")(["--out", str(tmp_path), "--duration", "0.05"])
+    text = err.getvalue()
+    if terminal:
+        assert re.search(r"bench: +\d+%\|", text), text[-500:]
+    else:
+        assert text == ""
+
+
+class _Engine:
+    client = None
+
+    def __init__(self, **kwargs: object) -> None:
+        pass
+
+    def __enter__(self) -> _Engine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        pass
+
+
+def test_tolerance_study_example_shows_progress_on_a_terminal(tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    err = _Terminal()
+    monkeypatch.setattr(sys, "stderr", err)
+    monkeypatch.setattr("tqdm.std.tqdm.monitor_interval", 0)
+    main = example_main("06_tolerance_study")
+    calls: list[str] = []
+
+    def sweep(model: str, name: str, *, progress: object = None, **kwargs: object) -> None:
+        calls.append(name)
+        assert callable(progress), "the sweep is given no progress callback"
+        time.sleep(0.15)  # (tqdm draws an update 0.1 s after the last drawing at the earliest)
+        progress(1, 2)
+        raise _Started  # (enough: the bar has been drawn)
+
+    monkeypatch.setitem(main.__globals__, "sweep", sweep)
+    monkeypatch.setitem(main.__globals__, "Engine", _Engine)
+    with pytest.raises(_Started):
+        main(["--points", "2", "--out", str(tmp_path / "out")])
+    assert calls == ["pid"] and re.search(r"pid: +50%\|", err.getvalue()), err.getvalue()[-300:]
