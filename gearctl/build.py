@@ -20,7 +20,7 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["cache_dir", "c_compiler", "compile_disabled", "shared_library", "CompileError"]
+__all__ = ["cache_dir", "c_compiler", "compile_disabled", "shared_library", "prune_cache", "CACHE_KEEP", "CompileError"]
 
 
 class CompileError(RuntimeError):
@@ -48,6 +48,39 @@ def compile_disabled() -> bool:
 
 
 _LOADED: dict[Path, ctypes.CDLL] = {}
+
+#: Libraries of one name (one kind of code: an exported controller's kind, the kernel, ...) the cache keeps, the
+#: ones used last: each exported controller run in Python builds its own (its parameters are in its sources), and a
+#: test run or a study of many exports left 671 files, 268 MB, in the cache, never removed.
+CACHE_KEEP = 32
+
+
+def prune_cache(name: str, *, keep: Path | None = None) -> list[Path]:
+    """Remove all but the :data:`CACHE_KEEP` libraries of ``name`` used last from :func:`cache_dir` (never ``keep``,
+    the one just built); returns the removed paths.
+
+    A library another process has loaded stays usable (the mapping outlives the file); one about to load a pruned
+    file builds it again. Files it cannot remove (another process pruning at once, permissions) are left."""
+    d = cache_dir()
+    suffix = ".dll" if sys.platform == "win32" else ".so"
+    entries = []
+    for f in d.glob(f"{name}-*{suffix}"):
+        stem = f.name[len(name) + 1:-len(suffix)]
+        if len(stem) != 16 or any(c not in "0123456789abcdef" for c in stem) or f == keep:
+            continue  # another name that begins alike (export_pid against export_pid_load)
+        try:
+            entries.append((f.stat().st_mtime, f))
+        except OSError:
+            continue
+    entries.sort(reverse=True)
+    removed = []
+    for _, f in entries[CACHE_KEEP - (keep is not None):]:
+        try:
+            f.unlink()
+            removed.append(f)
+        except OSError:
+            pass
+    return removed
 
 
 def shared_library(name: str, sources: dict[str, bytes], *, flags: Sequence[str] = ("-O2",),
@@ -109,6 +142,12 @@ def shared_library(name: str, sources: dict[str, bytes], *, flags: Sequence[str]
             if required:
                 raise CompileError(str(exc)) from exc
             return None
+        prune_cache(name, keep=target)
+    else:
+        try:  # a use: the pruning keeps the libraries used last
+            os.utime(target)
+        except OSError:
+            pass
     try:
         lib = ctypes.CDLL(str(target))
     except OSError as exc:
