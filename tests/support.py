@@ -86,3 +86,23 @@ class ReadingFilter:
     def step(self, t, y_motor, y_load, ref):  # noqa: ANN001, ANN201
         k, self.n = self.n, self.n + 1
         return self.inner.step(t, *self.readings(k, y_motor, y_load), ref)
+
+
+class RecordingBar:
+    """Stands in for :func:`gearctl.cli.common.progress_bar`: always shown, records the fractions each bar is given
+    (``RecordingBar.made[desc]``; reset it in each test)."""
+
+    made: dict[str, list[float]] = {}
+
+    def __init__(self, desc: str, *, expected_s: float, threshold: float = 2.0, total: int = 1000) -> None:
+        self.bar = True
+        self.calls = RecordingBar.made.setdefault(desc, [])
+
+    def __call__(self, fraction: float) -> None:
+        self.calls.append(fraction)
+
+    def __enter__(self) -> RecordingBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None

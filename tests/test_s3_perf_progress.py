@@ -4,37 +4,22 @@ from __future__ import annotations
 
 import json
 
+from support import RecordingBar
+
 import gearctl.export as export
 import gearctl.perf as perf
 import gearctl.sweep as sweep
 from gearctl.cli import loop_cmds, main
 
 
-class _RecordingBar:
-    made: dict[str, list[float]] = {}
-
-    def __init__(self, desc, *, expected_s, threshold=2.0, total=1000):
-        self.bar = True
-        self.calls = _RecordingBar.made.setdefault(desc, [])
-
-    def __call__(self, fraction):
-        self.calls.append(fraction)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return None
-
-
 def test_perf_advances_its_bar_section_by_section(monkeypatch, capsys):
-    _RecordingBar.made = {}
-    monkeypatch.setattr(loop_cmds, "progress_bar", _RecordingBar)
+    RecordingBar.made = {}
+    monkeypatch.setattr(loop_cmds, "progress_bar", RecordingBar)
     done = []
 
     def section(name):
         def fake(*args, **kwargs):
-            done.append((name, len(_RecordingBar.made.get("gearctl perf", []))))
+            done.append((name, len(RecordingBar.made.get("gearctl perf", []))))
             return {"gearctl_sim_per_wall": 1.0, "python_control_sim_per_wall": 1.0, "ratio": 1.0,
                     "gearctl_error": 0.0, "python_control_error": 0.0}
         return fake
@@ -45,7 +30,7 @@ def test_perf_advances_its_bar_section_by_section(monkeypatch, capsys):
     monkeypatch.setattr(sweep, "sweep_perf", section("sweep_perf"))
     assert main(["perf", "--json"]) == 0
     json.loads(capsys.readouterr().out)
-    calls = _RecordingBar.made["gearctl perf"]
+    calls = RecordingBar.made["gearctl perf"]
     assert calls == sorted(calls) and calls[-1] == 1.0
     # the bar moved between the sections: each later section started with more of it done
     seen = [n for _, n in done]

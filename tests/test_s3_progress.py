@@ -7,34 +7,16 @@
 from __future__ import annotations
 
 import pytest
+from support import RecordingBar
 
 from gearctl.cli import loop_cmds, main
 
 
-class _RecordingBar:
-    """Stands in for the terminal's bar: always shown, records the fractions it is given."""
-
-    made: dict[str, list[float]] = {}
-
-    def __init__(self, desc, *, expected_s, threshold=2.0, total=1000):
-        self.bar = True
-        self.calls = _RecordingBar.made.setdefault(desc, [])
-
-    def __call__(self, fraction):
-        self.calls.append(fraction)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return None
-
-
 @pytest.fixture
 def bars(monkeypatch):
-    _RecordingBar.made = {}
-    monkeypatch.setattr(loop_cmds, "progress_bar", _RecordingBar)
-    return _RecordingBar.made
+    RecordingBar.made = {}
+    monkeypatch.setattr(loop_cmds, "progress_bar", RecordingBar)
+    return RecordingBar.made
 
 
 def test_track_advances_its_bar(bars, capsys):
