@@ -344,6 +344,25 @@ def gap_loop_pole(info: LoopInfo, gains: PIDGains, Ts: float, *, gain: float = 1
     gap, under the sampled motor-side PID with its gains times ``gain`` (``log|z| / Ts`` and ``arg z / (2 pi Ts)``
     of its closed-loop eigenvalue of largest modulus; a negative growth rate: stable).
 
+    Parameters
+    ----------
+    info : LoopInfo
+        Design-time plant knowledge (:func:`~gearctl.design.loop_info`): its nominal plant's shaft 0 (the motor's
+        inertia and viscous friction) and gear ratio ``N``.
+    gains : PIDGains
+        The PID's gains (run as :meth:`PIDGains.discrete` gives them).
+    Ts : float
+        Sample period [s].
+    gain : float
+        Factor on every gain (default 1; a gain margin ``g`` dB is checked with ``10**(g / 20)``) [1].
+
+    Returns
+    -------
+    growth : float
+        ``log|z| / Ts`` of the least damped closed-loop eigenvalue ``z`` [1/s] (negative: stable).
+    frequency : float
+        ``|arg z| / (2 pi Ts)`` of that eigenvalue [Hz].
+
     The motor shaft alone (the nominal plant's shaft 0: its inertia and viscous friction; on a train the first
     stage's gap is the one that lets it go) under the PID :meth:`PID.torque` runs (:meth:`PIDGains.discrete`:
     the integrator and the derivative filter as two states) on ``theta1 / N``, with the exact zero-order hold:
@@ -386,7 +405,25 @@ def gap_loop_pole(info: LoopInfo, gains: PIDGains, Ts: float, *, gain: float = 1
 
 def gap_loop_stable(info: LoopInfo, gains: PIDGains, Ts: float, *, gain: float = 1.0) -> bool:
     """Whether the motor alone, the load let go in the gap, is stable under the sampled motor-side PID with its
-    gains times ``gain`` (:func:`gap_loop_pole`'s growth rate below zero)."""
+    gains times ``gain`` (:func:`gap_loop_pole`'s growth rate below zero).
+
+    Parameters
+    ----------
+    info : LoopInfo
+        Design-time plant knowledge (:func:`~gearctl.design.loop_info`): its nominal plant's shaft 0 (the motor's
+        inertia and viscous friction) and gear ratio ``N``.
+    gains : PIDGains
+        The PID's gains (run as :meth:`PIDGains.discrete` gives them).
+    Ts : float
+        Sample period [s].
+    gain : float
+        Factor on every gain (default 1; a gain margin ``g`` dB is checked with ``10**(g / 20)``) [1].
+
+    Returns
+    -------
+    bool
+        True when every closed-loop eigenvalue lies inside the unit circle.
+    """
     return gap_loop_pole(info, gains, Ts, gain=gain)[0] < 0.0
 
 
@@ -397,6 +434,26 @@ def gap_limited_bandwidth(info: LoopInfo, *, bandwidth_hz: float, phase_margin_d
     the gains and with them times the margin): ``bandwidth_hz`` itself when it does.
 
     Found by bisection on a logarithmic scale down to a hundredth of ``bandwidth_hz`` (to 0.1 %).
+
+    Parameters
+    ----------
+    info : LoopInfo
+        Design-time plant knowledge (:func:`~gearctl.design.loop_info`).
+    bandwidth_hz : float
+        The crossover asked for, the upper end of the search [Hz].
+    phase_margin_deg : float
+        Phase margin of the design [deg] (default 50), as in :func:`design_pid`.
+    integral_ratio : float
+        Integral zero over the crossover [1] (default 0.1), as in :func:`design_pid`.
+    Ts : float
+        Sample period [s] (default 1e-3).
+    gain_margin_db : float
+        Gain margin the motor alone must keep [dB] (default 6).
+
+    Returns
+    -------
+    float
+        The crossover [Hz]: ``bandwidth_hz`` itself, or the largest that passes, to 0.1 %.
 
     Raises
     ------
@@ -678,7 +735,24 @@ class PID(Controller):
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class LoopSettings:
-    """What every PID-based controller file states at its top level (see :class:`PID`)."""
+    """What every PID-based controller file states at its top level (see :class:`PID`).
+
+    Parameters
+    ----------
+    sample_time : float
+        Sample period, 1e-6..1 [s] (default 1e-3).
+    feedback : str
+        ``"motor"`` (motor encoder scaled by the gear ratio) or ``"load"`` (load encoder) (default ``"motor"``).
+    feedforward : bool
+        Add the rigid-train torque for the reference (default True; see :class:`PID`).
+    friction_feedforward : bool
+        With ``feedforward``, add the model's Coulomb friction (default True; see :class:`PID`).
+
+    Raises
+    ------
+    InputError
+        For ``sample_time`` out of range, ``feedback`` not one of the two, or a flag not a bool (named).
+    """
 
     sample_time: float = SAMPLE_TIME.field(default=1e-3)
     feedback: str = "motor"
@@ -707,7 +781,23 @@ Values = Mapping[str, tuple[Binding, Any]]
 
 
 def restate(path: Path, exc: InputError, values: Mapping[type, Values]) -> InputError:
-    """An error raised by a design step, restated with the file and the key it came from."""
+    """An error raised by a design step, restated with the file and the key it came from.
+
+    Parameters
+    ----------
+    path : Path
+        The controller file, named first in the message.
+    exc : InputError
+        The error; its ``field`` is looked up among ``values``.
+    values : mapping
+        ``settings class -> {field: (binding, value)}`` as :func:`~gearctl.files.spec_values` sorted the file.
+
+    Returns
+    -------
+    InputError
+        A new error (not raised) naming ``path`` and the key (``[table] key``) that set ``exc.field``, or just
+        ``path`` when no key did; same ``field`` and ``rule``.
+    """
     for vals in values.values():
         if exc.field is not None and exc.field in vals:
             b = vals[exc.field][0]
@@ -720,7 +810,34 @@ def restate(path: Path, exc: InputError, values: Mapping[type, Values]) -> Input
 
 def pid_from_values(path: Path, values: Mapping[type, Values], info: LoopInfo, loop: LoopSettings,
                     name: str) -> PID:
-    """The PID of a file's ``[design]`` or ``[gains]`` (shared by every PID-based kind)."""
+    """The PID of a file's ``[design]`` or ``[gains]`` (shared by every PID-based kind).
+
+    With ``[design]`` and motor feedback the bandwidth is lowered where the motor alone would be unstable in the
+    gap (:func:`gap_limited_bandwidth`), which the PID's ``design_notes`` then say.
+
+    Parameters
+    ----------
+    path : Path
+        The controller file (named in errors).
+    values : mapping
+        ``settings class -> {field: (binding, value)}`` as :func:`~gearctl.files.spec_values` sorted the file.
+    info : LoopInfo
+        Design-time plant knowledge.
+    loop : LoopSettings
+        The file's top-level settings.
+    name : str
+        The controller's label.
+
+    Returns
+    -------
+    PID
+
+    Raises
+    ------
+    InputError
+        For both ``[gains]`` and ``[design]`` (field ``gains``), a value out of range, or a design that fails,
+        restated with the file and key (:func:`restate`).
+    """
     Ts = loop.sample_time
     notes: tuple[str, ...] = ()  # what the design changed of what the file asked (Controller.design_notes)
     if PIDGains in values and PIDDesign in values:
@@ -806,7 +923,30 @@ def train_margin_notes(info: LoopInfo, gains: PIDGains, Ts: float, feedback: str
 
 
 def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str, backlash: float | None = None) -> PID:
-    """The PID of a ``kind = "pid"`` file (``backlash`` is unused: a PID knows no gap)."""
+    """The PID of a ``kind = "pid"`` file (``backlash`` is unused: a PID knows no gap).
+
+    Parameters
+    ----------
+    path : Path
+        The controller file (named in errors).
+    spec : dict
+        The parsed file.
+    info : LoopInfo
+        Design-time plant knowledge.
+    name : str
+        The controller's label.
+    backlash : float, optional
+        Unused [rad].
+
+    Returns
+    -------
+    PID
+
+    Raises
+    ------
+    InputError
+        For an unknown table or key, or a value out of range (named with the file and key).
+    """
     values = spec_values(path, spec, LAYOUT, kind=KIND)
     loop = build_dataclass(path, LoopSettings, values.get(LoopSettings, {}))
     return pid_from_values(path, values, info, loop, name)
