@@ -257,6 +257,18 @@ def ramp_shape(shape: str, x: float) -> tuple[float, float, float]:
 
     ``sin2``: ``sin^2(pi x / 2)`` (zero slope at both ends); ``linear``: ``x``; ``step``: 1 for ``x > 0``.
 
+    Parameters
+    ----------
+    shape : str
+        One of :data:`RAMPS`; any other name is taken as ``step``.
+    x : float
+        Share of the ramp covered [1]; below 0 the ramp is at 0, from 1 on at 1.
+
+    Returns
+    -------
+    tuple of float
+        The ramp, its first and its second derivative in ``x``.
+
     Examples
     --------
     >>> round(ramp_shape("sin2", 0.5)[0], 12), ramp_shape("linear", 0.25), ramp_shape("step", 0.1)
@@ -295,7 +307,13 @@ class OffsetRamp:
         self.reset()
 
     def reset(self, value: float = 0.0) -> None:
-        """Rest at ``value``."""
+        """Rest at ``value``.
+
+        Parameters
+        ----------
+        value : float
+            The offset to rest at [rad] (default 0).
+        """
         self._o0 = self._o1 = value
         self._t0, self._T = 0.0, 0.0
 
@@ -315,17 +333,40 @@ class OffsetRamp:
         return self._t0 + self._T
 
     def progress(self, t: float) -> float:
-        """Share of the ramp under way covered at ``t``, 0 to 1 (1 at rest)."""
+        """Share of the ramp under way covered at ``t``, 0 to 1 (1 at rest).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        """
         if not self.moving(t):
             return 1.0
         return min(max((t - self._t0) / self._T, 0.0), 1.0)
 
     def moving(self, t: float) -> bool:
-        """Whether a ramp is under way at ``t``."""
+        """Whether a ramp is under way at ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        """
         return self._T > 0.0 and t < self._t0 + self._T
 
     def move_to(self, t: float, value: float) -> None:
-        """Start a ramp at ``t`` from the present offset to ``value``."""
+        """Start a ramp at ``t`` from the present offset to ``value``.
+
+        The ramp takes ``duration`` times the share of ``span`` it covers (at most the whole ``duration``); a ramp
+        shorter than a microsecond, or of shape ``step``, is a step.
+
+        Parameters
+        ----------
+        t : float
+            Start time [s].
+        value : float
+            The offset to move to [rad].
+        """
         o = self.at(t)[0]
         dist = abs(value - o)
         frac = dist / self.span if self.span > 0.0 else 1.0
@@ -341,6 +382,11 @@ class OffsetRamp:
         The ramp has ended exactly when :meth:`moving` says so (``t >= t0 + T``): ``(t - t0) / T`` can round
         below 1 at that instant, and the ramp's last acceleration fed forward after the landing kicked the
         motor off the load (a 0.2 N m spike on the benchmark servo, one sine reversal in eight).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
         """
         if not self.moving(t):
             return self._o1, 0.0, 0.0
@@ -375,6 +421,9 @@ def offset_torque(pid: PID, t: float, r: float, rd: float, a: float, offset: tup
         Load encoder [rad] (with load feedback the integral acts on ``r - y_load``).
     free : bool
         The motor is crossing the gap: the load is not attached.
+    scale : float
+        Factor on the PID's feedback in contact [1] (default 1; in the gap the factor is ``J / J_eq`` of what the
+        motor carries instead).
     one_way : float
         ``sigma`` of a flank whose push-back is withheld (:meth:`DeadzoneInverse._one_way`; 0: none): an error
         that asks the motor to push the load in direction ``sigma`` gives no proportional or integral action, and
@@ -434,6 +483,16 @@ def carried_by_motor(plant: Plant) -> tuple[tuple[float, float, float, float], .
     intermediate shafts' inertia drove it ahead of its ramp into the first intermediate shaft: on
     ``servo_2stage_phm09`` (its intermediate shaft half the motor's inertia, reflected) the motor met it at
     0.2 rad/s at the load and flung it into the load, 2.3 mrad of error at every reversal.
+
+    Parameters
+    ----------
+    plant : Plant
+        The nominal plant, a pair or a train.
+
+    Returns
+    -------
+    tuple of tuple of float
+        One ``(end, J, d, T_c)`` row per stage [1, kg m^2, N m s/rad, N m].
     """
     ratio_to = [math.prod(s.ratio for s in plant.stages[:j]) for j in range(len(plant.shafts))]
     lost = plant.stage_lost_motions
@@ -507,8 +566,18 @@ class LoadObserver:
     def update(self, theta: float, u: float, friction: float, freeze: bool) -> None:
         """Predict the next estimate from measurement ``theta`` [rad] and motor torque ``u`` [N m].
 
-        ``friction``: the model's Coulomb torque on the load against the motion [N m]; ``freeze``: keep
-        ``d`` (the model does not hold: a crossing is under way).
+        The first call only initialises the estimate at ``theta`` (at rest, no disturbance).
+
+        Parameters
+        ----------
+        theta : float
+            Measured load angle [rad].
+        u : float
+            Motor torque applied over the sample [N m].
+        friction : float
+            The model's Coulomb torque on the load against the motion [N m].
+        freeze : bool
+            Keep ``d`` (the model does not hold: a crossing is under way).
         """
         if self.x is None:
             self.x = [theta, 0.0, 0.0]
@@ -527,7 +596,32 @@ class LoadObserver:
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class InverseSettings:
-    """The inverse's own keys of a ``deadzone_inverse`` file."""
+    """The inverse's own keys of a ``deadzone_inverse`` file (see :class:`DeadzoneInverse`).
+
+    Parameters
+    ----------
+    rule : str
+        ``"torque"`` (default) or ``"velocity"``: what decides the flank.
+    width : float, optional
+        Hysteresis of the flank decision, (0, 1e3] [N m or rad/s]: the transmitted torque (torque rule, N m) or
+        the reference speed (velocity rule, rad/s) that changes the flank (default: :class:`DeadzoneInverse`'s).
+    backlash : float, optional
+        Backlash estimate ``b`` along the line of action, 0..0.01 [m] (default: the model's).
+    crossing_time : float
+        Time the motor takes to cross the gap, 0 or 1e-6..1 [s] (``sin^2`` ramp of the offset; 0: a step;
+        default 0.01).
+    observer_hz : float
+        Bandwidth of the load-disturbance observer, 0..1e3 [Hz] (0: none, the flank follows the reference alone;
+        default 5).
+    disturbance_threshold : float, optional
+        Load torque the observer must see beyond the load's static friction before it changes the flank, 0..1e3
+        [N m] (default: 0.02 N m scaled as the width).
+
+    Raises
+    ------
+    InputError
+        For a ``rule`` other than the two, or a value of wrong type or out of range (named).
+    """
 
     rule: str = "torque"
     width: float | None = quantity(unit="N m or rad/s", doc="hysteresis of the flank decision: the transmitted "
@@ -651,6 +745,16 @@ class DeadzoneInverse(Controller):
         """Change the backlash estimate ``b`` [m] (e.g. an adaptive law's), keeping every other state.
 
         The offset moves to the held flank of the new estimate along the crossing ramp.
+
+        Parameters
+        ----------
+        backlash : float
+            The new estimate, 0..0.01 [m].
+
+        Raises
+        ------
+        InputError
+            For ``backlash`` out of range.
         """
         BACKLASH.check("backlash", backlash)
         self.backlash = backlash
@@ -670,6 +774,16 @@ class DeadzoneInverse(Controller):
 
         Call it with the offset at rest (``not self.offset_moving(t)``, e.g. an adaptive law between
         crossings): a ramp under way would go on in the new shape.
+
+        Parameters
+        ----------
+        crossing_time : float
+            The new crossing time, 0 or 1e-6..1 [s].
+
+        Raises
+        ------
+        InputError
+            For ``crossing_time`` out of range.
         """
         CROSSING_TIME.check("crossing_time", crossing_time)
         self.crossing_time = crossing_time
@@ -682,7 +796,13 @@ class DeadzoneInverse(Controller):
         return self._sigma
 
     def offset_moving(self, t: float) -> bool:
-        """Whether the offset is on its ramp at ``t`` [s] (a crossing, or a change of the estimate)."""
+        """Whether the offset is on its ramp at ``t`` [s] (a crossing, or a change of the estimate).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        """
         return self._ramp.moving(t)
 
     def reset(self) -> None:
@@ -733,7 +853,20 @@ class DeadzoneInverse(Controller):
     def transmitted_torque(self, r_d: float, r_dd: float) -> float:
         """Torque the mesh must give the load to follow ``(r', r'')`` [N m]: the model's inertia, friction and
         load torque, and the estimated disturbance beyond what the load's static friction and
-        ``disturbance_threshold`` explain (the observer also sees the static friction's reaction at rest)."""
+        ``disturbance_threshold`` explain (the observer also sees the static friction's reaction at rest).
+
+        Parameters
+        ----------
+        r_d : float
+            Reference speed [rad/s].
+        r_dd : float
+            Reference acceleration [rad/s^2].
+
+        Returns
+        -------
+        float
+            The torque on the load shaft [N m] (positive: the front flank drives).
+        """
         drive = self._J2 * r_dd + self._d2 * r_d - self._tl - self._disturbance_beyond_friction()
         if self._tc2 > 0.0 and r_d != 0.0:  # full Coulomb friction while the load moves
             drive += math.copysign(self._tc2, r_d)
@@ -748,6 +881,20 @@ class DeadzoneInverse(Controller):
         estimated load torque exceeds the load's static friction by ``disturbance_threshold`` (torque rule).
         (:meth:`step` also changes it at rest where the motor presses the other flank: see *Pressing the other
         flank* in the module docstring.)
+
+        The decision is kept: a call changes the held flank (:attr:`held_flank`).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        ref : ReferenceLike
+            The reference (its ``at(t)`` gives angle, speed and acceleration).
+
+        Returns
+        -------
+        float
+            +1, -1 or 0.
         """
         _, rd, rdd = ref.at(t)
         w = self.width
@@ -1163,7 +1310,35 @@ def jump_floor(sensors: Sensors | None, Ts: float) -> float:
 def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
           backlash: float | None = None, sensors: Sensors | None = None) -> DeadzoneInverse:
     """The inverse of a ``kind = "deadzone_inverse"`` file; ``backlash`` overrides the file's estimate; ``sensors``
-    (the model's encoders) set the rattle guard's floor (:func:`jump_floor`)."""
+    (the model's encoders) set the rattle guard's floor (:func:`jump_floor`).
+
+    Where neither ``backlash`` nor the file gives an estimate and the model's lost motion is under one count of the
+    motor encoder, the estimate is 0 (the inverse runs as its PID) and a design note says so.
+
+    Parameters
+    ----------
+    path : Path
+        The controller file (named in errors).
+    spec : dict
+        The parsed file.
+    info : LoopInfo
+        Design-time plant knowledge.
+    name : str
+        The controller's label (its PID's is ``name + "/pid"``).
+    backlash : float, optional
+        Backlash estimate ``b`` [m], over the file's ``backlash`` and the model's.
+    sensors : Sensors, optional
+        The model's encoders.
+
+    Returns
+    -------
+    DeadzoneInverse
+
+    Raises
+    ------
+    InputError
+        For an unknown table or key, or a value out of range (named with the file and key).
+    """
     values = spec_values(path, spec, LAYOUT, kind=KIND)
     loop = build_dataclass(path, LoopSettings, values.get(LoopSettings, {}))
     settings = build_dataclass(path, InverseSettings, values.get(InverseSettings, {}))
