@@ -107,7 +107,42 @@ CONVERGED_MEASUREMENTS = 2
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class AdaptationSettings:
-    """The ``[adaptation]`` table of an ``adaptive_inverse`` file: the bounded update law."""
+    """The ``[adaptation]`` table of an ``adaptive_inverse`` file: the bounded update law.
+
+    Parameters
+    ----------
+    gain : float
+        Share of the measured error taken per gap crossing, (0, 1] [1] (default 0.6).
+    max_step : float
+        Largest relative change of the estimate per crossing, (0, 1] [1] (default 0.5).
+    min_backlash : float, optional
+        Lower bound of the estimate, 0..0.01 [m] (default: 0.2 x the initial estimate).
+    max_backlash : float, optional
+        Upper bound of the estimate, 0..0.01 [m] (default: 5 x the initial estimate).
+    window : float
+        Stretch of ``s = r_b1 theta1 - r_b2 theta2`` examined for both flanks, every half of it, (0, 10] [s]
+        (default 0.2).
+    plateau_tolerance : float
+        How near its extreme a flank's samples of ``s`` lie (about twice the encoders' flicker of ``s``),
+        (0, 1e-3] [m] (default 1e-6).
+    apply_threshold : float
+        Relative change of the estimate that is handed to the inverse, 0..0.5 [1] (default 0.01).
+    converged_crossing_time : float
+        Crossing time (``sin^2`` ramp) once the estimate has converged, 0 or 1e-6..1 [s] (0: never switch;
+        default 0.01).
+    converged_tolerance : float
+        Relative difference between a measurement and the estimate under which it counts towards convergence,
+        (0, 0.5] [1] (default 0.02).
+    diverged_tolerance : float
+        Relative difference between a measurement and the estimate beyond which the inverse goes back to the
+        learning crossing, (0, 10] [1], at least ``converged_tolerance`` (default 0.1).
+
+    Raises
+    ------
+    InputError
+        For a value of wrong type or out of range (named), ``min_backlash`` above ``max_backlash`` or
+        ``diverged_tolerance`` below ``converged_tolerance``.
+    """
 
     gain: float = quantity(unit="1", doc="share of the measured error taken per gap crossing", low=0.0,
                            low_open=True, high=1.0, default=0.6)
@@ -234,6 +269,18 @@ class AdaptiveInverse(Controller):
         The law of the module docstring: a step of ``gain`` towards ``b_m``, at most ``max_step`` of the
         estimate, projected onto ``[min_backlash, max_backlash]``; the inverse gets it beyond ``apply_threshold``.
         The measurement also counts towards convergence (or divergence), which sets the inverse's crossing.
+
+        Parameters
+        ----------
+        t : float
+            Time of the measurement [s].
+        b_m : float
+            Measured backlash [m].
+
+        Returns
+        -------
+        float
+            The new estimate [m].
         """
         st = self.settings
         b = self.backlash
@@ -343,6 +390,31 @@ def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
 
     Every key but the ``[adaptation]`` table is the inverse's, built by :func:`gearctl.design.deadzone.build`
     (so the two kinds read the same keys the same way).
+
+    Parameters
+    ----------
+    path : Path
+        The controller file (named in errors).
+    spec : dict
+        The parsed file.
+    info : LoopInfo
+        Design-time plant knowledge.
+    name : str
+        The controller's label (its inverse's is ``name + "/inverse"``).
+    backlash : float, optional
+        Initial backlash estimate ``b`` [m], over the file's ``backlash`` and the model's.
+    sensors : Sensors, optional
+        The model's encoders: the inverse's rattle guard floor, and a design note where they read the gap
+        coarser than a tenth of the initial estimate.
+
+    Returns
+    -------
+    AdaptiveInverse
+
+    Raises
+    ------
+    InputError
+        For an unknown table or key, or a value out of range (named with the file and key).
     """
     values = spec_values(path, spec, LAYOUT, kind=KIND)
     settings = build_dataclass(path, AdaptationSettings, values.get(AdaptationSettings, {}))

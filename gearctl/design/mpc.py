@@ -1840,6 +1840,28 @@ class MPC(Controller):
     def step(self, t: float, y_motor: float, y_load: float | None, ref: ReferenceLike) -> float:
         """Motor torque for sample time ``t`` [N m] (see :class:`~gearctl.design.base.Controller`).
 
+        Parameters
+        ----------
+        t : float
+            Sample time [s].
+        y_motor : float
+            Motor encoder reading, motor angle ``theta1`` [rad].
+        y_load : float or None
+            Load encoder reading ``theta2`` [rad], or None without a load encoder.
+        ref : ReferenceLike
+            The load-angle reference; its ``at`` is called with an array of the next few hundred sample times
+            (the horizon's preview) and must give ``(r, r', r'')`` of that shape, or scalars.
+
+        Returns
+        -------
+        float
+            The motor torque held over the sample [N m] (0 for a missed motor reading).
+
+        Raises
+        ------
+        InputError
+            For a reference whose ``at`` gives arrays of another shape (field ``reference``).
+
         Notes
         -----
         In contact on the target flank the QP that stays on that flank is solved first. If its

@@ -76,7 +76,30 @@ DEFAULT_TAKE_UP_TIME = 0.01
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class ReversalSettings:
-    """The reversal offset's own keys of a ``reversal_offset`` file (see the module docstring)."""
+    """The reversal offset's own keys of a ``reversal_offset`` file (see the module docstring).
+
+    Parameters
+    ----------
+    backlash : float, optional
+        Backlash estimate ``b``, 0..0.01 [m] (the backlash value at the load is ``2 b / r_b2``; default: the
+        model's).
+    take_up_time : float, optional
+        Time a reversal's offset is spread over, 0 or 1e-6..1 [s] (0: a step; default
+        :data:`DEFAULT_TAKE_UP_TIME` when ``take_up_cycles`` is not given either).
+    take_up_cycles : int, optional
+        Position-control cycles a reversal's offset is spread over, 0..1000 [cycles] (the take-up time is
+        ``take_up_cycles x sample_time``, at most 1 s).
+    ramp : str
+        Shape of the take-up: one of :data:`gearctl.design.deadzone.RAMPS` (default ``"sin2"``).
+    gain : float
+        Gain factor on the backlash value, 0..2 [1] (default 1).
+
+    Raises
+    ------
+    InputError
+        For a value of wrong type or out of range (named), an unknown ``ramp``, or both ``take_up_time`` and
+        ``take_up_cycles`` (field ``take_up_cycles``).
+    """
 
     backlash: float | None = BACKLASH.field(default=None, optional=True, doc="backlash estimate b (the backlash "
                                             "value at the load is 2 b / r_b2; default: the model's)")
@@ -189,7 +212,31 @@ NOTE_DECELERATION = 10.0
 
 def build(path: Path, spec: dict[str, Any], info: LoopInfo, *, name: str,
           backlash: float | None = None) -> ReversalOffset:
-    """The reversal offset of a ``kind = "reversal_offset"`` file; ``backlash`` overrides the file's estimate."""
+    """The reversal offset of a ``kind = "reversal_offset"`` file; ``backlash`` overrides the file's estimate.
+
+    Parameters
+    ----------
+    path : Path
+        The controller file (named in errors).
+    spec : dict
+        The parsed file.
+    info : LoopInfo
+        Design-time plant knowledge.
+    name : str
+        The controller's label (its PID's is ``name + "/pid"``).
+    backlash : float, optional
+        Backlash estimate ``b`` [m], over the file's ``backlash`` and the model's.
+
+    Returns
+    -------
+    ReversalOffset
+
+    Raises
+    ------
+    InputError
+        For an unknown table or key, a value out of range (named with the file and key), or ``take_up_cycles``
+        spanning more than 1 s.
+    """
     values = spec_values(path, spec, LAYOUT, kind=KIND)
     loop = build_dataclass(path, LoopSettings, values.get(LoopSettings, {}))
     settings = build_dataclass(path, ReversalSettings, values.get(ReversalSettings, {}))
