@@ -30,13 +30,34 @@ __all__ = ["ClosedLoopResult", "simulate_closed_loop", "check_controller", "loop
 
 @dataclasses.dataclass(frozen=True, slots=True)
 class Encoder:
-    """A position encoder: Gaussian noise (std [rad]), then quantisation to ``cpr`` counts per revolution."""
+    """A position encoder: Gaussian noise (std [rad]), then quantisation to ``cpr`` counts per revolution.
+
+    Parameters
+    ----------
+    cpr : int or None
+        Counts per revolution [counts/rev]; None or 0: no quantisation.
+    noise : float
+        Standard deviation of the Gaussian noise added before quantisation [rad] (default 0: none).
+    """
 
     cpr: int | None
     noise: float = 0.0
 
     def read(self, angle: float, rng: np.random.Generator) -> float:
-        """Measured angle [rad]."""
+        """Measured angle [rad].
+
+        Parameters
+        ----------
+        angle : float
+            True angle [rad].
+        rng : numpy.random.Generator
+            Source of the noise (not drawn from when ``noise`` is 0).
+
+        Returns
+        -------
+        float
+            ``angle`` plus noise, rounded to the nearest count.
+        """
         if self.noise > 0.0:
             angle += self.noise * rng.standard_normal()
         if self.cpr:
@@ -143,6 +164,22 @@ def loop_samples(plant: Plant, controller: Controller, duration: float, seed: in
     """The number of controller samples of a closed-loop run, after checking its inputs (duration, seed,
     and the size of the output the run would write).
 
+    Parameters
+    ----------
+    plant : Plant
+        The simulated plant (its state count sizes the memory a sample takes).
+    controller : Controller
+        The controller; its ``Ts`` [s] sets the sample count.
+    duration : float
+        Simulated time, (0, 1e5] [s].
+    seed : int
+        Random seed of the encoder noise, 0..2**63 - 1.
+
+    Returns
+    -------
+    int
+        ``round(duration / controller.Ts)``, at least 1.
+
     Raises
     ------
     InputError
@@ -192,6 +229,11 @@ LOOP_SAMPLE_BYTES, LOOP_STATE_BYTES = 360, 120
 
 def check_controller(controller: Any) -> None:
     """Refuse what is not a controller (``Ts``, ``reset`` and ``step``) with an InputError naming ``controller``.
+
+    Parameters
+    ----------
+    controller : object
+        What a caller passed as the controller.
 
     Raises
     ------
@@ -253,7 +295,7 @@ def simulate_closed_loop(
     ref : Reference
         Load-angle reference and load-torque disturbance.
     duration : float
-        Simulated time [s].
+        Simulated time, (0, 1e5] [s], at least one sample.
     sensors : Sensors, optional
         Encoders (default: ideal). A controller that uses the load encoder gets an ideal one if none is
         given.
@@ -273,9 +315,11 @@ def simulate_closed_loop(
     Raises
     ------
     InputError
-        If ``plant`` is not a Plant, ``ref`` not a reference, ``controller`` not a controller, ``x0`` not a
-        state of the plant, ``progress`` not callable, or the controller reads the load encoder and ``sensors``
-        say the servo has none.
+        If ``plant`` is not a Plant, ``ref`` not a reference, ``controller`` not a controller, ``sensors`` not a
+        :class:`~gearctl.params.Sensors`, ``duration`` or ``seed`` out of range or shorter than one sample, the
+        run's output would not fit in memory (:func:`loop_samples`), ``x0`` not a state of the plant,
+        ``progress`` not callable, or the controller reads the load encoder and ``sensors`` say the servo has
+        none.
     SimulationError
         If the loop diverges or the plant state becomes NaN; ``error.result`` holds the run so far.
     """
@@ -367,6 +411,28 @@ def loop_result(plant: Plant, controller: Controller, ref: ReferenceLike, kn: Ke
                 **samples: Any) -> ClosedLoopResult:
     """The :class:`ClosedLoopResult` of a finished loop (the Python one here, or the compiled batch loop): the
     per-sample arrays given, the kernel's events, the controller's solve times and fallbacks.
+
+    Parameters
+    ----------
+    plant : Plant
+        The simulated plant.
+    controller : Controller
+        The controller that ran (its ``solve_times``, ``fallbacks``, ``describe()`` and ``overruns`` are read).
+    ref : ReferenceLike
+        The reference (its ``settle`` [s] where it has one, else 0).
+    kn : Kernel
+        The plant kernel that integrated the run (its ``event_log`` and ``counts``).
+    message : str
+        ``"ok"``, or why the run stopped.
+    wall : float
+        Wall-clock time of the run [s].
+    **samples
+        The per-sample arrays, by :class:`ClosedLoopResult` field: ``t``, ``x``, ``reference``, ``torque``,
+        ``command``, ``y_motor``, ``y_load``, ``mode``.
+
+    Returns
+    -------
+    ClosedLoopResult
 
     Raises
     ------
