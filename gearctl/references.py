@@ -30,6 +30,31 @@ def move_times(distance: float, velocity: float, accel: float, profile: str = "s
     ``accel`` is the peak acceleration [rad/s^2]; a move too short to reach ``velocity`` never cruises.
     S-curve: acceleration ``(a/2)(1 - cos(2 pi t / t_a))`` over each ramp, so ``t_a = 2 v / a``;
     trapezoid: constant ``a``, ``t_a = v / a``.
+
+    Parameters
+    ----------
+    distance : float
+        Travel [rad]; 0 or less: no move.
+    velocity : float
+        Cruise velocity [rad/s], > 0 (not checked here: :class:`Reference` checks its ``rate``).
+    accel : float
+        Peak acceleration [rad/s^2], > 0 (not checked here: :class:`Reference` checks its ``accel``).
+    profile : str
+        ``"s-curve"`` (default) or ``"trapezoid"`` (not checked here: :class:`Reference` checks its ``profile``).
+
+    Returns
+    -------
+    t_a : float
+        Duration of each ramp [s].
+    t_c : float
+        Duration of the cruise [s] (0 for a move that never reaches ``velocity``).
+    v : float
+        Velocity reached [rad/s]: ``velocity``, or less for a move that never cruises.
+
+    Examples
+    --------
+    >>> move_times(1.0, 1.0, 2.0, "trapezoid")
+    (0.5, 0.5, 1.0)
     """
     if distance <= 0.0:
         return 0.0, 0.0, 0.0
@@ -45,7 +70,26 @@ def move_times(distance: float, velocity: float, accel: float, profile: str = "s
 
 def move_point(tau: float, distance: float, velocity: float, accel: float,
                profile: str = "s-curve") -> tuple[float, float, float]:
-    """Position, velocity, acceleration at time ``tau`` after the start of a move over ``distance >= 0``."""
+    """Position, velocity, acceleration at time ``tau`` after the start of a move over ``distance >= 0``.
+
+    Parameters
+    ----------
+    tau : float
+        Time since the start of the move [s]; at rest at 0 before it, at ``distance`` after its end.
+    distance : float
+        Travel [rad]; 0 or less: no move.
+    velocity : float
+        Cruise velocity [rad/s], > 0 (not checked here: :class:`Reference` checks its ``rate``).
+    accel : float
+        Peak acceleration [rad/s^2], > 0 (not checked here: :class:`Reference` checks its ``accel``).
+    profile : str
+        ``"s-curve"`` (default) or ``"trapezoid"`` (not checked here: :class:`Reference` checks its ``profile``).
+
+    Returns
+    -------
+    tuple of float
+        ``(p, p', p'')`` [rad, rad/s, rad/s^2] (:func:`move_times` gives the ramp and cruise times).
+    """
     ta, tc, v = move_times(distance, velocity, accel, profile)
     T = 2 * ta + tc
     if tau <= 0.0 or T == 0.0:
@@ -123,7 +167,18 @@ class Reference:
         validate_fields(self)
 
     def at(self, t: ArrayLike) -> tuple[Any, Any, Any]:
-        """``(r, r', r'')`` at time(s) ``t`` [rad, rad/s, rad/s^2]; floats for a scalar ``t``."""
+        """``(r, r', r'')`` at time(s) ``t`` [rad, rad/s, rad/s^2]; floats for a scalar ``t``.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+
+        Returns
+        -------
+        tuple
+            ``(r, r', r'')``: three floats for a scalar ``t``, else three arrays of ``t``'s shape.
+        """
         if isinstance(t, float | int):
             return self._scalar(float(t))
         t = np.asarray(t, dtype=float)
@@ -164,7 +219,18 @@ class Reference:
         return sgn * p, sgn * dp, sgn * ddp
 
     def load_disturbance(self, t: float) -> float:
-        """Load-torque disturbance at time ``t`` [N m]."""
+        """Load-torque disturbance at time ``t`` [N m].
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        float
+            ``disturbance`` from ``disturbance_time`` on, else 0 [N m].
+        """
         return self.disturbance if t >= self.disturbance_time else 0.0
 
 
