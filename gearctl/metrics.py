@@ -140,7 +140,45 @@ class LoopHealth(_Mapping):
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class TrackingMetrics(_Mapping):
-    """Tracking figures of a closed-loop run (load angle, SI units); see :func:`tracking_metrics`."""
+    """Tracking figures of a closed-loop run (load angle, SI units); see :func:`tracking_metrics`.
+
+    Read as a mapping too (``m["rms_error"]``, ``dict(m)``, :meth:`as_dict`); an unknown key raises an
+    :class:`~gearctl.errors.InputError` that is also a ``KeyError``.
+
+    Attributes
+    ----------
+    rms_error : float
+        RMS of the load-angle error ``r - theta_load`` over the scored samples (from the settle time on) [rad].
+    max_error : float
+        Largest ``|r - theta_load|`` over the scored samples [rad].
+    final_error : float
+        ``r - theta_load`` at the last sample, signed [rad].
+    impacts : int
+        Impacts on every flank and stage, plastic ones included (``impacts_front + impacts_back``).
+    impacts_front : int
+        Impacts on the front flanks.
+    impacts_back : int
+        Impacts on the back flanks.
+    max_impact_velocity : float
+        Largest relative velocity along the line of action at an impact [m/s] (0 without impacts).
+    fallbacks : int
+        Controller steps that fell back to a safe command.
+    overruns : int
+        Solves over the controller's time budget.
+    solve_time : dict or None
+        ``median``, ``p99`` and ``max`` of the controller's per-step solve times [s]; None for a controller that
+        solves no optimisation.
+    torque_rms : float
+        RMS of the motor torque over the whole run [N m].
+    saturated_fraction : float
+        Share of all samples with the torque at its limit [1] (0 without a limit).
+    duration : float
+        Simulated time, the last sample's time [s].
+    wall_time : float
+        Wall-clock time of the run [s].
+    health : LoopHealth
+        What is wrong with the loop, if anything (:func:`loop_health`).
+    """
 
     rms_error: float
     max_error: float
@@ -360,6 +398,12 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         ``solve_time`` {``median``, ``p99``, ``max``} [s] or None for controllers that solve no
         optimisation, ``torque_rms`` [N m], ``saturated_fraction`` (samples at the torque limit),
         ``duration`` [s], ``wall_time`` [s], ``health`` (:func:`loop_health`).
+
+    Raises
+    ------
+    InputError
+        If ``res`` is not a :class:`~gearctl.closedloop.ClosedLoopResult`, or ``settle`` not a number in 0 up to
+        the run's end.
     """
     if not isinstance(res, ClosedLoopResult):
         from .errors import short_repr
