@@ -274,6 +274,23 @@ def sampled_pid(gains: PIDGains, Ts: float) -> ct.TransferFunction:
     """The sampled PID of :class:`~gearctl.design.pid.PID` as a discrete transfer function, error to torque.
 
     :meth:`PIDGains.sampled_tf`, the one statement of the discretisation (see its Notes).
+
+    Parameters
+    ----------
+    gains : PIDGains
+        The PID's gains.
+    Ts : float
+        Sample period [s].
+
+    Returns
+    -------
+    control.TransferFunction
+        ``C(z)`` with ``dt = Ts``, input ``e``, output ``xi1``.
+
+    Raises
+    ------
+    InputError
+        If ``Ts`` is not a sample period (1e-6..1 s).
     """
     return gains.sampled_tf(Ts)
 

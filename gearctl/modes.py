@@ -76,7 +76,18 @@ def clean_poles(poles: Any) -> np.ndarray:
 
 
 def output_names(plant: Plant) -> list[str]:
-    """Output names of the linear models: the pair's :data:`OUTPUTS`, or a train's."""
+    """Output names of the linear models: the pair's :data:`OUTPUTS`, or a train's.
+
+    Parameters
+    ----------
+    plant : Plant
+        A pair or a train of ``n`` stages.
+
+    Returns
+    -------
+    list of str
+        The pair's :data:`OUTPUTS`; for a train ``theta0``, ``theta<n>``, ``s1..s<n>`` and ``force1..force<n>``.
+    """
     n = plant.n_stages
     if n == 1:
         return list(OUTPUTS)

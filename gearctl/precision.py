@@ -52,7 +52,13 @@ class MotionProgram:
     settle: float = 0.0
 
     def duration(self, D: float) -> float:
-        """Duration of one move over ``|D|`` [s]."""
+        """Duration of one move over ``|D|`` [s].
+
+        Parameters
+        ----------
+        D : float
+            The move's travel, either sign [rad].
+        """
         ta, tc, _ = move_times(abs(D), self.velocity, self.accel)
         return 2 * ta + tc
 
@@ -63,7 +69,20 @@ class MotionProgram:
         return self.origins[k] + sgn * p, sgn * dp, sgn * ddp
 
     def at(self, t: Any) -> tuple[Any, Any, Any]:
-        """``(r, r', r'')`` at time(s) ``t``."""
+        """``(r, r', r'')`` at time(s) ``t`` [rad, rad/s, rad/s^2].
+
+        Before the first start the program rests at the first origin; between moves, at the last target.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+
+        Returns
+        -------
+        tuple
+            ``(r, r', r'')``: three floats for a scalar ``t``, else three arrays of ``t``'s shape.
+        """
         if isinstance(t, float | int):
             k = max(0, bisect.bisect_right(self.starts, float(t)) - 1)
             return self._move(k, float(t) - self.starts[k])
@@ -72,7 +91,18 @@ class MotionProgram:
         return out[0].reshape(t.shape), out[1].reshape(t.shape), out[2].reshape(t.shape)
 
     def load_disturbance(self, t: float) -> float:
-        """No disturbance during a positioning test."""
+        """No disturbance during a positioning test.
+
+        Parameters
+        ----------
+        t : float
+            Time [s] (unused).
+
+        Returns
+        -------
+        float
+            0 [N m].
+        """
         return 0.0
 
 
@@ -101,6 +131,14 @@ class PrecisionResult:
 
 def iso230_statistics(up: NDArray[np.float64], down: NDArray[np.float64]) -> dict[str, Any]:
     """ISO 230-2 statistics from deviations ``up``, ``down`` of shape (targets, cycles).
+
+    Parameters
+    ----------
+    up : ndarray, shape (m, n)
+        Deviations ``x_ij = measured - target`` approaching target ``i`` in the positive direction, cycle ``j``
+        [rad] (every figure returned is in the unit given).
+    down : ndarray, shape (m, n)
+        The same, approaching in the negative direction [rad].
 
     Returns
     -------
