@@ -631,6 +631,18 @@ def check_plant(plant: Any, *, field: str = "plant") -> Plant:
     A gear model (from :func:`~gearctl.catalog.load_model`) or its name is the usual slip: the message says to
     build the plant first.
 
+    Parameters
+    ----------
+    plant : object
+        What a caller passed as the plant.
+    field : str
+        The name the message gives it (default ``"plant"``).
+
+    Returns
+    -------
+    Plant
+        ``plant`` itself.
+
     Raises
     ------
     InputError
@@ -648,7 +660,20 @@ def check_plant(plant: Any, *, field: str = "plant") -> Plant:
 
 
 def signal_names(plant: Plant) -> tuple[list[str], list[str]]:
-    """State and input names: the report's for a pair, ``theta0..thetan``, ``xi0, xin`` for a train."""
+    """State and input names: the report's for a pair, ``theta0..thetan``, ``xi0, xin`` for a train.
+
+    Parameters
+    ----------
+    plant : Plant
+        A pair or a train.
+
+    Returns
+    -------
+    states : list of str
+        :data:`STATES` for a pair; ``theta0..theta<n>`` then ``omega0..omega<n>`` for a train.
+    inputs : list of str
+        :data:`INPUTS` for a pair; ``xi0`` and ``xi<n>`` for a train.
+    """
     if plant.n_stages == 1:
         return list(STATES), list(INPUTS)
     w = len(plant.shafts)
@@ -662,6 +687,22 @@ def force_coefficients(plant: Plant, i: int, sigma: int) -> tuple[NDArray[np.flo
     """The improved law's force of stage ``i`` on flank ``sigma`` as ``F = fc . x + f0`` [N].
 
     ``F = k (s - sigma b) + c s'`` (eqs 3 and 10, signed as the front flank's force), linear in the state.
+
+    Parameters
+    ----------
+    plant : Plant
+        A pair or a train.
+    i : int
+        Stage index, 0 at the motor.
+    sigma : int
+        Flank: +1 front, -1 back (0: the force of ``k s + c s'`` alone).
+
+    Returns
+    -------
+    fc : ndarray, shape (nx,)
+        Coefficients on the state [N/rad, N s/rad].
+    f0 : float
+        Constant part ``-sigma k b`` [N].
     """
     st = plant.stages[i]
     w = len(plant.shafts)
@@ -677,6 +718,21 @@ def mode_matrices(plant: Plant, loaded: Sequence[bool], stuck: Sequence[bool] | 
     Front and back contact share ``A`` (they differ only in ``e``, see :func:`affine_terms`); a stuck
     shaft (stick-slip friction holding it) has ``omega' = 0``. Eqs 1-2, 6-9 of the report per stage,
     with the viscous friction of each shaft.
+
+    Parameters
+    ----------
+    plant : Plant
+        A pair or a train.
+    loaded : sequence of bool
+        Per stage: in contact (front or back).
+    stuck : sequence of bool, optional
+        Per shaft: held by static friction (default: none).
+
+    Returns
+    -------
+    ndarray, shape (nx, nx)
+        ``A``: the rows ``theta' = omega``, then each shaft's ``omega'`` (entries [1/s^2] on the angles, [1/s] on
+        the speeds).
     """
     w = len(plant.shafts)
     A = np.zeros((2 * w, 2 * w))
@@ -698,7 +754,18 @@ def mode_matrices(plant: Plant, loaded: Sequence[bool], stuck: Sequence[bool] | 
 
 
 def input_matrix(plant: Plant) -> NDArray[np.float64]:
-    """``B``: motor torque on shaft 0, load torque on the last shaft."""
+    """``B``: motor torque on shaft 0, load torque on the last shaft.
+
+    Parameters
+    ----------
+    plant : Plant
+        A pair or a train.
+
+    Returns
+    -------
+    ndarray, shape (nx, 2)
+        ``1 / J`` of the first and the last shaft in their ``omega'`` rows [1/(kg m^2)].
+    """
     w = len(plant.shafts)
     B = np.zeros((2 * w, 2))
     B[w, 0] = 1 / plant.shafts[0].J
@@ -710,7 +777,13 @@ def affine_terms(plant: Plant) -> NDArray[np.float64]:
     """The constant part of each loaded stage's force on its two shafts' accelerations.
 
     Returns an array ``(n, 2, 2)``: ``[i, sigma > 0]`` holds the terms added to ``omega_i'`` and
-    ``omega_(i+1)'`` by stage ``i`` in contact on flank ``sigma`` (``F``'s ``-sigma k b``, eqs 3 and 10).
+    ``omega_(i+1)'`` by stage ``i`` in contact on flank ``sigma`` (``F``'s ``-sigma k b``, eqs 3 and 10),
+    [rad/s^2].
+
+    Parameters
+    ----------
+    plant : Plant
+        A pair or a train.
     """
     out = np.zeros((plant.n_stages, 2, 2))
     for i, st in enumerate(plant.stages):
@@ -728,6 +801,11 @@ EVENT_GEOMETRIC, EVENT_FORCE = 0, 1
 
 def event_table(plant: Plant) -> dict[str, NDArray[Any]]:
     """The boundaries of every stage's modes as linear functions ``g = cg . x + g0 > 0`` inside the mode.
+
+    Parameters
+    ----------
+    plant : Plant
+        A pair or a train.
 
     Returns
     -------
