@@ -25,7 +25,7 @@ REMAINING = [
     "gearctl.errors", "gearctl.excite", "gearctl.export.batch", "gearctl.export.cstruct", "gearctl.export.emit",
     "gearctl.export.kinds", "gearctl.export.mpc_tables", "gearctl.export.rows", "gearctl.export.sil",
     "gearctl.export.timing", "gearctl.files", "gearctl.geometry", "gearctl.kernel", "gearctl.model",
-    "gearctl.overrides", "gearctl.parallel", "gearctl.perf", "gearctl.plant", "gearctl.plots", "gearctl.runs",
+    "gearctl.overrides", "gearctl.parallel", "gearctl.perf", "gearctl.plots", "gearctl.runs",
     "gearctl.stiffness", "gearctl.units",
 ]
 
