@@ -120,10 +120,31 @@ def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: fl
                       seed: int = 0) -> ClosedLoopResult:
     """:func:`gearctl.closedloop.simulate_closed_loop` with the loop in C (same arguments, same result).
 
+    Parameters
+    ----------
+    plant : Plant
+        The true plant.
+    controller : Controller
+        One of :data:`BATCH_KINDS`; reset before the run.
+    ref : Reference
+        Load-angle reference and load-torque disturbance.
+    duration : float
+        Simulated time, (0, 1e5] [s], at least one sample.
+    sensors : Sensors, optional
+        Encoders (default: ideal).
+    seed : int
+        Seed of the sensor-noise generator (the Python loop's draws, in its order).
+
+    Returns
+    -------
+    ClosedLoopResult
+
     Raises
     ------
     InputError
-        For a controller the batch loop cannot run (see :data:`BATCH_KINDS`), or no compiled code.
+        For a controller the batch loop cannot run (see :data:`BATCH_KINDS`), or no compiled code; a duration or
+        seed out of range or an output too large (:func:`~gearctl.closedloop.loop_samples`); a controller that
+        reads the load encoder where ``sensors`` have none.
     SimulationError
         As :func:`~gearctl.closedloop.simulate_closed_loop`: diverged, or the kernel failed.
     """

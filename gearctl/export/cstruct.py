@@ -27,7 +27,22 @@ _POINTER = re.compile(r"^const (\w+) \*$")
 
 
 def c_double(v: float) -> str:
-    """A C99 literal that parses to exactly ``v`` (shortest round-trip repr; INFINITY / NAN from math.h)."""
+    """A C99 literal that parses to exactly ``v`` (shortest round-trip repr; INFINITY / NAN from math.h).
+
+    Parameters
+    ----------
+    v : float
+        The value (anything :class:`float` takes).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> c_double(1), c_double(0.1), c_double(float("-inf"))
+    ('1.0', '0.1', '-INFINITY')
+    """
     v = float(v)
     if math.isnan(v):
         return "NAN"
@@ -39,7 +54,22 @@ def c_double(v: float) -> str:
 
 @dataclass(frozen=True)
 class CArray:
-    """A constant table a pointer field points at: its C name, element type and data."""
+    """A constant table a pointer field points at: its C name, element type and data.
+
+    Parameters
+    ----------
+    symbol : str
+        The C name of the table.
+    ctype : str
+        Element type: ``double``, ``int16_t``, ``int8_t``, ``int32_t``, ``uint16_t`` or ``uint8_t``.
+    data : ndarray
+        The values, stored flattened, contiguous, converted to ``ctype``.
+
+    Raises
+    ------
+    KeyError
+        For another ``ctype``.
+    """
 
     symbol: str
     ctype: str  # element type: double, int16_t, int8_t, int32_t, uint16_t
@@ -55,7 +85,19 @@ class CArray:
 
 
 def c_array(arr: CArray, per_line: int = 6) -> str:
-    """``static const <type> <symbol>[n] = {...};`` (doubles exact: shortest round-trip literals)."""
+    """``static const <type> <symbol>[n] = {...};`` (doubles exact: shortest round-trip literals).
+
+    Parameters
+    ----------
+    arr : CArray
+        The table (an empty one is written as one 0).
+    per_line : int
+        Values per line (default 6).
+
+    Returns
+    -------
+    str
+    """
     fmt = c_double if arr.ctype == "double" else (lambda v: str(int(v)))
     vals = [fmt(v) for v in arr.data.tolist()] or ["0"]
     lines = [", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line)]
@@ -64,7 +106,18 @@ def c_array(arr: CArray, per_line: int = 6) -> str:
 
 
 class CStruct:
-    """A C struct: name and ordered ``(field, type)`` pairs; nested structs are given in ``registry``."""
+    """A C struct: name and ordered ``(field, type)`` pairs; nested structs are given in ``registry``.
+
+    Parameters
+    ----------
+    name : str
+        The C type name.
+    fields : sequence of (str, str)
+        ``(field, type)`` in order; a type is ``double``, ``int``, ``double[n]``, ``int[n]``, a pointer
+        ``const <type> *`` or the name of a struct in ``registry``.
+    registry : mapping of str to CStruct, optional
+        The nested structs by name.
+    """
 
     def __init__(self, name: str, fields: Sequence[tuple[str, str]], registry: Mapping[str, CStruct] | None = None):
         self.name = name
@@ -112,7 +165,25 @@ class CStruct:
             raise ValueError(f"{self.name}: missing {sorted(missing)}, unknown {sorted(extra)}")
 
     def c_init(self, values: Mapping[str, Any], indent: str = "    ") -> str:
-        """A C initializer ``{ .field = value, ... }`` (pointers: the :class:`CArray`'s symbol)."""
+        """A C initializer ``{ .field = value, ... }`` (pointers: the :class:`CArray`'s symbol).
+
+        Parameters
+        ----------
+        values : mapping
+            ``field -> value``: a number, a sequence for an array field, a :class:`CArray` (or anything else: a
+            null pointer) for a pointer field, a mapping for a nested struct; exactly the struct's fields.
+        indent : str
+            Indentation of the fields (nested structs four spaces more; default four spaces).
+
+        Returns
+        -------
+        str
+
+        Raises
+        ------
+        ValueError
+            For a missing or unknown field (or, for :meth:`c_init`, an array field of the wrong length).
+        """
         self._check(values)
         parts = []
         for f, ty in self.fields:
@@ -137,7 +208,25 @@ class CStruct:
         return "{\n" + ",\n".join(parts) + f"\n{close}}}"
 
     def fill(self, values: Mapping[str, Any], keep: list[Any]) -> ctypes.Structure:
-        """A filled :mod:`ctypes` object; the arrays pointed at are appended to ``keep`` (keep it alive)."""
+        """A filled :mod:`ctypes` object; the arrays pointed at are appended to ``keep`` (keep it alive).
+
+        Parameters
+        ----------
+        values : mapping
+            ``field -> value``: a number, a sequence for an array field, a :class:`CArray` (or anything else: a
+            null pointer) for a pointer field, a mapping for a nested struct; exactly the struct's fields.
+        keep : list
+            Appended to: the arrays the pointers point at, which must outlive the object.
+
+        Returns
+        -------
+        ctypes.Structure
+
+        Raises
+        ------
+        ValueError
+            For a missing or unknown field (or, for :meth:`c_init`, an array field of the wrong length).
+        """
         self._check(values)
         obj = self.ctype()()
         for f, ty in self.fields:
@@ -160,7 +249,18 @@ class CStruct:
         return obj
 
     def arrays(self, values: Mapping[str, Any]) -> list[CArray]:
-        """The tables the pointer fields (nested ones included) point at."""
+        """The tables the pointer fields (nested ones included) point at.
+
+        Parameters
+        ----------
+        values : mapping
+            ``field -> value``: a number, a sequence for an array field, a :class:`CArray` (or anything else: a
+            null pointer) for a pointer field, a mapping for a nested struct; exactly the struct's fields.
+
+        Returns
+        -------
+        list of CArray
+        """
         out: list[CArray] = []
         for f, ty in self.fields:
             v = values[f]

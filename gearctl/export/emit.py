@@ -147,7 +147,18 @@ def _gap_reading_only(spec: KindSpec) -> bool:
 
 
 def header_text(spec: KindSpec) -> str:
-    """``gearctl_ctrl.h``: the API of issue 14, with this controller's constants and state."""
+    """``gearctl_ctrl.h``: the API of issue 14, with this controller's constants and state.
+
+    Parameters
+    ----------
+    spec : KindSpec
+        What the controller exports (:func:`~gearctl.export.kinds.kind_spec`).
+
+    Returns
+    -------
+    str
+        The header's text.
+    """
     from .. import __version__
 
     state = source_text("gcx_state.h")
@@ -500,7 +511,19 @@ clean:
 
 
 def source_files(spec: KindSpec) -> dict[str, str]:
-    """The C sources and the header of an exported controller (file name -> text)."""
+    """The C sources and the header of an exported controller (file name -> text).
+
+    Parameters
+    ----------
+    spec : KindSpec
+        What the controller exports (:func:`~gearctl.export.kinds.kind_spec`).
+
+    Returns
+    -------
+    dict of str to str
+        ``gearctl_ctrl.h``, ``gearctl_ctrl.c``, ``gearctl_ctrl_params.h``; for an MPC also ``gearctl_qp.h`` and
+        ``gearctl_qp.c``.
+    """
     files = {"gearctl_ctrl.h": header_text(spec), "gearctl_ctrl.c": _implementation(spec),
              "gearctl_ctrl_params.h": _params(spec)}
     if spec.prefix == "mpc":

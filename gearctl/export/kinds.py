@@ -93,7 +93,23 @@ _NEEDS = {"pid": ["gcx_pid_p"], "rev": ["gcx_pid_p", "gcx_plant_p", "gcx_rev_p"]
 
 
 def kind_structs(prefixes: list[str] | tuple[str, ...] = ("pid", "rev", "inv", "ada")) -> str:
-    """The C declarations of the parameter structs the kinds ``prefixes`` need."""
+    """The C declarations of the parameter structs the kinds ``prefixes`` need.
+
+    Parameters
+    ----------
+    prefixes : sequence of str
+        C prefixes of the kinds: ``pid``, ``rev``, ``inv``, ``ada``, ``mpc`` (default the first four).
+
+    Returns
+    -------
+    str
+        The ``typedef struct`` declarations, each struct once, in the order needed.
+
+    Raises
+    ------
+    KeyError
+        For another prefix.
+    """
     names: list[str] = []
     for p in prefixes:
         names += [n for n in _NEEDS[p] if n not in names]
@@ -217,6 +233,16 @@ class _Common(TypedDict, total=False):
 
 def kind_spec(controller: Controller) -> KindSpec:
     """The export description of a controller object.
+
+    Parameters
+    ----------
+    controller : Controller
+        A controller of one of gearctl's kinds, exactly (a subclass is refused: it may change what a method
+        does, which the C would not know).
+
+    Returns
+    -------
+    KindSpec
 
     Raises
     ------

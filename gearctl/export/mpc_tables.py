@@ -30,12 +30,42 @@ __all__ = ["mpc_values", "table_figures", "work_size"]
 
 
 def work_size(n: int, m: int) -> int:
-    """``GEARCTL_QP_WORK_SIZE(n, m)`` of gearctl_qp.h [doubles]."""
+    """``GEARCTL_QP_WORK_SIZE(n, m)`` of gearctl_qp.h [doubles].
+
+    Parameters
+    ----------
+    n : int
+        Variables of the QP.
+    m : int
+        Constraints of the QP.
+
+    Returns
+    -------
+    int
+        The work array's length [doubles].
+
+    Examples
+    --------
+    >>> work_size(2, 1)
+    21
+    """
     return 2 * n * n + 5 * n + m + (n + 1) // 2 + (n + m + 7) // 8
 
 
 def mpc_values(c: MPC) -> tuple[dict[str, Any], dict[str, int]]:
     """The parameter struct's values and the compile-time sizes of an MPC.
+
+    Parameters
+    ----------
+    c : MPC
+        The MPC to export.
+
+    Returns
+    -------
+    values : dict
+        The ``gcx_mpc_p`` struct's values (tables as :class:`~gearctl.export.cstruct.CArray`).
+    dims : dict of str to int
+        The compile-time sizes (``#define``).
 
     Raises
     ------
@@ -146,7 +176,18 @@ def _cross_share() -> float:
 
 
 def table_figures(values: dict[str, Any]) -> dict[str, int]:
-    """Bytes of each MPC table, and the total."""
+    """Bytes of each MPC table, and the total.
+
+    Parameters
+    ----------
+    values : dict
+        The struct's values (:func:`mpc_values`); its :class:`~gearctl.export.cstruct.CArray` entries count.
+
+    Returns
+    -------
+    dict of str to int
+        ``name -> bytes`` per table, and ``total`` [bytes].
+    """
     out = {k: v.nbytes for k, v in values.items() if isinstance(v, CArray)}
     out["total"] = sum(out.values())
     return out

@@ -62,7 +62,23 @@ class PreviewRows:
         self.block = 0  # counts the blocks evaluated (the recorder dedupes rows by it)
 
     def at(self, t: float, ref: ReferenceLike) -> tuple[np.ndarray, int]:
-        """The rows array and the index of the row at ``t`` (the step reads ``preview`` rows from there)."""
+        """The rows array and the index of the row at ``t`` (the step reads ``preview`` rows from there).
+
+        Parameters
+        ----------
+        t : float
+            Sample time [s].
+        ref : ReferenceLike
+            The load-angle reference.
+
+        Returns
+        -------
+        rows : ndarray, shape (k, 3)
+            ``(r, r', r'')`` rows [rad, rad/s, rad/s^2] (one row for a preview of 1, else the cached block); the
+            array is reused by later calls.
+        index : int
+            The row at ``t``.
+        """
         if self.preview == 1:
             r, rd, rdd = ref.at(t)
             one = self._one[0]
@@ -86,7 +102,23 @@ class PreviewRows:
 
 @dataclasses.dataclass(frozen=True)
 class Case:
-    """One recorded closed-loop run: what the controller read and what it returned."""
+    """One recorded closed-loop run: what the controller read and what it returned.
+
+    Parameters
+    ----------
+    name : str
+        The case's label (``case<i>`` when read back from a file).
+    table : ndarray, shape (rows, 3)
+        The reference rows ``(r, r', r'')`` [rad, rad/s, rad/s^2]; a step reads ``preview`` consecutive rows.
+    first : ndarray of int, shape (steps,)
+        The first row of each step.
+    y : ndarray, shape (steps, 2)
+        Motor and load encoder readings [rad] (NaN: not used).
+    u : ndarray, shape (steps,)
+        The Python controller's torque [N m].
+    warnings : tuple of str
+        What was wrong with the recorded loop (:func:`gearctl.metrics.loop_health`; not stored in the file).
+    """
 
     name: str
     table: np.ndarray  # (rows, 3)
@@ -212,7 +244,17 @@ def record_cases(controller: Controller, plant: Any, *, sensors: Any = None,
 
 
 def write_vectors(path: Path, preview: int, cases: list[Case]) -> None:
-    """Write the cases in the layout of the module docstring."""
+    """Write the cases in the layout of the module docstring.
+
+    Parameters
+    ----------
+    path : Path
+        The file to write (replaced).
+    preview : int
+        Rows per step.
+    cases : list of Case
+        The recorded runs (names and warnings are not written).
+    """
     with open(path, "wb") as f:
         f.write(_MAGIC + struct.pack("<iii", 1, preview, len(cases)))
         for c in cases:
@@ -225,6 +267,18 @@ def write_vectors(path: Path, preview: int, cases: list[Case]) -> None:
 
 def read_vectors(path: Path) -> tuple[int, list[Case]]:
     """Read a vectors file: ``(preview, cases)``.
+
+    Parameters
+    ----------
+    path : Path
+        A file :func:`write_vectors` wrote.
+
+    Returns
+    -------
+    preview : int
+        Rows per step.
+    cases : list of Case
+        The runs, named ``case0``, ``case1``, ...
 
     Raises
     ------

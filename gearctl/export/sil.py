@@ -52,6 +52,18 @@ def _manifest(folder: Path) -> dict[str, Any]:
 def compile_exported(folder: str | Path) -> tuple[ctypes.CDLL, dict[str, Any]]:
     """Compile an exported folder's sources into a shared library (cached per content); also its manifest.
 
+    Parameters
+    ----------
+    folder : str or Path
+        A folder :func:`~gearctl.export.emit.export_controller` wrote (its ``manifest.json`` and sources).
+
+    Returns
+    -------
+    lib : ctypes.CDLL
+        The library, with the controller's ``init``, ``step`` and SIL state-size functions typed.
+    manifest : dict
+        The folder's manifest.
+
     Raises
     ------
     InputError
@@ -176,6 +188,11 @@ class ExportedController(Controller):
 
 def exported_name(folder: str | Path) -> str:
     """The catalog name of the controller an exported folder holds (its kind where the name is no catalog entry).
+
+    Parameters
+    ----------
+    folder : str or Path
+        A folder :func:`~gearctl.export.emit.export_controller` wrote (its ``manifest.json`` and sources).
 
     Raises
     ------

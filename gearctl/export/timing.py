@@ -26,7 +26,20 @@ __all__ = ["export_timing", "bench_folder", "step_times", "batch_timing"]
 
 def bench_folder(folder: str | Path, *, timeout: float = 300.0) -> dict[str, Any] | None:
     """``make bench`` in an exported folder: its JSON line (``step_median``, ``step_p99``, ``step_max`` [s],
-    ``steps``), or None where ``make`` or a C compiler is missing or the build fails."""
+    ``steps``), or None where ``make`` or a C compiler is missing or the build fails.
+
+    Parameters
+    ----------
+    folder : str or Path
+        An exported folder (with its ``Makefile``).
+    timeout : float
+        Longest wait for ``make`` [s] (default 300); past it the result is None.
+
+    Returns
+    -------
+    dict or None
+        The last JSON line ``make bench`` printed.
+    """
     if shutil.which("make") is None:
         return None
     try:
@@ -43,7 +56,24 @@ def bench_folder(folder: str | Path, *, timeout: float = 300.0) -> dict[str, Any
 
 
 def step_times(controller: Any, plant: Any, sensors: Any, duration: float = 3.0) -> np.ndarray:
-    """Wall time of each ``controller.step`` in gearctl's closed loop on the sine [s]."""
+    """Wall time of each ``controller.step`` in gearctl's closed loop on the sine [s].
+
+    Parameters
+    ----------
+    controller : Controller
+        The controller to time; its ``step`` is wrapped for the run (an instance attribute, deleted after).
+    plant : Plant
+        The simulated plant.
+    sensors : Sensors or None
+        The encoders.
+    duration : float
+        Simulated time of the catalog sine (:func:`gearctl.reference`) [s] (default 3).
+
+    Returns
+    -------
+    ndarray
+        One wall time per step [s].
+    """
     from ..closedloop import simulate_closed_loop
     from ..references import reference
 
@@ -79,11 +109,22 @@ def batch_timing(controllers: tuple[str, ...] = ("pid", "reversal_offset", "dead
                  model: str = "shing1993_servo", duration: float = 1.0, repeats: int = 15) -> dict[str, Any]:
     """CPU time of one run in the compiled batch loop and through :func:`gearctl.runs.execute` (median of ``repeats``).
 
+    Parameters
+    ----------
+    controllers : tuple of str
+        Catalog controller names (default the PID, the reversal offset and the dead-zone inverse).
+    model : str
+        Catalog model name (default ``shing1993_servo``).
+    duration : float
+        Simulated time of each run on the catalog sine [s] (default 1).
+    repeats : int
+        Timed runs per path, after one untimed (default 15).
+
     Returns
     -------
     dict
         controller -> {``per_run_s``, ``execute_per_run_s`` [s], ``speedup``, ``equal`` (the two results'
-        metrics agree exactly)}.
+        metrics, wall time left out, agree exactly), ``duration`` [s], ``model``}.
     """
     from ..runs import execute, make_run
     from .batch import run_compiled
