@@ -56,10 +56,23 @@ class ReferenceLike(Protocol):
     """What a controller reads of a reference: ``(r, r', r'')`` at a time, and the known load torque."""
 
     def at(self, t: Any) -> tuple[Any, Any, Any]:
-        """``(r, r', r'')`` of the load angle at time(s) ``t`` [rad, rad/s, rad/s^2]."""
+        """``(r, r', r'')`` of the load angle at time(s) ``t`` [rad, rad/s, rad/s^2].
+
+        Parameters
+        ----------
+        t : float or ndarray
+            Time(s) [s]; the MPC passes an array of sample times and takes arrays of that shape (or scalars)
+            back.
+        """
 
     def load_disturbance(self, t: float) -> float:
-        """Load-torque disturbance at time ``t`` [N m]."""
+        """Load-torque disturbance at time ``t`` [N m].
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        """
 
 
 class Controller(abc.ABC):

@@ -60,6 +60,22 @@ def short_repr(value: Any, width: int = 80) -> str:
 
     An array's repr breaks its rows over lines and a model's runs to a page: the message must stay one line.
     A gear model (it has ``servo`` and a ``name``) is shown as ``<GearModel 'name'>``.
+
+    Parameters
+    ----------
+    value : object
+        What to show.
+    width : int
+        Most characters (default 80); a longer repr is cut and ends in ``...``.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> short_repr("x" * 100, width=10)
+    "'xxxxxx..."
     """
     name = getattr(value, "name", None)
     if hasattr(value, "servo") and isinstance(name, str):
