@@ -36,6 +36,16 @@ __all__ = [
 def involute(phi: float) -> float:
     """Involute function ``inv(phi) = tan(phi) - phi``.
 
+    Parameters
+    ----------
+    phi : float
+        Pressure angle [rad].
+
+    Returns
+    -------
+    float
+        ``inv(phi)`` [rad].
+
     Examples
     --------
     >>> round(involute(math.radians(20.0)), 6)
@@ -148,6 +158,20 @@ def minimum_profile_shift(teeth: int, pressure_angle: float, addendum_coefficien
     """Smallest profile-shift coefficient that keeps a gear of ``teeth`` teeth free of undercut [1].
 
     ``x_min = h_a* - z sin^2(alpha) / 2``, the inverse of :func:`undercut_limit`.
+
+    Parameters
+    ----------
+    teeth : int
+        Number of teeth ``z``.
+    pressure_angle : float
+        Pressure angle ``alpha`` [rad].
+    addendum_coefficient : float
+        Addendum coefficient ``h_a*`` [1] (default 1).
+
+    Returns
+    -------
+    float
+        ``x_min`` [1] (negative: the gear could take a negative shift without undercut).
 
     Examples
     --------
@@ -554,6 +578,23 @@ def check_pair(pair: Any, *, field: str = "pair") -> GearPair:
 
     A gear model (from :func:`~gearctl.catalog.load_model`) is the usual slip: the message points to its
     ``model.pair``, or for a train to ``model.stages[i].pair``.
+
+    Parameters
+    ----------
+    pair : object
+        What a caller passed as the gear pair.
+    field : str
+        The name the message gives it (default ``"pair"``).
+
+    Returns
+    -------
+    GearPair
+        ``pair`` itself.
+
+    Raises
+    ------
+    InputError
+        If ``pair`` is not a :class:`GearPair`.
     """
     if isinstance(pair, GearPair):
         return pair

@@ -537,6 +537,21 @@ def iso6336_mesh_stiffness(pair: GearPair) -> float:
     extrapolated.) A cross-check of the
     report's model, which is not used for the plant (:func:`stiffness_note`).
 
+    Parameters
+    ----------
+    pair : GearPair
+        The gear pair.
+
+    Returns
+    -------
+    float
+        The mean mesh stiffness [N/m].
+
+    Raises
+    ------
+    InputError
+        If ``pair`` is not a :class:`~gearctl.geometry.GearPair`.
+
     Examples
     --------
     >>> from gearctl import load_model
@@ -561,6 +576,23 @@ def stiffness_note(pair: GearPair, mean: float) -> str | None:
     face width falls with the teeth (``mean`` [N/m], :func:`mesh_stiffness`): 13.9 N/(mm um) for 20 x 80 teeth,
     7.0 for 20 x 190, 4.9 for 20 x 300, where ISO 6336-1 gives 20-22. The note is given where such a beam
     leaves the mean under half of :func:`iso6336_mesh_stiffness`.
+
+    Parameters
+    ----------
+    pair : GearPair
+        The gear pair.
+    mean : float
+        The pair's mean mesh stiffness by the report's model [N/m].
+
+    Returns
+    -------
+    str or None
+        One sentence, or None.
+
+    Raises
+    ------
+    InputError
+        If ``pair`` is not a :class:`~gearctl.geometry.GearPair`.
     """
     geo = pair_geometry(check_pair(pair))
     iso = iso6336_mesh_stiffness(pair)
