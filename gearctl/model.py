@@ -49,7 +49,15 @@ _PAIR_LABELS = {"teeth1": "[gear1] teeth", "teeth2": "[gear2] teeth", "inertia1"
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class StageModel:
-    """One stage of a train: a gear pair and its mesh dynamics."""
+    """One stage of a train: a gear pair and its mesh dynamics.
+
+    Parameters
+    ----------
+    pair : GearPair
+        The stage's gears (``[pair]``, ``[gear1]``, ``[gear2]`` of the model file).
+    dynamics : MeshDynamics
+        The stage's mesh dynamics (``[dynamics]``).
+    """
 
     pair: GearPair
     dynamics: MeshDynamics
@@ -204,7 +212,20 @@ def _check_stage_geometry(sm: StageModel, geo: Geometry, multi: bool, i: int) ->
 
 
 def disk_inertia(pair: GearPair, radius: float) -> float:
-    """Inertia of a solid disk of ``radius`` [m], the pair's face width and density [kg m^2]: ``rho pi f r^4 / 2``."""
+    """Inertia of a solid disk of ``radius`` [m], the pair's face width and density [kg m^2]: ``rho pi f r^4 / 2``.
+
+    Parameters
+    ----------
+    pair : GearPair
+        Gives the face width ``f`` [m] and the density ``rho`` [kg/m^3].
+    radius : float
+        The disk's radius ``r`` [m].
+
+    Returns
+    -------
+    float
+        The inertia [kg m^2].
+    """
     return pair.density * math.pi * pair.face_width * radius**4 / 2
 
 
@@ -241,6 +262,11 @@ def check_model(model: GearModel) -> None:
       smooth law's slope at standstill ``T_c / coulomb_velocity`` too (it is a viscous friction there);
     - mesh damping: ``c = 2 zeta sqrt(k m_eq)`` from ``damping_ratio`` within
       :data:`~gearctl.units.MESH_DAMPING`'s range.
+
+    Parameters
+    ----------
+    model : GearModel
+        The model as read (every field already in its own range).
 
     Raises
     ------
