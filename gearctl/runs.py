@@ -145,7 +145,25 @@ _LOCAL = threading.local()
 
 def design_controller(design: Design, progress: Callable[[float], Any] | None = None) -> Controller:
     """The controller of ``design``, built once per process and thread (then reset before each run); ``progress`` is
-    called with the fraction of the design done where it is built here (see :func:`build_controller`)."""
+    called with the fraction of the design done where it is built here (see :func:`build_controller`).
+
+    Parameters
+    ----------
+    design : Design
+        The controller file, the plant, the estimate.
+    progress : callable, optional
+        Called with the fraction of the design done (only where the controller is built, not when cached).
+
+    Returns
+    -------
+    Controller
+        The cached controller (the same object on every call with an equal design; the caller resets it).
+
+    Raises
+    ------
+    InputError
+        For a controller file the design refuses (:func:`~gearctl.design.registry.build_controller`).
+    """
     designs: dict[str, Controller] | None = getattr(_LOCAL, "designs", None)
     if designs is None:
         designs = _LOCAL.designs = {}
@@ -161,7 +179,25 @@ def design_controller(design: Design, progress: Callable[[float], Any] | None = 
 
 
 def controller_spec(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
-    """A controller file's content and its path label."""
+    """A controller file's content and its path label.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A catalog controller name or a path to a controller file.
+
+    Returns
+    -------
+    spec : dict
+        The parsed file.
+    label : str
+        The file's path.
+
+    Raises
+    ------
+    InputError
+        For an unknown name, a missing file, or a file that is not readable TOML.
+    """
     path = resolve(name_or_path, "controllers")
     return read_toml(path), str(path)
 
