@@ -149,7 +149,18 @@ class BenchSpec:
 
     def runs(self, skipped: Sequence[dict[str, str]] | None = None) -> list[Run]:
         """The independent tracking runs, as values (plants and designs built once, here); ``skipped``:
-        :meth:`skipped`, computed if not given."""
+        :meth:`skipped`, computed if not given.
+
+        Parameters
+        ----------
+        skipped : sequence of dict, optional
+            ``{model, controller, reason}`` rows of the controllers left out (:meth:`skipped`, computed if not
+            given).
+
+        Returns
+        -------
+        list of Run
+        """
         skipped = self.skipped() if skipped is None else skipped
         out = []
         for m in self.models:
@@ -176,7 +187,20 @@ class BenchSpec:
         return out
 
     def precision_runs(self, skipped: Sequence[dict[str, str]] | None = None) -> list[dict[str, Any]]:
-        """The ISO 230-2 rows: each controller on the improved plant, and the PID on the backlash-free one."""
+        """The ISO 230-2 rows: each controller on the improved plant, and the PID on the backlash-free one.
+
+        Parameters
+        ----------
+        skipped : sequence of dict, optional
+            ``{model, controller, reason}`` rows of the controllers left out (:meth:`skipped`, computed if not
+            given).
+
+        Returns
+        -------
+        list of dict
+            One row per ISO run (model, controller, plant, true plant, sensors, design, seed); empty without
+            :attr:`precision`.
+        """
         if not self.precision:
             return []
         skipped = self.skipped() if skipped is None else skipped
@@ -397,6 +421,15 @@ def bench_warnings(result: dict[str, Any]) -> list[str]:
     ``gearctl bench`` prints them on standard error and writes them into ``report.md``: a report that left them out
     showed a 0.5 N m load step no controller could hold as figures of 156 rad, and an inverse positioning 1.8x
     worse than the PID, without a word.
+
+    Parameters
+    ----------
+    result : dict
+        What :func:`run_bench` returned (or its JSON read back).
+
+    Returns
+    -------
+    list of str
     """
     return grouped_warnings(result["runs"]) + grouped_warnings(result.get("precision") or [], iso=True)
 
@@ -406,6 +439,15 @@ def bench_notes(result: dict[str, Any]) -> list[str]:
     and a note where ``--controllers`` left out the PID every comparison is made against.
 
     Four controllers of the PID family share their loop's design note; it came four times, 400 characters each.
+
+    Parameters
+    ----------
+    result : dict
+        What :func:`run_bench` returned (or its JSON read back).
+
+    Returns
+    -------
+    list of str
     """
     groups: dict[tuple[str, str], list[str]] = {}
     for r in result["runs"]:
@@ -471,7 +513,19 @@ def _fmt(v: float | None, scale: float = 1e6, digits: int = 4) -> str:
 
 def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
     """The benchmark's tables as text (or Markdown): errors per cell, the ratios, the ISO rows, and the best
-    controller per reference on the improved plant (its gain over the PID, the runner-up, its warnings)."""
+    controller per reference on the improved plant (its gain over the PID, the runner-up, its warnings).
+
+    Parameters
+    ----------
+    result : dict
+        What :func:`run_bench` returned (or its JSON read back).
+    markdown : bool
+        Markdown tables instead of plain text (default False).
+
+    Returns
+    -------
+    str
+    """
     runs = [r for r in result["runs"] if r["design"] == "improved"]
     plants = list(dict.fromkeys(r["plant"] for r in runs))
     rows = list(dict.fromkeys((r["model"], r["controller"], r["reference"]) for r in runs))
