@@ -32,7 +32,20 @@ _LABELS = {
 def save(fig: Figure, path: str | Path) -> Path:
     """Write a figure to ``path`` (format from the suffix; PNG without one, under that very name: matplotlib
     would append ``.png``, and ``--plot FILE`` said "wrote FILE" of a file it did not write), creating the folder;
-    return the path."""
+    return the path.
+
+    Parameters
+    ----------
+    fig : Figure
+        The figure (written at 120 dpi).
+    path : str or Path
+        The file; its suffix picks the format.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120, bbox_inches="tight", format=None if path.suffix else "png")
@@ -250,6 +263,28 @@ def plot_step(systems: dict[str, Any], *, output: str | None = None, input: str 
     """Step responses of one channel of several python-control systems on common axes.
 
     ``output``, ``input``: signal names as :func:`plot_bode` takes them (default: the first of each system).
+
+    Parameters
+    ----------
+    systems : dict
+        ``label -> system`` (python-control LTI systems).
+    output : str, optional
+        Output signal name (default: the first system's first output).
+    input : str, optional
+        Input signal name (default: the first system's first input).
+    T : array_like or float, optional
+        Time vector or final time [s], as :func:`control.step_response` takes it (default: its choice).
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    Figure
+
+    Raises
+    ------
+    InputError
+        For an ``output`` or ``input`` that is not a signal of a system (named).
     """
     import control as ct
     import numpy as np
@@ -292,7 +327,17 @@ def plot_bench_errors(traces: dict[tuple[str, str], dict[str, Any]], *, referenc
 
 
 def plot_bench_bars(result: dict[str, Any]) -> Figure:
-    """RMS load-angle error by controller and plant, one panel per reference (log scale)."""
+    """RMS load-angle error by controller and plant, one panel per reference (log scale).
+
+    Parameters
+    ----------
+    result : dict
+        What :func:`gearctl.bench.run_bench` returned; its runs on their own design that ran (``ok``) are drawn.
+
+    Returns
+    -------
+    Figure
+    """
     import numpy as np
 
     runs = [r for r in result["runs"] if r["design"] == "improved" and r.get("ok")]
@@ -402,7 +447,17 @@ def plot_sweep_scatter(result: Any, key: str) -> Figure:
 
 
 def plot_sweep_histogram(result: Any) -> Figure:
-    """Histograms of the RMS and max load-angle error over the runs that ran to their end (log bins)."""
+    """Histograms of the RMS and max load-angle error over the runs that ran to their end (log bins).
+
+    Parameters
+    ----------
+    result : SweepResult
+        From :func:`gearctl.sweep.sweep`.
+
+    Returns
+    -------
+    Figure
+    """
     from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
     fig = Figure(figsize=(9, 4), layout="constrained")
