@@ -70,7 +70,14 @@ class ExcitationProgram:
 
     @staticmethod
     def piece_duration(piece: tuple[Any, ...]) -> float:
-        """Duration of one piece [s]."""
+        """Duration of one piece [s].
+
+        Parameters
+        ----------
+        piece : tuple
+            ``("dwell", T)``, ``("cycles", A, f, n)`` or ``("move", D, v, a)`` [s; rad, Hz, 1; rad, rad/s,
+            rad/s^2].
+        """
         if piece[0] == "dwell":
             return float(piece[1])
         if piece[0] == "cycles":
@@ -80,12 +87,31 @@ class ExcitationProgram:
 
     @staticmethod
     def piece_end(piece: tuple[Any, ...]) -> float:
-        """Net displacement of one piece [rad] (cycles return to their start)."""
+        """Net displacement of one piece [rad] (cycles return to their start).
+
+        Parameters
+        ----------
+        piece : tuple
+            ``("dwell", T)``, ``("cycles", A, f, n)`` or ``("move", D, v, a)`` [s; rad, Hz, 1; rad, rad/s,
+            rad/s^2].
+        """
         return float(piece[1]) if piece[0] == "move" else 0.0
 
     @classmethod
     def from_pieces(cls, pieces: list[tuple[Any, ...]], start: float = 0.0) -> ExcitationProgram:
-        """Lay pieces end to end from load angle ``start``."""
+        """Lay pieces end to end from load angle ``start``.
+
+        Parameters
+        ----------
+        pieces : list of tuple
+            The pieces in order (see :attr:`pieces`).
+        start : float
+            Load angle the program starts from [rad] (default 0).
+
+        Returns
+        -------
+        ExcitationProgram
+        """
         t, p = 0.0, start
         starts, origins = [], []
         for piece in pieces:
@@ -119,7 +145,18 @@ class ExcitationProgram:
         return p0 + sgn * q, sgn * dq, sgn * ddq
 
     def at(self, t: Any) -> tuple[Any, Any, Any]:
-        """``(r, r', r'')`` of the load angle at time(s) ``t`` [rad, rad/s, rad/s^2]."""
+        """``(r, r', r'')`` of the load angle at time(s) ``t`` [rad, rad/s, rad/s^2].
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+
+        Returns
+        -------
+        tuple
+            ``(r, r', r'')``: three floats for a scalar ``t``, else three arrays of ``t``'s shape.
+        """
         if isinstance(t, float | int):
             return self._scalar(float(t))
         ta = np.asarray(t, dtype=float)
@@ -127,7 +164,18 @@ class ExcitationProgram:
         return out[0].reshape(ta.shape), out[1].reshape(ta.shape), out[2].reshape(ta.shape)
 
     def load_disturbance(self, t: float) -> float:
-        """No load disturbance during an excitation [N m]."""
+        """No load disturbance during an excitation [N m].
+
+        Parameters
+        ----------
+        t : float
+            Time [s] (unused).
+
+        Returns
+        -------
+        float
+            0.
+        """
         return 0.0
 
 
@@ -289,10 +337,22 @@ def check_reference_duration(duration: float, sample_time: float = 1e-3) -> int:
     """The rows of a reference of ``duration`` [s] at ``sample_time`` [s] for a real drive, checked before anything is
     written or run: a drive's log of more than :data:`~gearctl.logs.MAX_LOG_SAMPLES` samples is one identify refuses.
 
+    Parameters
+    ----------
+    duration : float
+        Length of the reference [s].
+    sample_time : float
+        Sample period of the rows [s] (default 1e-3).
+
+    Returns
+    -------
+    int
+        ``round(duration / sample_time) + 1``.
+
     Raises
     ------
     InputError
-        Naming ``duration`` and the longest allowed.
+        Naming ``duration`` and the longest allowed, or where the rows would not fit in memory.
     """
     n = int(round(duration / sample_time)) + 1
     if n > MAX_LOG_SAMPLES:
@@ -307,7 +367,26 @@ def write_reference(path: str | Path, program: ExcitationProgram, *, sample_time
                     duration: float | None = None) -> int:
     """Write a program's reference for a real drive: ``t, reference, velocity, acceleration`` per sample.
 
-    Returns the number of rows written.
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file to write (its folder is created).
+    program : ExcitationProgram
+        The program.
+    sample_time : float
+        Sample period of the rows [s] (default 1e-3).
+    duration : float, optional
+        Length of the reference [s] (default: the program's).
+
+    Returns
+    -------
+    int
+        The number of rows written.
+
+    Raises
+    ------
+    InputError
+        For a ``duration`` too long (:func:`check_reference_duration`), or a file that cannot be written.
     """
     T = program.duration if duration is None else duration
     n = check_reference_duration(T, sample_time)
