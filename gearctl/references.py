@@ -142,6 +142,11 @@ class Reference:
         Load-torque step on shaft 2 [N m], counter-clockwise positive.
     settle : float
         Start of the interval over which RMS and max error are taken [s] (skips a start-up transient).
+
+    Raises
+    ------
+    InputError
+        For an unknown ``kind`` (field ``reference``) or ``profile``, or a value out of its range (named).
     """
 
     kind: str

@@ -211,6 +211,12 @@ class AdaptiveInverse(Controller):
     converged : bool
         Whether the estimate counts as converged (the inverse then crosses with ``converged_crossing_time``
         once its offset is at rest).
+
+    Raises
+    ------
+    InputError
+        If the inverse's backlash (the initial estimate) lies outside ``[min_backlash, max_backlash]`` (field
+        ``backlash``).
     """
 
     def __init__(self, inverse: deadzone.DeadzoneInverse, settings: AdaptationSettings | None = None, *,

@@ -671,6 +671,13 @@ class DeadzoneInverse(Controller):
     name : str
         Label.
 
+    Raises
+    ------
+    InputError
+        If ``pid`` is not a :class:`~gearctl.design.pid.PID`, ``rule`` not one of the two, or ``jump_floor``,
+        ``backlash`` (0..0.01 m), ``width`` (> 0), ``crossing_time``, ``observer_hz`` (0 up to the Nyquist
+        frequency) or ``disturbance_threshold`` (0..1e3 N m) out of range (named).
+
     Notes
     -----
     With motor-side feedback the PID regulates ``theta1 / N`` to ``r + o``, ``o`` the offset moving

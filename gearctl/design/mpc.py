@@ -476,6 +476,12 @@ class MPCSettings:
         was the benchmark servo's 5e-5 m whatever the plant: ``MPC(info, MPCSettings(horizon=20))`` on
         ``servo_3stage_quanser_srv02`` (3.0e-5 m) planned on a gap 1.7 times the train's and ran the load off
         (1.3 rad RMS on the sine; the catalog file: 2.1e-4 rad).
+
+    Raises
+    ------
+    InputError
+        For a value of wrong type or out of range (named), a ``solver``, ``feedback`` or ``soft_landing`` not
+        among its choices, or ``torque = 0`` with ``torque_rate = 0`` (field ``torque``).
     """
 
     horizon: int = quantity(unit="samples", doc="prediction and control horizon", low=1, high=200, integer=True,

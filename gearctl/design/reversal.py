@@ -135,6 +135,12 @@ class ReversalOffset(Controller):
     name : str
         Label.
 
+    Raises
+    ------
+    InputError
+        If ``pid`` is not a :class:`~gearctl.design.pid.PID`, or ``backlash``, ``ramp``, ``take_up_time`` or
+        ``gain`` is out of range (named).
+
     Notes
     -----
     The commanded direction is the sign of the reference's increment from the previous sample (what a
