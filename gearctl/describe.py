@@ -127,6 +127,11 @@ class MeshBacklash(ct.DescribingFunctionNonlinearity):
     c : float
         Mesh damping [N s/m], >= 0 (used by :meth:`force` and :meth:`describing_function_at` only).
 
+    Raises
+    ------
+    InputError
+        For ``k``, ``b`` or ``c`` not a finite number in its range (named).
+
     Notes
     -----
     For ``s = A sin(omega t)`` the first harmonic of ``F`` is ``(k + j omega c) eta(A) s``: the spring
@@ -336,6 +341,13 @@ def loop_frequency_response(plant: Plant, controller: PID | PIDGains, omega: Arr
     ndarray of complex
         ``H(j omega)`` [m/N].
 
+    Raises
+    ------
+    InputError
+        For a plant the describing function does not cover (not the improved plant, Coulomb friction, a load
+        torque, no backlash), a controller that is not a PID or its gains, ``Ts`` or ``feedback`` out of range,
+        or an ``omega`` that is not finite and > 0.
+
     Notes
     -----
     With ``P_i = J_i s^2 + d_i s`` and ``F`` pushing gear 1 back and gear 2 forward,
@@ -519,6 +531,11 @@ def impact_gain(e: float) -> complex:
     -------
     complex
         ``g(e)``; ``g(1) = 1``, and ``arg g`` is the loss angle of the impacts.
+
+    Raises
+    ------
+    InputError
+        For ``e`` outside 0..1.
 
     Notes
     -----

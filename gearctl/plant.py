@@ -922,6 +922,13 @@ def build_plant(
     -------
     Plant
 
+    Raises
+    ------
+    InputError
+        For an unknown ``kind``, a ``model`` that is not a gear model, or a ``backlash`` of the wrong count,
+        out of range (0, or 1e-9 up to 0.01 m) or above the file's bound on the stage
+        (``MAX_BACKLASH_PER_MODULE`` x module).
+
     Notes
     -----
     Each stage uses ``mesh_stiffness`` from its dynamics if given, else the mean of eq 21 over the mesh
