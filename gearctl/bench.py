@@ -77,6 +77,13 @@ class BenchSpec:
         overruns are counted and the results are deterministic for a seed).
     precision : bool
         Add an ISO 230-2 positioning row per controller (improved plant), and the backlash-free PID's.
+
+    Raises
+    ------
+    InputError
+        For no ``plants`` or ``references``, a name given twice, an unknown plant kind or reference, a
+        ``duration`` or ``seed`` out of range, or a model or controller that is neither a catalog name nor a file
+        (named).
     """
 
     models: tuple[str, ...] = ("shing1993_servo",)

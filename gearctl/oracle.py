@@ -98,6 +98,13 @@ def reference_solution(
     impacts : list of (float, int)
         Impact time and side (+1 front, -1 back); for a train the side is multiplied by the stage number
         (``+-(i + 1)``), so a pair's are ``+-1`` as always.
+
+    Raises
+    ------
+    InputError
+        For a plant with Coulomb friction under the stick-slip law (field ``friction_law``).
+    RuntimeError
+        After 100 000 events within one sample (an event cascade).
     """
     p = plant
     if p.has_coulomb and p.friction_law is FrictionLaw.STICK_SLIP:
