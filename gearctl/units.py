@@ -63,18 +63,67 @@ class Spec:
     floor: float | None = None
 
     def meta(self, *, doc: str | None = None, optional: bool = False, sequence: bool = False) -> dict[str, Any]:
-        """Field metadata of this spec (what :func:`validate_fields` reads)."""
+        """Field metadata of this spec (what :func:`validate_fields` reads).
+
+        Parameters
+        ----------
+        doc : str, optional
+            The field's own description (default: the spec's).
+        optional : bool
+            Whether ``None`` is allowed (default False).
+        sequence : bool
+            Whether the field holds a sequence of such values, each checked (default False).
+
+        Returns
+        -------
+        dict
+            ``unit``, ``doc``, the range (``low``, ``high``, ``low_open``, ``high_open``, ``integer``,
+            ``allow_inf``, ``floor``), ``optional`` and ``sequence``.
+        """
         return {"unit": self.unit, "doc": doc or self.doc, "low": self.low, "high": self.high,
                 "low_open": self.low_open, "high_open": self.high_open, "integer": self.integer,
                 "allow_inf": self.allow_inf, "floor": self.floor, "optional": optional, "sequence": sequence}
 
     def field(self, *, default: Any = dataclasses.MISSING, doc: str | None = None, optional: bool = False,
               sequence: bool = False) -> Any:
-        """A dataclass field of this quantity (``sequence``: a tuple of such values)."""
+        """A dataclass field of this quantity (``sequence``: a tuple of such values).
+
+        Parameters
+        ----------
+        default : optional
+            Default value; without it the field is required.
+        doc : str, optional
+            The field's own description (default: the spec's).
+        optional : bool
+            Whether ``None`` is allowed (default False).
+        sequence : bool
+            Whether the field holds a sequence of such values, each checked (default False).
+
+        Returns
+        -------
+        dataclasses.Field
+        """
         return dataclasses.field(default=default, metadata=self.meta(doc=doc, optional=optional, sequence=sequence))
 
     def check(self, name: str, value: Any) -> float:
-        """Return ``value`` as a float if it is allowed, else raise :class:`InputError` naming ``name``."""
+        """Return ``value`` as a float if it is allowed, else raise :class:`InputError` naming ``name``.
+
+        Parameters
+        ----------
+        name : str
+            The name the message gives the value.
+        value : object
+            The value to check.
+
+        Returns
+        -------
+        float
+
+        Raises
+        ------
+        InputError
+            As :func:`check_number`.
+        """
         return check_number(name, value, self.meta())
 
     @property
@@ -132,7 +181,23 @@ def quantity(
 
 
 def describe_range(meta: Mapping[str, Any]) -> str:
-    """Say the allowed range of a field in words, e.g. ``"a number with 0 < value < 0.5"``."""
+    """Say the allowed range of a field in words, e.g. ``"0 < value < 0.5"``, ``"a whole number with 0 <= value"``.
+
+    Parameters
+    ----------
+    meta : mapping
+        Field metadata (:meth:`Spec.meta`): ``unit``, ``low``, ``high``, ``low_open``, ``high_open``, ``integer``,
+        and optionally ``allow_inf`` and ``floor``.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> describe_range({"low": 0.0, "high": 0.5, "low_open": True, "high_open": True})
+    '0 < value < 0.5'
+    """
     lo, hi = meta.get("low"), meta.get("high")
     kind = "a whole number" if meta.get("integer") else "a number"
     inf = " (or inf: none)" if meta.get("allow_inf") else ""
@@ -153,14 +218,43 @@ def describe_range(meta: Mapping[str, Any]) -> str:
 
 def describe_rule(meta: Mapping[str, Any]) -> str:
     """The allowed range in words with the unit and any floor, e.g. ``"0 <= value < 0.01 [m], either 0 or at
-    least 1e-09 [m]"`` (the text after "expected" in an error message)."""
+    least 1e-09 [m]"`` (the text after "expected" in an error message).
+
+    Parameters
+    ----------
+    meta : mapping
+        Field metadata (:meth:`Spec.meta`): ``unit``, ``low``, ``high``, ``low_open``, ``high_open``, ``integer``,
+        and optionally ``allow_inf`` and ``floor``.
+
+    Returns
+    -------
+    str
+    """
     unit = "" if meta["unit"] == "1" else f" [{meta['unit']}]"
     floor = f", either 0 or at least {meta['floor']:g}{unit}" if meta.get("floor") is not None else ""
     return f"{describe_range(meta)}{unit}{floor}"
 
 
 def field_unit(cls: type, name: str) -> str:
-    """Return the unit declared for field ``name`` of dataclass ``cls``."""
+    """Return the unit declared for field ``name`` of dataclass ``cls``.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass.
+    name : str
+        One of its fields.
+
+    Returns
+    -------
+    str
+        The unit, or ``""`` for a field declared without one.
+
+    Raises
+    ------
+    KeyError
+        For a name that is not a field of ``cls``.
+    """
     for f in dataclasses.fields(cls):
         if f.name == name:
             return str(f.metadata.get("unit", ""))
@@ -169,6 +263,20 @@ def field_unit(cls: type, name: str) -> str:
 
 def check_number(name: str, value: Any, meta: Mapping[str, Any]) -> float:
     """Check one value against field metadata; return it as a float.
+
+    Parameters
+    ----------
+    name : str
+        The name the message gives the value.
+    value : object
+        The value: a real number (not a bool).
+    meta : mapping
+        Field metadata (:meth:`Spec.meta`): ``unit``, ``low``, ``high``, ``low_open``, ``high_open``, ``integer``,
+        and optionally ``allow_inf`` and ``floor``.
+
+    Returns
+    -------
+    float
 
     Raises
     ------
@@ -211,6 +319,27 @@ def check_choice(name: str, value: Any, allowed: tuple[Any, ...], *, what: str =
     """Return ``value`` if it is one of ``allowed``, else raise :class:`InputError` naming ``name``.
 
     ``what`` words the kind of value (``"a QP solver"``); the default message says "is not allowed".
+
+    Parameters
+    ----------
+    name : str
+        The name the message gives the value.
+    value : object
+        The value; equal to a choice and of the same type (``1`` is not ``True``).
+    allowed : tuple
+        The choices.
+    what : str
+        The kind of value, for the message (default: none).
+
+    Returns
+    -------
+    object
+        ``value``.
+
+    Raises
+    ------
+    InputError
+        Naming ``name`` and the choices.
     """
     ok = any(value == a and type(value) is type(a) for a in allowed)
     if not ok:
@@ -235,6 +364,11 @@ def check_progress(progress: Any) -> None:
 
 def validate_fields(obj: Any) -> None:
     """Check every spec'd field of a dataclass instance against its declared range.
+
+    Parameters
+    ----------
+    obj : object
+        A dataclass instance; its fields declared with a unit (:func:`quantity`, :meth:`Spec.field`) are checked.
 
     Raises
     ------

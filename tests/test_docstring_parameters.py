@@ -85,14 +85,18 @@ def _strip(name: str) -> str:
 
 
 def signature_names(func: Callable[..., object]) -> list[str]:
-    """The parameters to document: all but ``self``/``cls``; ``*args``/``**kwargs`` with their stars."""
+    """The parameters to document: all but a method's ``self``/``cls``; ``*args``/``**kwargs`` with their stars.
+
+    (A function's own parameter named ``cls``, e.g. :func:`gearctl.units.field_unit`'s dataclass, is one.)
+    """
     try:
         sig = inspect.signature(func)
     except (TypeError, ValueError):  # a builtin without a signature
         return []
+    method = "." in getattr(func, "__qualname__", "").replace("<locals>.", "")
     out = []
-    for p in sig.parameters.values():
-        if p.name in ("self", "cls"):
+    for i, p in enumerate(sig.parameters.values()):
+        if p.name in ("self", "cls") and method and i == 0:
             continue
         star = {inspect.Parameter.VAR_POSITIONAL: "*", inspect.Parameter.VAR_KEYWORD: "**"}.get(p.kind, "")
         out.append(star + p.name)
