@@ -34,12 +34,34 @@ MAX_FILE_BYTES = 1_000_000
 
 
 def catalog_dirs(kind: str) -> list[Path]:
-    """Folders searched for catalog entries of ``kind`` (``"models"`` or ``"controllers"``), in order."""
+    """Folders searched for catalog entries of ``kind`` (``"models"`` or ``"controllers"``), in order.
+
+    Parameters
+    ----------
+    kind : str
+        ``"models"`` or ``"controllers"``.
+
+    Returns
+    -------
+    list of Path
+        The installed package's folder, then the source checkout's, those that exist.
+    """
     return [d for d in (_PKG / kind, _PKG.parent / kind) if d.is_dir()]
 
 
 def catalog_names(kind: str) -> list[str]:
-    """Names of the catalog entries of ``kind``, sorted."""
+    """Names of the catalog entries of ``kind``, sorted.
+
+    Parameters
+    ----------
+    kind : str
+        ``"models"`` or ``"controllers"``.
+
+    Returns
+    -------
+    list of str
+        The stems of the ``*.toml`` files of :func:`catalog_dirs`, each once.
+    """
     names: dict[str, None] = {}
     for d in catalog_dirs(kind):
         for p in sorted(d.glob("*.toml")):
@@ -49,6 +71,18 @@ def catalog_names(kind: str) -> list[str]:
 
 def resolve(name_or_path: str | Path, kind: str) -> Path:
     """Find the TOML file of a catalog entry or path.
+
+    Parameters
+    ----------
+    name_or_path : str or os.PathLike
+        A catalog name (a bare name, even where a folder of that name exists here) or a path to a file (one with
+        a ``.toml`` suffix, a folder part, or that exists).
+    kind : str
+        ``"models"`` or ``"controllers"`` (messages name it in the singular).
+
+    Returns
+    -------
+    Path
 
     Raises
     ------
@@ -102,7 +136,27 @@ _OTHER = {"models": "controllers", "controllers": "models"}
 
 
 def toml_value(v: Any) -> str:
-    """``v`` (bool, int, float including inf and nan, str, list or tuple of those) as a TOML value."""
+    """``v`` (bool, int, float including inf and nan, str, list or tuple of those) as a TOML value.
+
+    Parameters
+    ----------
+    v : bool, int, float, str, list or tuple
+        The value.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    TypeError
+        For a value of another type.
+
+    Examples
+    --------
+    >>> toml_value([1, 0.5, float("inf"), "a", True])
+    '[1, 0.5, inf, "a", true]'
+    """
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):
@@ -123,7 +177,24 @@ def toml_value(v: Any) -> str:
 def toml_dumps(doc: Mapping[str, Mapping[str, Any] | Sequence[Mapping[str, Any]]],
                header: Iterable[str] = ()) -> str:
     """A document of tables of values (:func:`toml_value`) as TOML text, with ``header`` as comment lines; a list
-    of tables (a train's stages) is written as an array of tables (``[[stage]]``)."""
+    of tables (a train's stages) is written as an array of tables (``[[stage]]``).
+
+    Parameters
+    ----------
+    doc : mapping
+        ``table -> {key: value}``, or ``table -> [{key: value}, ...]`` for an array of tables.
+    header : iterable of str
+        Comment lines written first.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    TypeError
+        For a value :func:`toml_value` cannot write.
+    """
     out = [f"# {h}" for h in header]
     for table, keys in doc.items():
         for one in ([keys] if isinstance(keys, Mapping) else keys):
@@ -133,7 +204,22 @@ def toml_dumps(doc: Mapping[str, Mapping[str, Any] | Sequence[Mapping[str, Any]]
 
 
 def read_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; a binary, non-UTF-8, oversized or invalid file is one :class:`InputError`."""
+    """Parse a TOML file; a binary, non-UTF-8, oversized or invalid file is one :class:`InputError`.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    InputError
+        For a file that cannot be read, larger than ``MAX_FILE_BYTES``, binary, not UTF-8, or not valid TOML.
+    """
     try:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
@@ -159,7 +245,18 @@ def read_toml(path: Path) -> dict[str, Any]:
 
 @dataclasses.dataclass(frozen=True, slots=True)
 class Binding:
-    """Where a dataclass field's value came from: ``[table] key = raw`` in ``path``."""
+    """Where a dataclass field's value came from: ``[table] key = raw`` in ``path``.
+
+    Parameters
+    ----------
+    table : str
+        The table (``""`` for the top level; ``"override"`` for a ``--set``, ``"override <stage>"`` for one that
+        every stage of a train takes).
+    key : str
+        The key as written.
+    raw : object
+        The value as written (before any conversion, e.g. of degrees).
+    """
 
     table: str
     key: str
@@ -261,7 +358,27 @@ _SOURCE_KEYS = {"citation": False, "table": False, "notes": False, "url": False,
 
 def check_source(path: Path, content: Any, *, required: tuple[str, ...] = ("citation",)) -> dict[str, str]:
     """Check a ``[source]`` table: known keys, strings, the ``required`` ones present (one of them for
-    controller files, which may give ``notes`` alone)."""
+    controller files, which may give ``notes`` alone).
+
+    Parameters
+    ----------
+    path : Path
+        The file (messages).
+    content : object
+        The ``[source]`` table as parsed.
+    required : tuple of str
+        Keys of which at least one must be given and not blank (default ``("citation",)``; empty: none).
+
+    Returns
+    -------
+    dict of str to str
+
+    Raises
+    ------
+    InputError
+        For a ``[source]`` that is not a table, an unknown key, a value that is not a string, or no required key
+        given (or only blank ones).
+    """
     if not isinstance(content, dict):
         raise InputError(f"{path}: [source] must be a table with a citation", field="source")
     for key, value in content.items():
@@ -289,6 +406,30 @@ def table_values(path: Path, table: str, content: Any, keymap: Mapping[str, str]
     """``field -> (binding, value)`` for the keys of one table, rejecting unknown keys.
 
     ``keymap`` maps the file's keys to dataclass fields; keys ending in ``_deg`` are converted to radians.
+
+    Parameters
+    ----------
+    path : Path
+        The file (messages).
+    table : str
+        The table's name.
+    content : object
+        The table as parsed.
+    keymap : mapping of str to str
+        File key -> dataclass field.
+    convert : callable, optional
+        ``convert(key, value)`` applied to each value after the degrees' conversion.
+
+    Returns
+    -------
+    dict
+        ``field -> (binding, value)``.
+
+    Raises
+    ------
+    InputError
+        For content that is not a table, an unknown key (with a "did you mean"), or a ``_deg`` value that is not a
+        number.
     """
     if not isinstance(content, dict):
         raise InputError(f"{path}: [{table}] must be a table of keys, not {content!r}", field=table)
@@ -310,6 +451,24 @@ Layout = Mapping[str, Mapping[str, tuple[type, str]]]
 def spec_values(path: Path, spec: Mapping[str, Any], layout: Layout, *, kind: str,
                 skip: tuple[str, ...] = ("kind", "name", "source")) -> dict[type, dict[str, tuple[Binding, Any]]]:
     """Sort the keys of a parsed controller file into ``dataclass -> {field: (binding, value)}``.
+
+    Parameters
+    ----------
+    path : Path
+        The file (messages).
+    spec : mapping
+        The parsed file.
+    layout : Layout
+        ``table -> key -> (dataclass, field)`` (``""``: the top-level keys).
+    kind : str
+        The file's kind (messages).
+    skip : tuple of str
+        Top-level keys that are not settings (default ``kind``, ``name``, ``source``).
+
+    Returns
+    -------
+    dict
+        ``dataclass -> {field: (binding, value)}``.
 
     Raises
     ------
@@ -367,6 +526,21 @@ def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,
     is written through, onto its target; a device or a FIFO (``/dev/stdout``, ``/dev/null``) is written into, never
     replaced (as root, renaming over ``/dev/full`` replaced the device node). ``OSError`` propagates, for the caller
     to word.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    write : str or callable
+        The text, or a function given the open text file.
+    check : callable, optional
+        Called with the temporary file's path before it replaces ``path``; what it raises propagates, and
+        ``path`` is left as it was.
+
+    Returns
+    -------
+    Path
+        The path written (a link's target where ``path`` is a link).
     """
     path = Path(path)
     # a device, FIFO or pipe, through any links (``/dev/stdout`` into a pipe resolves to ``/proc/PID/fd/pipe:[N]``, no
