@@ -45,7 +45,24 @@ FILE_NAMES = {
 
 def file_name_error(key: str, field: str, by: str, pre: str = "") -> InputError:
     """The error for ``key``, whose field ``field`` is spelt with a model file's name (:data:`FILE_NAMES`): where the
-    file has it and how ``by`` (``--set``, ``--vary``, an override) names it, with the stage prefix ``pre``."""
+    file has it and how ``by`` (``--set``, ``--vary``, an override) names it, with the stage prefix ``pre``.
+
+    Parameters
+    ----------
+    key : str
+        The key as given (``stage2.pressure_angle_deg``).
+    field : str
+        Its field, a key of :data:`FILE_NAMES`.
+    by : str
+        What named it (``"--set"``, ``"--vary"``, ``"an override"``).
+    pre : str
+        The stage prefix to write in the suggested spelling (default ``""``).
+
+    Returns
+    -------
+    InputError
+        The error (not raised), field ``key``.
+    """
     where, spelling = FILE_NAMES[field]
     lead = key if field == key else f"{key}: {field}"
     return InputError(f"{lead} is the model file's name ({where}); {by} names it " + spelling.format(pre=pre),
@@ -58,7 +75,24 @@ STAGE_KEY = re.compile(r"^stage(\d+)\.(\w+)$")
 
 def split_stage_key(key: str) -> tuple[int | None, str]:
     """``(stage index from 0, field)`` of a ``stageN.field`` key, ``(None, key)`` for any other; a ``stageN.`` prefix
-    on a field that is not a stage's (a gear pair's or its mesh dynamics') is refused naming the key."""
+    on a field that is not a stage's (a gear pair's or its mesh dynamics') is refused naming the key.
+
+    Parameters
+    ----------
+    key : str
+        A model key, with or without a ``stageN.`` prefix (N from 1).
+
+    Returns
+    -------
+    tuple
+        ``(stage index from 0, field)``, or ``(None, key)``.
+
+    Raises
+    ------
+    InputError
+        For a stage number with leading zeros or below 1, a file's spelling of the field (``_deg``), or a field
+        that is not a gear pair's or mesh dynamics' (with a "did you mean").
+    """
     m = STAGE_KEY.match(key)
     if m is None:
         return None, key
@@ -91,6 +125,18 @@ def check_keys_act(keys: Iterable[str], plant: str, model: GearModel | None = No
     """Refuse a changed key (``stageN.`` or not) that the true plant does not read: the ``plant`` kind's
     (:data:`UNREAD_BY_PLANT`), or ``coulomb_velocity`` where ``model``'s friction law is stick-slip (it is the smooth
     law's). Its runs would all be the nominal plant's, and a sweep reported no sensitivity to it without a word.
+    A material key that feeds only the mesh stiffness is refused too where ``model`` sets its mesh stiffness.
+
+    Parameters
+    ----------
+    keys : iterable of str
+        The changed keys (``stageN.`` or not).
+    plant : str
+        The true plant's kind (``improved``, ``yang-sun``, ``tvms``).
+    model : GearModel, optional
+        The model (without it, the checks that need it are skipped).
+    option : str
+        The option that changed them, for the message (default ``"--set"``).
 
     Raises
     ------
@@ -200,6 +246,18 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
     The same values as :func:`gearctl.catalog.load_model` with ``**overrides`` gives for the model's file,
     built from the loaded model (a remote worker needs no file).
 
+    Parameters
+    ----------
+    model : GearModel
+        The loaded model.
+    overrides : mapping of str to float
+        ``key -> value`` (a ``stageN.`` key: that stage's alone; a :class:`Scale`: a factor of the nominal value,
+        each stage's own on a train).
+
+    Returns
+    -------
+    GearModel
+
     Raises
     ------
     InputError
@@ -269,7 +327,20 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
 
 
 def stage_values(key: str, model: GearModel) -> list[float]:
-    """Each stage's value of a stage key (a computed one, e.g. an unset ``mesh_stiffness``: the plant's)."""
+    """Each stage's value of a stage key (a computed one, e.g. an unset ``mesh_stiffness``: the plant's).
+
+    Parameters
+    ----------
+    key : str
+        A field of :class:`~gearctl.geometry.GearPair` or :class:`~gearctl.params.MeshDynamics`, without prefix.
+    model : GearModel
+        The model.
+
+    Returns
+    -------
+    list of float
+        One value per stage, in the field's unit.
+    """
     pair = key in OWNER_FIELDS[GearPair]
     vals = []
     plant = None
