@@ -261,7 +261,9 @@ def perturb_model(model: GearModel, overrides: Mapping[str, float]) -> GearModel
     Raises
     ------
     InputError
-        A value out of its range, or a model the changed value makes invalid (:func:`check_model`).
+        A key that is not a model key (or a bad ``stageN.`` key, :func:`split_stage_key`), a stage beyond the
+        model's, a factor of a value that has no finite nominal, a value out of its range, or a model the changed
+        value makes invalid (:func:`check_model`).
     """
     per: dict[type, dict[str, Any]] = {cls: {} for cls in MODEL_CLASSES}
     scaled: dict[str, float] = {}  # stage keys given as a factor of each stage's own value
