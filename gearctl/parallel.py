@@ -110,7 +110,29 @@ def checked(expected: str, fn: Callable[..., Any], *args: Any, numerics: dict[st
     and CasADi; else an :class:`~gearctl.InputError` naming the worker and both. :class:`Engine` checks the
     workers there when it opens, but a worker that joined later (started from another checkout mid-sweep) ran the
     tasks it was given on its own code, its figures mixed with the others' without a word (a review: 1260 of 3000
-    runs); every task goes through here."""
+    runs); every task goes through here.
+
+    Parameters
+    ----------
+    expected : str
+        The client's :func:`code_id`.
+    fn : callable
+        The task.
+    *args
+        Its arguments.
+    numerics : dict of str to str, optional
+        The client's :func:`numerics_versions` (default: not compared).
+
+    Returns
+    -------
+    object
+        ``fn(*args)``.
+
+    Raises
+    ------
+    InputError
+        Where the worker's gearctl or numerical libraries differ from the client's.
+    """
     mine = code_id()
     differ = "" if numerics is None else _numerics_differ(numerics_versions(), numerics)
     if mine != expected or differ:
@@ -144,7 +166,20 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
     is opened on it: a malformed address, a closed port, a host that does not answer, or a server that speaks
     another protocol (a dashboard's HTTP port hung ``distributed.Client`` past its own timeout; a server that sent a
     banner made it allocate exabytes) is an :class:`~gearctl.InputError` naming ``scheduler``. ``timeout``: default
-    :data:`CONNECT_TIMEOUT`."""
+    :data:`CONNECT_TIMEOUT`.
+
+    Parameters
+    ----------
+    address : str
+        The scheduler's address, ``tcp://HOST:PORT``.
+    timeout : float, optional
+        Longest wait in all [s] (default :data:`CONNECT_TIMEOUT`).
+
+    Raises
+    ------
+    InputError
+        Naming ``scheduler``, where it is not a Dask scheduler that answers in time.
+    """
     import asyncio
 
     from distributed.comm import connect
@@ -247,6 +282,11 @@ def check_local_workers(workers: int, task_bytes: int = 0) -> None:
     holds the run it is running: ``task_bytes``, the largest task's memory (``bench --jobs 8 --duration 5000``
     passed with each run's 4.2 GB under the one-run cap, 34 GB at once).
 
+    Parameters
+    ----------
+    workers : int
+        Worker processes asked for.
+
     Raises
     ------
     InputError
@@ -277,6 +317,15 @@ def local_cluster(workers: int) -> Any:
     warnings-as-errors). The workers ignore SIGINT (:mod:`gearctl._worker_setup`): Ctrl-C reaches the whole process
     group, and each worker printed a traceback while the command ended with its one line. A Ctrl-C while the
     cluster starts is held until it is up (:func:`_sigint_held`), then closes it and raises ``KeyboardInterrupt``.
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes, one thread each.
+
+    Returns
+    -------
+    distributed.LocalCluster
     """
     import dask
     import distributed
@@ -359,7 +408,20 @@ def check_one_cluster(client: Any, scheduler: str | None) -> None:
     """Refuse a ``client`` given with a ``scheduler`` address: the client's cluster ran the work and the address
     was dropped without a word (a sweep given a closed port and a working client ran, as if the port answered).
     An empty ``scheduler`` is refused too: ``--scheduler "$ADDR"`` with the variable unset ran on a local cluster
-    without a word, as if the option had not been given."""
+    without a word, as if the option had not been given.
+
+    Parameters
+    ----------
+    client : distributed.Client or None
+        An open client, if given.
+    scheduler : str or None
+        A scheduler address, if given.
+
+    Raises
+    ------
+    InputError
+        For an empty ``scheduler``, or both a ``client`` and a ``scheduler`` (field ``scheduler``).
+    """
     if scheduler is not None and not str(scheduler).strip():
         raise InputError(f"scheduler = {scheduler!r}: an empty address; expected tcp://HOST:PORT of a running Dask "
                          f"scheduler, or no scheduler for a local cluster", field="scheduler")
@@ -662,7 +724,28 @@ def completed(client: Any, futures: Sequence[Any], *,
     arrives, the cluster's workers are counted every :data:`POLL` seconds; a scheduler that gives no answer for
     :data:`WORKER_TIMEOUT` seconds (each question waits :data:`ANSWER_TIMEOUT`) is an ``InputError`` too, and so
     is a worker the scheduler has not heard from for :data:`WORKER_TIMEOUT` seconds that holds some of the tasks
-    (:func:`_held_by_silent`)."""
+    (:func:`_held_by_silent`).
+
+    Parameters
+    ----------
+    client : distributed.Client
+        The client the futures belong to.
+    futures : sequence of distributed.Future
+        The tasks.
+    where : str
+        How messages name the cluster (default ``"the cluster"``).
+
+    Yields
+    ------
+    tuple
+        ``(future, result, None)`` or ``(future, None, exception)``.
+
+    Raises
+    ------
+    InputError
+        For a cluster without workers, a scheduler that does not answer, or a silent worker holding tasks, each
+        for :data:`WORKER_TIMEOUT` seconds.
+    """
     from distributed import as_completed
     from distributed.comm.core import CommClosedError
 
@@ -768,7 +851,17 @@ def _held_by_silent(client: Any, workers: dict, heard: dict[str, tuple[Any, floa
 
 def killed_worker_text(exc: BaseException) -> str:
     """What Dask's ``KilledWorker`` means, in one line: a task whose every worker died while running it (a worker
-    past its memory limit, ``dask worker --memory-limit``, restarted by its nanny each time, or a crash)."""
+    past its memory limit, ``dask worker --memory-limit``, restarted by its nanny each time, or a crash).
+
+    Parameters
+    ----------
+    exc : BaseException
+        The ``KilledWorker`` (its ``allowed_failures`` and ``last_worker`` are read where present).
+
+    Returns
+    -------
+    str
+    """
     tries = getattr(exc, "allowed_failures", None)
     last = getattr(getattr(exc, "last_worker", None), "address", None)
     return (f"each of the {tries + 1 if isinstance(tries, int) else 'several'} workers that ran it died while it ran"
