@@ -35,7 +35,22 @@ SampledLaw = Callable[[int, Sequence[float] | NDArray[np.float64]], tuple[float,
 
 
 def pd_gains(plant: Plant, bandwidth_hz: float = 20.0) -> tuple[float, float]:
-    """Motor-side PD gains ``(Kp, Kd)`` [N m/rad, N m s/rad] for a rigid-body loop of the given bandwidth."""
+    """Motor-side PD gains ``(Kp, Kd)`` [N m/rad, N m s/rad] for a rigid-body loop of the given bandwidth.
+
+    ``Kp = J wc^2``, ``Kd = 1.4 J wc`` with ``J = J1 + J2 / N^2`` and ``wc = 2 pi bandwidth_hz``.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant (its ``J1``, ``J2`` and gear ratio).
+    bandwidth_hz : float
+        The loop's bandwidth [Hz] (default 20).
+
+    Returns
+    -------
+    tuple of float
+        ``(Kp, Kd)``.
+    """
     N = plant.gear_ratio
     J = plant.J1 + plant.J2 / N**2
     wc = 2 * math.pi * bandwidth_hz
@@ -184,6 +199,13 @@ def sim_speed(scenario: str = "free", *, duration: float | None = None,
 def mpc_timing(*, duration: float = 3.0, controller: str = "mpc") -> dict[str, Any]:
     """Solve time per step of the catalog MPC on the default benchmark's sine (shing1993_servo, improved).
 
+    Parameters
+    ----------
+    duration : float
+        Simulated time [s] (default 3).
+    controller : str
+        Catalog MPC controller name (default ``"mpc"``).
+
     Returns
     -------
     dict
@@ -232,6 +254,23 @@ def loop_speed(model: str, controller: str = "pid", *, reference_kind: str = "si
 
     ``hold`` replaces the reference by a standstill (zero reference, no disturbance).
 
+    Parameters
+    ----------
+    model : str
+        Catalog model name or path.
+    controller : str
+        Catalog controller name or path (default ``"pid"``).
+    reference_kind : str
+        Reference kind (default ``"sine"``).
+    duration : float
+        Simulated time of each run [s] (default 5).
+    backlash : float, optional
+        Backlash of the true plant [m] (default: the model's).
+    repeats : int
+        Runs per loop, the fastest kept (default 5).
+    hold : bool
+        Run at standstill instead (default False).
+
     Returns
     -------
     dict
@@ -277,6 +316,15 @@ def standstill_cost(model: str = "shing1993_servo_friction", controller: str = "
     load's friction acts through the mesh at once) that the smooth law made take minutes, and as the ISO
     230-2 test's wall time (mostly dwells at rest) with and without backlash.
 
+    Parameters
+    ----------
+    model : str
+        Catalog model name (default ``shing1993_servo_friction``).
+    controller : str
+        Catalog controller name (default ``"pid"``).
+    duration : float
+        Simulated time of each loop [s] (default 5).
+
     Returns
     -------
     dict
@@ -305,6 +353,11 @@ def standstill_cost(model: str = "shing1993_servo_friction", controller: str = "
 def train_speed(*, duration: float = 5.0) -> dict[str, Any]:
     """The 1 kHz catalog PID loop on the pair and on every catalog train: simulated s per wall s.
 
+    Parameters
+    ----------
+    duration : float
+        Simulated time of each loop [s] (default 5).
+
     Returns
     -------
     dict
@@ -320,7 +373,18 @@ def train_speed(*, duration: float = 5.0) -> dict[str, Any]:
 
 
 def bench_wall_time(*, jobs: int | None = None) -> dict[str, Any]:
-    """Wall time of the default ``gearctl bench`` (all controllers, plants and references)."""
+    """Wall time of the default ``gearctl bench`` (all controllers, plants and references).
+
+    Parameters
+    ----------
+    jobs : int, optional
+        Worker processes, as :func:`gearctl.bench.run_bench` takes them.
+
+    Returns
+    -------
+    dict
+        ``wall_time`` [s], ``runs``, ``simulated_time`` [s] (all runs' together), ``jobs`` (the processes used).
+    """
     from .bench import BenchSpec, run_bench
 
     spec = BenchSpec()

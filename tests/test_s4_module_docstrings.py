@@ -22,7 +22,7 @@ import gearctl
 REMAINING = [
     "gearctl.cli", "gearctl.cli.common", "gearctl.cli.export_cmds", "gearctl.cli.identify_cmds",
     "gearctl.cli.loop_cmds", "gearctl.cli.model_cmds", "gearctl.cli.sweep_cmds",
-    "gearctl.kernel", "gearctl.perf",
+    "gearctl.kernel",
 ]
 
 
