@@ -20,8 +20,6 @@ import gearctl
 
 #: Modules with an ``__all__`` whose names still leave parameters undocumented (to do).
 REMAINING = [
-    "gearctl.cli", "gearctl.cli.common", "gearctl.cli.export_cmds", "gearctl.cli.identify_cmds",
-    "gearctl.cli.loop_cmds", "gearctl.cli.model_cmds", "gearctl.cli.sweep_cmds",
     "gearctl.kernel",
 ]
 

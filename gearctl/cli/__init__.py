@@ -100,6 +100,16 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     The commands' modules (numpy, SciPy ...) are imported here, not with the package: a Ctrl-C while they load
     (the first few tenths of a second) is one line and exit 130 too, not Python's traceback.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments after the program name (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code.
     """
     try:
         return _main(argv)

@@ -37,7 +37,19 @@ WHOLE = Spec(unit="1", doc="whole number", low=-2**31, high=2**31, integer=True)
 
 
 def spec_arg(spec: Spec) -> Callable[[str], Any]:
-    """An argparse type that parses a number and checks it against ``spec`` (the schema's range)."""
+    """An argparse type that parses a number and checks it against ``spec`` (the schema's range).
+
+    Parameters
+    ----------
+    spec : Spec
+        The quantity's unit and range.
+
+    Returns
+    -------
+    callable
+        ``parse(text)``: the number (an int for an integer spec, a whole number kept exact), or
+        ``argparse.ArgumentTypeError`` with the spec's rule.
+    """
     def parse(text: str) -> Any:
         if spec.integer and re.fullmatch(r"\s*[+-]?\d+\s*", text):
             # a whole number as typed: float() rounds beyond 2**53 (--seed 9000000000000000001 ran as ...000, and
@@ -87,7 +99,22 @@ def not_a_number(text: str, unit: str | None = None) -> argparse.ArgumentTypeErr
 
 
 def finite_float(text: str) -> float:
-    """A finite number."""
+    """A finite number.
+
+    Parameters
+    ----------
+    text : str
+        The argument as typed.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For text that is not such a number (argparse then exits with code 2 and the option's name).
+    """
     try:
         v = float(text)
     except ValueError:
@@ -98,7 +125,22 @@ def finite_float(text: str) -> float:
 
 
 def positive_float(text: str) -> float:
-    """A finite number > 0."""
+    """A finite number > 0.
+
+    Parameters
+    ----------
+    text : str
+        The argument as typed.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For text that is not such a number (argparse then exits with code 2 and the option's name).
+    """
     v = finite_float(text)
     if v <= 0:
         raise argparse.ArgumentTypeError(f"{text} is out of range: expected a number > 0")
@@ -107,7 +149,18 @@ def positive_float(text: str) -> float:
 
 def positive_quantity(unit: str) -> Callable[[str], float]:
     """A parser of a finite number > 0 whose range error states ``unit`` (``--dwell -1``: "-1 is out of range: expected
-    a number > 0 [s]")."""
+    a number > 0 [s]").
+
+    Parameters
+    ----------
+    unit : str
+        The unit the messages state.
+
+    Returns
+    -------
+    callable
+        ``parse(text)``: the number, or ``argparse.ArgumentTypeError``.
+    """
 
     def parse(text: str) -> float:
         try:
@@ -124,7 +177,22 @@ def positive_quantity(unit: str) -> Callable[[str], float]:
 
 
 def nonnegative_float(text: str) -> float:
-    """A finite number >= 0."""
+    """A finite number >= 0.
+
+    Parameters
+    ----------
+    text : str
+        The argument as typed.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For text that is not such a number (argparse then exits with code 2 and the option's name).
+    """
     v = finite_float(text)
     if v < 0:
         raise argparse.ArgumentTypeError(f"{text} is out of range: expected a number >= 0")
@@ -158,7 +226,17 @@ def _plain(o: Any) -> Any:
 
 
 def dump_json(obj: Any) -> str:
-    """``obj`` as indented JSON (numpy values, dataclasses with ``as_dict``, inf/nan as null)."""
+    """``obj`` as indented JSON (numpy values, dataclasses with ``as_dict``, inf/nan as null).
+
+    Parameters
+    ----------
+    obj : object
+        Dicts, lists, tuples, numbers, strings, numpy arrays and scalars, paths, objects with ``as_dict``.
+
+    Returns
+    -------
+    str
+    """
     return "".join(iter_json(obj))
 
 
@@ -166,12 +244,31 @@ def iter_json(obj: Any) -> Iterator[str]:
     """:func:`dump_json`'s text in pieces, for :func:`write_json`. The object is made JSON-ready in one copy
     (:func:`_plain`); ``dump_json`` was ``json.dumps`` of ``json.loads`` of ``json.dumps`` (three copies and the
     text): writing a sweep's ``--json`` took 6.1 kB a run over the results' 1.5 kB, past the 4 kB a run
-    (``gearctl.sweep.ROW_BYTES``) its memory check allows for."""
+    (``gearctl.sweep.ROW_BYTES``) its memory check allows for.
+
+    Parameters
+    ----------
+    obj : object
+        As :func:`dump_json` takes it.
+
+    Yields
+    ------
+    str
+        Pieces of the text.
+    """
     return json.JSONEncoder(indent=2).iterencode(_plain(obj))
 
 
 def write_json(fh: Any, obj: Any) -> None:
-    """Write :func:`dump_json`'s text to the open file ``fh`` piece by piece (no whole text in memory)."""
+    """Write :func:`dump_json`'s text to the open file ``fh`` piece by piece (no whole text in memory).
+
+    Parameters
+    ----------
+    fh : file
+        An open text file.
+    obj : object
+        As :func:`dump_json` takes it.
+    """
     for chunk in iter_json(obj):
         fh.write(chunk)
 
@@ -204,6 +301,19 @@ def write_csv_stream(path: str, header: Sequence[str], columns: Columns,
     Floats are written with 10 significant digits; memory stays bounded by one chunk. On a terminal a bar shows
     the rows written once the writing has taken 2 s (about 1 us a value: ``stiffness --points 1000000`` wrote
     253 MB for 15-20 s without a word).
+
+    Parameters
+    ----------
+    path : str
+        The file (its folder is created), or ``"-"`` for the standard output.
+    header : sequence of str
+        The column names.
+    columns : callable
+        ``columns(i0, i1)``: the columns of rows ``i0..i1``, each a list of cells (written as they are) or numbers.
+    n : int
+        The number of rows.
+    chunk : int
+        Rows per chunk (default 20 000).
 
     Raises
     ------
@@ -445,14 +555,33 @@ def format_rate(simulated: float, wall: float) -> str:
 
 
 def say_written(*pairs: tuple[str | None, str]) -> None:
-    """Print ``wrote FILE (what)`` for each file the user asked for."""
+    """Print ``wrote FILE (what)`` for each file the user asked for.
+
+    Parameters
+    ----------
+    *pairs : tuple of (str or None, str)
+        ``(path, what)``; a None or empty path is skipped, ``"-"`` is the standard output.
+    """
     for path, what in pairs:
         if path:
             print(f"  wrote {'standard output' if path == '-' else path} ({what})")
 
 
 def save_figure(fig: Any, path: str) -> None:
-    """Write a figure, turning an unwritable path into one line."""
+    """Write a figure, turning an unwritable path into one line.
+
+    Parameters
+    ----------
+    fig : Figure
+        The figure.
+    path : str
+        The file (:func:`gearctl.plots.save`).
+
+    Raises
+    ------
+    InputError
+        ``cannot write plot PATH: reason``.
+    """
     from ..plots import save
 
     try:
@@ -466,6 +595,17 @@ class progress_bar:  # noqa: N801 (a context manager used like a function)
     with ``expected_s=None`` (a duration not known beforehand), shown once the run has taken ``threshold`` seconds.
 
     Call the object with the fraction done (0..1).
+
+    Parameters
+    ----------
+    desc : str
+        The bar's label.
+    expected_s : float or None
+        Expected wall time [s], or None where it is not known.
+    threshold : float
+        Wall time [s] below which no bar is shown (default 2).
+    total : int
+        Steps of the bar (default 1000).
     """
 
     def __init__(self, desc: str, *, expected_s: float | None, threshold: float = 2.0, total: int = 1000) -> None:
@@ -496,7 +636,22 @@ class progress_bar:  # noqa: N801 (a context manager used like a function)
 def earlier_plots(index: Path, title: str, patterns: Sequence[str]) -> list[str]:
     """The plots an earlier run wrote into an ``--out`` folder, as its index (``summary.md``, ``report.md``, which
     starts with ``title``) links them; only names matching ``patterns`` (gearctl's own plot names), none when the
-    index is not gearctl's."""
+    index is not gearctl's.
+
+    Parameters
+    ----------
+    index : Path
+        The earlier run's index file (an unreadable one: none).
+    title : str
+        The first line a gearctl index of this command starts with.
+    patterns : sequence of str
+        Shell patterns of gearctl's plot names.
+
+    Returns
+    -------
+    list of str
+        The file names, each once.
+    """
     import fnmatch
 
     try:
@@ -513,7 +668,24 @@ def earlier_plots(index: Path, title: str, patterns: Sequence[str]) -> list[str]
 def remove_earlier_plots(folder: Path, earlier: Iterable[str], written: Iterable[str]) -> list[str]:
     """Remove from ``folder`` the plots of :func:`earlier_plots` that this run did not write again; return their
     names. Re-running a sweep into its ``--out`` folder with other keys left the earlier run's plots
-    (``error_vs_backlash.png``, ``map.png``) beside the new ``runs.csv`` and ``summary.md``, as if this run's."""
+    (``error_vs_backlash.png``, ``map.png``) beside the new ``runs.csv`` and ``summary.md``, as if this run's.
+
+    Only regular files (not links) are removed; one that cannot be is left, unnamed.
+
+    Parameters
+    ----------
+    folder : Path
+        The ``--out`` folder.
+    earlier : iterable of str
+        :func:`earlier_plots`.
+    written : iterable of str
+        The plots this run wrote.
+
+    Returns
+    -------
+    list of str
+        The names removed, sorted.
+    """
     gone = []
     for name in sorted(set(earlier) - set(written)):
         f = folder / name
@@ -527,7 +699,17 @@ def remove_earlier_plots(folder: Path, earlier: Iterable[str], written: Iterable
 
 
 def warn(command: str, warnings: Iterable[str], *, kind: str = "warning") -> None:
-    """Print each warning of an unhealthy loop (or, ``kind="note"``, each design note) on stderr, one line each."""
+    """Print each warning of an unhealthy loop (or, ``kind="note"``, each design note) on stderr, one line each.
+
+    Parameters
+    ----------
+    command : str
+        The command, named in each line (``gearctl COMMAND: KIND: text``).
+    warnings : iterable of str
+        The sentences.
+    kind : str
+        ``"warning"`` (default) or ``"note"``.
+    """
     for w in warnings:
         print(f"gearctl {command}: {kind}: {w}", file=sys.stderr)
 

@@ -48,7 +48,18 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
-    """Add the export command to the subparsers; return name -> function."""
+    """Add the export command to the subparsers; return name -> function.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``gearctl`` parser's subparsers.
+
+    Returns
+    -------
+    dict
+        Command name -> the function that runs it (given the parsed arguments, it returns the exit code).
+    """
     bl, seed = spec_arg(BACKLASH), spec_arg(SEED)
     p = sub.add_parser("export", help="export a catalog controller as self-contained C99 (header, sources, Makefile, "
                                       "test vectors)")

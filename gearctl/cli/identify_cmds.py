@@ -102,7 +102,18 @@ def _print_identification(res: Any) -> None:
 
 
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
-    """Add the identification commands to the subparsers; return name -> function."""
+    """Add the identification commands to the subparsers; return name -> function.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``gearctl`` parser's subparsers.
+
+    Returns
+    -------
+    dict
+        Command name -> the function that runs it (given the parsed arguments, it returns the exit code).
+    """
     p = sub.add_parser("excite", help="record a log of the simulated servo under a motion that shows backlash and "
                                       "friction (or write that motion for a real drive)")
     p.add_argument("model", help="the true model: catalog name or TOML path (its [sensors] quantise the angles)")

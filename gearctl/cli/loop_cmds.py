@@ -473,7 +473,18 @@ _DURATIONS = "sine 3 s, step 2 s, ramp 1.5 s, move 1 s"
 
 
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
-    """Add the closed-loop commands to the subparsers; return name -> function."""
+    """Add the closed-loop commands to the subparsers; return name -> function.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``gearctl`` parser's subparsers.
+
+    Returns
+    -------
+    dict
+        Command name -> the function that runs it (given the parsed arguments, it returns the exit code).
+    """
     dur, seed, bl = spec_arg(DURATION), spec_arg(SEED), spec_arg(BACKLASH)
     plants = ("improved", "yang-sun", "tvms")
     p = sub.add_parser("track", help="run a controller against the nonlinear plant on a reference")

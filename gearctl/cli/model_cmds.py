@@ -455,7 +455,18 @@ def _cmd_describe(args: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
-    """Add the model commands to the subparsers; return name -> function."""
+    """Add the model commands to the subparsers; return name -> function.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``gearctl`` parser's subparsers.
+
+    Returns
+    -------
+    dict
+        Command name -> the function that runs it (given the parsed arguments, it returns the exit code).
+    """
     dur = spec_arg(DURATION)
     p = sub.add_parser("models", help="list the catalog of gear models and trains")
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -273,7 +273,18 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
-    """Add the ``sweep`` command to the subparsers; return name -> function."""
+    """Add the ``sweep`` command to the subparsers; return name -> function.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``gearctl`` parser's subparsers.
+
+    Returns
+    -------
+    dict
+        Command name -> the function that runs it (given the parsed arguments, it returns the exit code).
+    """
     p = sub.add_parser("sweep", help="robustness sweep: one design against many perturbed plants (Dask)",
                        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
