@@ -219,6 +219,11 @@ def contact_matrices(plant: Plant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     ``x' = A x + B u + e`` in each mode, with ``e`` the constant ``+-k b`` term of the contact modes. A
     thin view of :func:`gearctl.plant.mode_matrices`.
+
+    Parameters
+    ----------
+    plant : Plant
+        A pair or a train.
     """
     n = plant.n_stages
     return mode_matrices(plant, [True] * n), mode_matrices(plant, [False] * n), input_matrix(plant)
@@ -770,7 +775,18 @@ class Kernel:
         return xr
 
     def classify_all(self, x: np.ndarray) -> list[int]:
-        """Contact mode of every stage for state ``x`` (``no_pull`` unloaded overlap as ±2 for the exact solver)."""
+        """Contact mode of every stage for state ``x`` (``no_pull`` unloaded overlap as ±2 for the exact solver).
+
+        Parameters
+        ----------
+        x : ndarray, shape (nx,)
+            State [rad, rad/s].
+
+        Returns
+        -------
+        list of int
+            Per stage: +1 front, -1 back, 0 in the gap (±2, see above).
+        """
         p = self.plant
         w = self.nsh
         xr = self._relative(x)
@@ -789,7 +805,13 @@ class Kernel:
         return out
 
     def classify(self, x: np.ndarray) -> int:
-        """Contact mode of the first stage for state ``x`` (a pair's mode)."""
+        """Contact mode of the first stage for state ``x`` (a pair's mode).
+
+        Parameters
+        ----------
+        x : ndarray, shape (nx,)
+            State [rad, rad/s].
+        """
         return self.classify_all(x)[0]
 
     def _hold_torque(self, j: int, x: np.ndarray, u1: float, u2: float) -> float:
@@ -822,7 +844,13 @@ class Kernel:
                 self._slip[j] = 0 if abs(T) <= tc else (1 if T > 0 else -1)
 
     def set_state(self, x: np.ndarray) -> None:
-        """Replace the state (e.g. a disturbance); the modes are re-classified."""
+        """Replace the state (e.g. a disturbance); the modes are re-classified.
+
+        Parameters
+        ----------
+        x : ndarray, shape (nx,)
+            State [rad, rad/s].
+        """
         self._x[:] = np.asarray(x, dtype=float)
         self._mode[:] = self.classify_all(self._x)
         self._classify_slip(0.0, 0.0)
@@ -839,6 +867,20 @@ class Kernel:
 
         0 is success; events are recorded in :attr:`event_log`. The call stops with status 3 when it has
         located ``max_events`` events, or the run more than ``max_events + max_event_rate * (t - t0)``.
+
+        Parameters
+        ----------
+        u1 : float
+            Torque on the motor shaft [N m].
+        u2 : float
+            Torque on the load shaft [N m] (the plant's ``load_torque`` is not added here).
+        T : float
+            Interval [s].
+
+        Returns
+        -------
+        int
+            The status (:meth:`status_message` words it).
         """
         st = self._st
         st.u1, st.u2 = u1, u2
@@ -857,6 +899,15 @@ class Kernel:
 
         :meth:`advance` and the compiled batch loop (:mod:`gearctl.export.batch`, which calls ``gc_step``
         from C) both end their calls here, so the event budget and the patterns are handled in one place.
+
+        Parameters
+        ----------
+        status : int
+            The status the call returned.
+
+        Returns
+        -------
+        int
         """
         st = self._st
         fn = cast("Callable[[Any, Any], int]", self._fn)  # a compiled call ended here: gc_step is loaded
@@ -890,6 +941,17 @@ class Kernel:
         ``x`` has shape ``(nx, m)`` with the state after each completed interval (``m <= n``; fewer on
         failure or divergence), ``modes`` and ``d_ys`` shape ``(n_stages, m)``. The compiled path runs
         stretches of intervals in one call.
+
+        Parameters
+        ----------
+        u1 : float
+            Torque on the motor shaft [N m].
+        u2 : float
+            Torque on the load shaft [N m] (the plant's ``load_torque`` is not added here).
+        dt : float
+            Interval [s].
+        n : int
+            Number of intervals.
         """
         nx, ns, w = self.nx, self.ns, self.nsh
         xs = np.empty((n, nx))
@@ -946,11 +1008,43 @@ class Kernel:
 
     @staticmethod
     def status_message(status: int) -> str:
-        """Words for a status code of :meth:`advance`."""
+        """Words for a status code of :meth:`advance`.
+
+        Parameters
+        ----------
+        status : int
+            The code (an unknown one is worded ``status N``).
+
+        Returns
+        -------
+        str
+        """
         return _STATUS.get(status, f"status {status}")
 
     def c_force(self, i: int, mode: int, d_ys: float, x: np.ndarray) -> float:
-        """The C kernel's force law for stage ``i`` (for the test that it agrees with :func:`mesh_force`)."""
+        """The C kernel's force law for stage ``i`` (for the test that it agrees with :func:`mesh_force`).
+
+        Parameters
+        ----------
+        i : int
+            Stage index, 0 at the motor.
+        mode : int
+            The stage's mode (the sign counts: 0 in the gap).
+        d_ys : float
+            Yang–Sun damping factor of the stage's contact [N s/m^2].
+        x : ndarray, shape (nx,)
+            State [rad, rad/s].
+
+        Returns
+        -------
+        float
+            The force along the line of action [N], signed as the front flank's.
+
+        Raises
+        ------
+        RuntimeError
+            Without the compiled kernel.
+        """
         if self._lib is None:
             raise RuntimeError("the compiled kernel is not available")
         xa = np.ascontiguousarray(x, dtype=float)
