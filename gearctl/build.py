@@ -59,8 +59,21 @@ def prune_cache(name: str, *, keep: Path | None = None) -> list[Path]:
     """Remove all but the :data:`CACHE_KEEP` libraries of ``name`` used last from :func:`cache_dir` (never ``keep``,
     the one just built); returns the removed paths.
 
-    A library another process has loaded stays usable (the mapping outlives the file); one about to load a pruned
-    file builds it again. Files it cannot remove (another process pruning at once, permissions) are left."""
+    A library another process has loaded stays usable (the mapping outlives the file). Files it cannot remove
+    (another process pruning at once, permissions) are left.
+
+    Parameters
+    ----------
+    name : str
+        Stem of the cached files (:func:`shared_library`'s ``name``).
+    keep : Path, optional
+        A library never removed and counted among those kept (the one just built).
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+    """
     d = cache_dir()
     suffix = ".dll" if sys.platform == "win32" else ".so"
     entries = []

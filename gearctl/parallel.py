@@ -286,6 +286,8 @@ def check_local_workers(workers: int, task_bytes: int = 0) -> None:
     ----------
     workers : int
         Worker processes asked for.
+    task_bytes : int
+        Memory the largest task holds while it runs [bytes] (0: the workers alone).
 
     Raises
     ------
