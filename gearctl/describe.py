@@ -38,7 +38,7 @@ from .design.pid import PID, PIDGains, gap_loop_pole
 from .errors import InputError, short_repr
 from .modes import contact_mode_model
 from .params import ContactLaw, Sensors
-from .plant import Plant, PlantKind, build_plant
+from .plant import Plant, PlantKind, build_plant, check_plant
 from .references import Reference
 
 __all__ = [
@@ -262,6 +262,7 @@ def _check_coulomb(plant: Plant) -> None:
 
 
 def _check_plant(plant: Plant) -> None:
+    check_plant(plant)  # a Plant at all (a string was an AttributeError on .kind)
     if plant.kind is not PlantKind.IMPROVED or plant.kv_table is not None:
         raise InputError(f"plant = {plant.kind.value!r}: the describing function is derived for the improved "
                          f"plant's piecewise-linear contact law", field="plant")

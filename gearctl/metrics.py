@@ -209,6 +209,19 @@ def scored_from(res: ClosedLoopResult, settle: float | None = None) -> float:
     return 0.0 if t0 > 0.0 and end - t0 < 0.1 * t0 else t0
 
 
+def _check_run(res: Any, settle: Any) -> None:
+    """The :class:`InputError` of a ``res`` that is no closed-loop run or a ``settle`` outside it."""
+    if not isinstance(res, ClosedLoopResult):
+        from .errors import short_repr
+
+        raise InputError(f"res = {short_repr(res)} is not a closed-loop run (a {type(res).__name__}): expected the "
+                         "ClosedLoopResult of simulate_closed_loop (or a precision test's .run)", field="res")
+    end = float(res.t[-1]) if res.t.size else 0.0
+    if settle is not None and not (isinstance(settle, int | float | np.floating) and 0.0 <= settle <= end):
+        raise InputError(f"settle = {settle!r} is out of range: expected 0 <= value <= {end:g} [s] (the run's end: "
+                         "past it nothing would be scored)", field="settle")
+
+
 def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHealth:
     """Say what is wrong with a loop that ran to its end.
 
@@ -256,7 +269,13 @@ def loop_health(res: ClosedLoopResult, *, settle: float | None = None) -> LoopHe
     (``e_23`` is already large), so the error also counts as growing when ``e_4 > runaway x max|x|``: a load
     that never moves scores 1, a loop that ran the load off beyond the reference's whole excursion more
     (the catalog's healthy runs score at most 0.30).
+
+    Raises
+    ------
+    InputError
+        As :func:`tracking_metrics`: ``res`` not a run, ``settle`` out of range.
     """
+    _check_run(res, settle)
     lim = HEALTH_LIMITS
     t0 = scored_from(res, settle)
     T = float(res.t[-1])
@@ -405,15 +424,7 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         If ``res`` is not a :class:`~gearctl.closedloop.ClosedLoopResult`, or ``settle`` not a number in 0 up to
         the run's end.
     """
-    if not isinstance(res, ClosedLoopResult):
-        from .errors import short_repr
-
-        raise InputError(f"res = {short_repr(res)} is not a closed-loop run (a {type(res).__name__}): expected the "
-                         "ClosedLoopResult of simulate_closed_loop (or a precision test's .run)", field="res")
-    end = float(res.t[-1]) if res.t.size else 0.0
-    if settle is not None and not (isinstance(settle, int | float | np.floating) and 0.0 <= settle <= end):
-        raise InputError(f"settle = {settle!r} is out of range: expected 0 <= value <= {end:g} [s] (the run's end: "
-                         "past it nothing would be scored)", field="settle")
+    _check_run(res, settle)
     e = res.error
     keep = res.t >= scored_from(res, settle)
     ek = e[keep] if np.any(keep) else e

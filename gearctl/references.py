@@ -24,6 +24,19 @@ REFERENCES = ("sine", "step", "ramp", "move")
 DEFAULT_DURATION = {"sine": 3.0, "move": 1.0, "step": 2.0, "ramp": 1.5}
 
 
+#: The velocity profiles of a move.
+MOVE_PROFILES = ("s-curve", "trapezoid")
+
+
+def _refuse_move(velocity: Any, accel: Any, profile: Any) -> None:
+    """The :class:`InputError` of :func:`move_times`' first bad argument."""
+    for name, v in (("velocity", velocity), ("accel", accel)):
+        ok = isinstance(v, int | float | np.floating | np.integer) and not isinstance(v, bool) and 0.0 < v < math.inf
+        if not ok:
+            raise InputError(f"{name} = {v!r} is out of range: expected a finite number > 0", field=name)
+    raise InputError(f"profile = {profile!r}: expected one of {', '.join(MOVE_PROFILES)}", field="profile")
+
+
 def move_times(distance: float, velocity: float, accel: float, profile: str = "s-curve") -> tuple[float, float, float]:
     """Ramp time, cruise time and cruise velocity of a rest-to-rest move over ``distance >= 0``.
 
@@ -36,11 +49,11 @@ def move_times(distance: float, velocity: float, accel: float, profile: str = "s
     distance : float
         Travel [rad]; 0 or less: no move.
     velocity : float
-        Cruise velocity [rad/s], > 0 (not checked here: :class:`Reference` checks its ``rate``).
+        Cruise velocity [rad/s], > 0 and finite.
     accel : float
-        Peak acceleration [rad/s^2], > 0 (not checked here: :class:`Reference` checks its ``accel``).
+        Peak acceleration [rad/s^2], > 0 and finite.
     profile : str
-        ``"s-curve"`` (default) or ``"trapezoid"`` (not checked here: :class:`Reference` checks its ``profile``).
+        ``"s-curve"`` (default) or ``"trapezoid"``.
 
     Returns
     -------
@@ -51,11 +64,24 @@ def move_times(distance: float, velocity: float, accel: float, profile: str = "s
     v : float
         Velocity reached [rad/s]: ``velocity``, or less for a move that never cruises.
 
+    Raises
+    ------
+    InputError
+        If ``velocity`` or ``accel`` is not a finite number > 0, or ``profile`` is neither profile (a zero was a
+        ZeroDivisionError, an unknown profile was timed as a trapezoid and drawn as an S-curve by
+        :func:`move_point`).
+
     Examples
     --------
     >>> move_times(1.0, 1.0, 2.0, "trapezoid")
     (0.5, 0.5, 1.0)
     """
+    try:
+        ok = 0.0 < velocity < math.inf and 0.0 < accel < math.inf and profile in MOVE_PROFILES
+    except TypeError:  # a string or None: named below
+        ok = False
+    if not ok:
+        _refuse_move(velocity, accel, profile)
     if distance <= 0.0:
         return 0.0, 0.0, 0.0
     mean = accel / 2 if profile == "s-curve" else accel  # mean acceleration over a ramp
@@ -79,16 +105,21 @@ def move_point(tau: float, distance: float, velocity: float, accel: float,
     distance : float
         Travel [rad]; 0 or less: no move.
     velocity : float
-        Cruise velocity [rad/s], > 0 (not checked here: :class:`Reference` checks its ``rate``).
+        Cruise velocity [rad/s], > 0 and finite.
     accel : float
-        Peak acceleration [rad/s^2], > 0 (not checked here: :class:`Reference` checks its ``accel``).
+        Peak acceleration [rad/s^2], > 0 and finite.
     profile : str
-        ``"s-curve"`` (default) or ``"trapezoid"`` (not checked here: :class:`Reference` checks its ``profile``).
+        ``"s-curve"`` (default) or ``"trapezoid"``.
 
     Returns
     -------
     tuple of float
         ``(p, p', p'')`` [rad, rad/s, rad/s^2] (:func:`move_times` gives the ramp and cruise times).
+
+    Raises
+    ------
+    InputError
+        As :func:`move_times`.
     """
     ta, tc, v = move_times(distance, velocity, accel, profile)
     T = 2 * ta + tc
@@ -167,7 +198,7 @@ class Reference:
         if self.kind not in REFERENCES:
             raise InputError(f"reference = {self.kind!r} is not a reference: expected one of "
                              f"{', '.join(REFERENCES)}", field="reference")
-        if self.profile not in ("trapezoid", "s-curve"):
+        if self.profile not in MOVE_PROFILES:
             raise InputError(f"profile = {self.profile!r}: expected trapezoid or s-curve", field="profile")
         validate_fields(self)
 
