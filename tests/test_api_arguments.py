@@ -46,3 +46,11 @@ def test_loop_health_and_the_loop_response_name_their_first_argument() -> None:
     assert exc.value.field == "res"
     with pytest.raises(InputError, match="'x' is not a Plant"):
         loop_frequency_response("x", None, [1.0])  # type: ignore[arg-type]
+
+
+def test_the_adaptive_inverse_names_what_it_wraps() -> None:
+    from gearctl.design.adaptive import AdaptiveInverse
+
+    with pytest.raises(InputError) as exc:
+        AdaptiveInverse(object())  # type: ignore[arg-type]
+    assert exc.value.field == "inverse"

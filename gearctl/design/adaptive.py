@@ -215,13 +215,21 @@ class AdaptiveInverse(Controller):
     Raises
     ------
     InputError
-        If the inverse's backlash (the initial estimate) lies outside ``[min_backlash, max_backlash]`` (field
-        ``backlash``).
+        If ``inverse`` is not a :class:`~gearctl.design.deadzone.DeadzoneInverse` or ``settings`` not an
+        :class:`AdaptationSettings`; if the inverse's backlash (the initial estimate) lies outside
+        ``[min_backlash, max_backlash]`` (field ``backlash``).
     """
 
     def __init__(self, inverse: deadzone.DeadzoneInverse, settings: AdaptationSettings | None = None, *,
                  name: str = "adaptive_inverse") -> None:
         super().__init__()
+        if not isinstance(inverse, deadzone.DeadzoneInverse):  # an AttributeError on .Ts before
+            from ..errors import short_repr
+
+            raise InputError(f"inverse = {short_repr(inverse)} is not a dead-zone inverse: expected a DeadzoneInverse "
+                             "(gearctl.catalog.load_controller('deadzone_inverse', plant))", field="inverse")
+        if settings is not None and not isinstance(settings, AdaptationSettings):
+            raise InputError(f"settings = {settings!r} is not an AdaptationSettings", field="settings")
         self.inner = inverse
         self.settings = settings or AdaptationSettings()
         self.name = name
