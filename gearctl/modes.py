@@ -439,15 +439,19 @@ def _matchings(items: list[float]) -> Iterable[list[tuple[float, float]]]:
             yield [(first, other), *tail]
 
 
-def _modes_of(roots: Any, rigid: Sequence[complex], targets: Sequence[float]) -> list[tuple[float, float]]:
+def _modes_of(roots: Any, rigid: Sequence[complex], targets: Sequence[float], *,
+              exact: bool = False) -> list[tuple[float, float]]:
     """The modes among ``roots`` as ``(omega_n, zeta)``, lowest first (:class:`MeshMode`'s rule per pair).
 
     ``rigid``: roots of the rigid-body motion, the nearest root to each set aside. ``targets``: the undamped
     natural frequencies [rad/s], one per mode. A complex pair is a mode; the real roots left are the overdamped
     modes, paired so that the pairs' products (``omega_n^2``) come nearest the targets that no complex pair
-    took (every pairing is tried: at most 6 such modes, 10395 pairings).
+    took (every pairing is tried: at most 6 such modes, 10395 pairings). ``exact``: the roots' zeros are exact
+    (:func:`mode_poles`), so none is rounded to 0 by :func:`clean_poles`: a strongly overdamped mesh's slow root
+    ``-k / c`` lies below its rounding (a fuzzed pair with ``damping_coefficient = 1e8``: -2.58 rad/s beside
+    -3.4e7; rounded to 0 and set aside as a rigid body, it left no mesh mode and ``linearize`` a traceback).
     """
-    roots = clean_poles(roots)
+    roots = np.atleast_1d(np.asarray(roots, dtype=complex)) if exact else clean_poles(roots)
     if roots.size == 0:
         return []
     rest = list(roots)
@@ -526,7 +530,7 @@ def _mesh_and_modes(plant: Plant) -> tuple[MeshMode, list[tuple[float, float]]]:
     """:func:`mesh_mode` and every contact mode's ``(omega_n, zeta)``, lowest first."""
     sys = contact_mode_model(plant)
     rigid = tuple(complex(r) for r in rigid_model(plant).poles())
-    modes = _modes_of(mode_poles(plant, [True] * plant.n_stages), rigid, _undamped_frequencies(plant))
+    modes = _modes_of(mode_poles(plant, [True] * plant.n_stages), rigid, _undamped_frequencies(plant), exact=True)
     if not modes:  # a contact model has 2 rigid-body poles and 2 per mesh: not reached
         raise ValueError("the contact model has no mesh mode (fewer than two poles besides the rigid body)")
     wn, zeta = modes[-1]

@@ -16,6 +16,7 @@ import pytest
 import scipy.linalg as sla
 
 import gearctl
+from gearctl.cli import main as cli_main
 
 DATA = Path(__file__).parent / "data"
 
@@ -73,3 +74,20 @@ def test_catalog_train_modes_match_the_undamped_ones() -> None:
         plant = gearctl.build_plant(gearctl.load_model(name))
         modes = gearctl.linearize_modes(plant)
         np.testing.assert_allclose(modes.resonances_hz, _undamped_hz(plant), rtol=5e-4)
+
+
+@pytest.mark.parametrize("c", [1e6, 1e8])
+def test_strongly_overdamped_pair(tmp_path: Path, c: float) -> None:
+    """A mesh damped far past critical (``damping_coefficient`` up to 1e8 N s/m): its slow root -k/c lies below the
+    rounding that sets a rigid body's near-zero poles to 0 (-2.6 rad/s beside -3.4e7 at 1e8 on a fuzzed pair); taken
+    for a rigid body, it left no mesh mode and `gearctl linearize` (and every loop design) ended in a traceback.
+    The mesh mode is still the undamped sqrt(k / m_eq) with damping ratio c / (2 sqrt(k m_eq))."""
+    text = (DATA.parent.parent / "models" / "shing1993_servo.toml").read_text()
+    path = tmp_path / "overdamped.toml"
+    path.write_text(text.replace("[dynamics]\n", f"[dynamics]\ndamping_coefficient = {c:g}\n", 1))
+    plant = gearctl.build_plant(gearctl.load_model(path))
+    assert plant.c == c
+    mesh = gearctl.linearize_modes(plant).mesh
+    np.testing.assert_allclose(mesh.natural_frequency, math.sqrt(plant.k / plant.m_eq), rtol=1e-6)
+    np.testing.assert_allclose(mesh.damping_ratio, c / (2.0 * math.sqrt(plant.k * plant.m_eq)), rtol=1e-6)
+    assert cli_main(["linearize", str(path)]) == 0
