@@ -717,8 +717,8 @@ def _close_client(client: Any) -> None:
         client.close(timeout=ANSWER_TIMEOUT)
 
 
-def completed(client: Any, futures: Sequence[Any], *,
-              where: str = "the cluster") -> Iterator[tuple[Any, Any, BaseException | None]]:
+def completed(client: Any, futures: Sequence[Any], *, where: str = "the cluster",
+              on_drop: Callable[[str, int], Any] | None = None) -> Iterator[tuple[Any, Any, BaseException | None]]:
     """``(future, result, None)`` or ``(future, None, exception)`` for each future as it finishes
     (``distributed.as_completed`` on ``client``'s loop), its result fetched here. A cluster left without workers for
     :data:`WORKER_TIMEOUT` seconds is an :class:`~gearctl.InputError`: with every worker killed a sweep waited
@@ -726,7 +726,13 @@ def completed(client: Any, futures: Sequence[Any], *,
     arrives, the cluster's workers are counted every :data:`POLL` seconds; a scheduler that gives no answer for
     :data:`WORKER_TIMEOUT` seconds (each question waits :data:`ANSWER_TIMEOUT`) is an ``InputError`` too, and so
     is a worker the scheduler has not heard from for :data:`WORKER_TIMEOUT` seconds that holds some of the tasks
-    (:func:`_held_by_silent`).
+    (:func:`_held_by_silent`) when no other worker is left, or when the scheduler does not drop it.
+
+    A silent worker holding tasks is dropped from the scheduler (:func:`_drop_worker`: the scheduler's own
+    ``remove_worker``, as its ``worker-ttl`` does after 5 min) while another worker is heard from: its tasks, and
+    the finished results only it held, are recomputed on the workers left, and the sweep goes on (a worker stopped
+    with ``kill -STOP`` ended an hour's sweep after 60 s, every finished run lost). A worker stopped and resumed
+    within :data:`WORKER_TIMEOUT` is never dropped.
 
     Parameters
     ----------
@@ -736,6 +742,9 @@ def completed(client: Any, futures: Sequence[Any], *,
         The tasks.
     where : str
         How messages name the cluster (default ``"the cluster"``).
+    on_drop : callable, optional
+        ``on_drop(worker, tasks)`` after a silent worker is dropped: its address and how many of ``futures`` it
+        held (default: nothing told).
 
     Yields
     ------
@@ -745,8 +754,8 @@ def completed(client: Any, futures: Sequence[Any], *,
     Raises
     ------
     InputError
-        For a cluster without workers, a scheduler that does not answer, or a silent worker holding tasks, each
-        for :data:`WORKER_TIMEOUT` seconds.
+        For a cluster without workers, a scheduler that does not answer, or a silent worker holding tasks that
+        cannot be dropped (no other worker left, or the scheduler refused), each for :data:`WORKER_TIMEOUT` seconds.
     """
     from distributed import as_completed
     from distributed.comm.core import CommClosedError
@@ -776,12 +785,19 @@ def completed(client: Any, futures: Sequence[Any], *,
         silent_since = None
         held = _held_by_silent(client, workers, heard, keys, now)
         if held:
-            raise InputError(f"{where}: the worker{'s' if len(held) > 1 else ''} {', '.join(sorted(held))} "
-                             f"{'have' if len(held) > 1 else 'has'} not been heard from for {WORKER_TIMEOUT:g} s "
-                             f"(stopped, hung, or cut off from the scheduler) and hold{'' if len(held) > 1 else 's'} "
-                             f"{sum(held.values())} of the {left} unfinished task(s): Dask takes them back only "
-                             f"after its worker-ttl (5 min by default), if at all; restart or stop "
-                             f"{'them' if len(held) > 1 else 'it'} and run again", field="scheduler")
+            quiet = {w for w, (_, since) in heard.items() if w in workers and now - since > WORKER_TIMEOUT}
+            live = sorted(set(workers) - quiet - set(held))
+            why = ("no other worker is left to take them" if not live else
+                   _drop_workers(client, held, heard, on_drop))
+            if why:
+                many = len(held) > 1
+                raise InputError(f"{where}: the worker{'s' if many else ''} {', '.join(sorted(held))} "
+                                 f"{'have' if many else 'has'} not been heard from for {WORKER_TIMEOUT:g} s "
+                                 f"(stopped, hung, or cut off from the scheduler) and hold{'' if many else 's'} "
+                                 f"{sum(held.values())} of the {left} unfinished task(s), and {why}: Dask takes "
+                                 f"them back only after its worker-ttl (5 min by default), if at all; restart or "
+                                 f"stop {'them' if many else 'it'} and run again", field="scheduler")
+            return
         if workers:
             alone_since = None
         elif alone_since is None:
@@ -849,6 +865,34 @@ def _held_by_silent(client: Any, workers: dict, heard: dict[str, tuple[Any, floa
     except (TimeoutError, OSError):  # the scheduler's own silence is watched apart
         return {}
     return held
+
+
+def _drop_workers(client: Any, held: dict[str, int], heard: dict[str, tuple[Any, float]],
+                  on_drop: Callable[[str, int], Any] | None) -> str:
+    """Have the scheduler drop each worker of ``held`` (address: tasks it holds), telling ``on_drop``; ``""``, or
+    why one could not be dropped (the scheduler did not answer within :data:`ANSWER_TIMEOUT`, or refused)."""
+    for w, n in sorted(held.items()):
+        try:
+            client.run_on_scheduler(_drop_worker, w, callback_timeout=ANSWER_TIMEOUT)
+        except (TimeoutError, OSError):
+            return f"the scheduler did not drop {w} within {ANSWER_TIMEOUT:g} s"
+        except Exception as exc:  # a scheduler that refuses to run functions (distributed.scheduler.pickle off)
+            return (f"the scheduler did not drop {w} ({type(exc).__name__}: "
+                    f"{' '.join(str(exc).split())[:120]})")
+        heard.pop(w, None)
+        if on_drop is not None:
+            on_drop(w, n)
+    return ""
+
+
+async def _drop_worker(address: str, dask_scheduler: Any = None) -> str:
+    """Run on the scheduler (``client.run_on_scheduler``): remove the worker ``address`` as Dask's own
+    ``worker-ttl`` check removes a worker without a nanny that has stopped sending heartbeats
+    (``Scheduler.remove_worker``, not expected: its tasks go back to be run elsewhere, its results held nowhere else
+    are recomputed, and the worker is told to close should it resume). ``retire_workers`` would first copy its
+    results off it, which waits for the silent worker. ``"OK"`` or ``"already-removed"``."""
+    return str(await dask_scheduler.remove_worker(address, stimulus_id=f"gearctl-silent-worker-{time.time()}",
+                                                  close=True))
 
 
 def killed_worker_text(exc: BaseException) -> str:

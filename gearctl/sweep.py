@@ -100,7 +100,8 @@ from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
 from .runs import Design, Run, RunResult, controller_spec, design_controller
 from .units import BACKLASH, DURATION, SEED, Spec, check_number, describe_rule
 
-__all__ = ["Vary", "SweepResult", "SweepContext", "SweepPlan", "sweep", "plan_sweep", "run_batch", "parse_vary",
+__all__ = ["Vary", "SweepResult", "SweepIncomplete", "SweepContext", "SweepPlan", "sweep", "plan_sweep", "run_batch",
+           "parse_vary",
            "parse_set", "perturb_model", "Scale", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
            "ROW_BYTES", "KEY_BYTES", "PRECISION_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size",
            "run_cost", "default_workers",
@@ -1044,6 +1045,11 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         # threads idle (2 workers of 16 threads, 1000 runs: 8 tasks for 32 threads)
         size = batch or batch_size(n, threads, plan.context.duration, run_cost(plan.context))
         info.update(workers=w, threads=threads, where=eng.where, batch=size)
+        dropped: list[dict[str, Any]] = []
+
+        def on_drop(worker: str, tasks: int) -> None:
+            dropped.append({"worker": worker, "tasks": tasks})
+            info["dropped"] = dropped
         tag = uuid.uuid4().hex[:12]
         futures = {}
         # each task checks them on its worker: one may join mid-sweep (parallel.checked)
@@ -1054,7 +1060,7 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
                                     pure=False, numerics=stack)
             futures[fut] = part
         try:
-            for fut, got, exc in completed(eng.client, list(futures), where=eng.where):
+            for fut, got, exc in completed(eng.client, list(futures), where=eng.where, on_drop=on_drop):
                 part = futures.pop(fut)
                 if isinstance(exc, KilledWorker):  # the batch killed its workers again and again: record, go on
                     got = [_row(plan.context, j, None, None, None, message=f"the batch of runs {part[0][0]}.."
@@ -1069,6 +1075,10 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
                 done += len(got)
                 if progress:
                     progress(done, n)
+        except InputError as exc:  # the cluster failed mid-sweep: the runs finished are handed over, not lost
+            if not done:
+                raise
+            raise _Unfinished(str(exc), rows=rows, info=info, field=exc.field) from None
         finally:
             for fut in futures:
                 fut.cancel()
@@ -1078,6 +1088,15 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     if missing:
         raise RuntimeError(f"runs {missing[:5]} never came back")
     return rows, info  # type: ignore[return-value]
+
+
+class _Unfinished(InputError):
+    """The cluster failed after some runs had finished: its message, and the rows so far (None: not finished)."""
+
+    def __init__(self, message: str, *, rows: list[dict[str, Any] | None], info: dict[str, Any],
+                 field: str | None) -> None:
+        super().__init__(message, field=field)
+        self.rows, self.info = rows, info
 
 
 # --- results --------------------------------------------------------------------------------------------
@@ -1102,7 +1121,11 @@ class SweepResult:
         :func:`summarize`.
     engine : dict
         ``engine``, ``workers``, ``threads`` (theirs in all; on Dask), ``where``, ``batch`` (runs per task),
-        ``wall_time`` [s].
+        ``wall_time`` [s]; ``dropped`` (on Dask, where a worker went silent holding tasks and was dropped from the
+        scheduler, its tasks rerun on the others): ``[{"worker": address, "tasks": n}, ...]``.
+    missing : tuple of int
+        The indices of the runs that did not finish (a :class:`SweepIncomplete`'s result only; ``runs`` then holds
+        the others); empty for a whole sweep.
     """
 
     settings: dict[str, Any]
@@ -1110,6 +1133,7 @@ class SweepResult:
     runs: list[dict[str, Any]]
     summary: dict[str, Any]
     engine: dict[str, Any]
+    missing: tuple[int, ...] = ()
 
     @property
     def keys(self) -> list[str]:
@@ -1128,8 +1152,12 @@ class SweepResult:
         return np.array([np.nan if v is None else float(v) for v in vals])
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready: ``settings``, ``engine``, ``summary``, ``runs``."""
-        return {"settings": self.settings, "engine": self.engine, "summary": self.summary, "runs": self.runs}
+        """JSON-ready: ``settings``, ``engine``, ``summary``, ``runs``; and ``missing`` (the indices of the runs
+        that did not finish) for a sweep that did not finish."""
+        out = {"settings": self.settings, "engine": self.engine, "summary": self.summary, "runs": self.runs}
+        if self.missing:
+            out["missing"] = list(self.missing)
+        return out
 
     def table(self) -> tuple[list[str], list[list[Any]]]:
         """The runs as a flat table: header and rows (parameters as columns, None for missing values)."""
@@ -1144,6 +1172,25 @@ class SweepResult:
         scaled = {h for h in self.keys if any(isinstance(r["params"].get(h), Scale) for r in self.runs)}
         rows = [[float(v) if isinstance(v, Scale) else v for v in row] for row in rows]
         return [f"{h}_factor" if h in scaled else h for h in head], rows
+
+
+class SweepIncomplete(InputError):
+    """A sweep the cluster could not finish (a silent worker holding tasks with no other worker left, the
+    scheduler gone or silent, every worker gone), raised after some runs had finished: they are not lost.
+
+    Parameters
+    ----------
+    message : str
+        What happened, and how many runs did not finish.
+    result : SweepResult
+        The runs that finished (by index), their summary, and ``missing``: the indices of the others.
+    field : str, optional
+        As :class:`~gearctl.InputError` (``scheduler``).
+    """
+
+    def __init__(self, message: str, *, result: SweepResult, field: str | None = None) -> None:
+        super().__init__(message, field=field)
+        self.result = result
 
 
 def _quantiles(x: np.ndarray) -> dict[str, float] | None:
@@ -1350,10 +1397,15 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
 
     Raises
     ------
+    SweepIncomplete
+        An :class:`~gearctl.InputError` whose ``result`` holds the runs that finished and names the others
+        (``missing``), where the cluster failed mid-sweep after some had finished: no worker left, the scheduler
+        gone or silent, or a silent worker holding tasks that could not be dropped (a silent worker is dropped
+        while another is left, and the sweep goes on: ``engine["dropped"]``).
     InputError
         Before any run: a bad spec or setting, a draw outside its key's range, an invalid perturbed model,
         a design that fails on the nominal model, too many runs for the memory; a scheduler that cannot be
-        reached or has no worker; both ``client`` and ``scheduler``.
+        reached or has no worker; both ``client`` and ``scheduler``; the cluster failing before any run finished.
     """
     t0 = time.perf_counter()
     check_one_cluster(client, scheduler)  # before the design, as every check
@@ -1361,11 +1413,21 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
                       duration=duration, seed=seed, plant=plant, precision=precision)
     if batch is not None:
         SWEEP_RUNS.check("batch", batch)
-    rows, info = _run_jobs(plan, engine=engine, workers=workers, scheduler=scheduler, client=client, batch=batch,
-                           progress=progress)
+    keys = [v.key for v in plan.vary]
+    try:
+        rows, info = _run_jobs(plan, engine=engine, workers=workers, scheduler=scheduler, client=client,
+                               batch=batch, progress=progress)
+    except _Unfinished as exc:
+        done = [r for r in exc.rows if r is not None]
+        missing = tuple(i for i, r in enumerate(exc.rows) if r is None)
+        exc.info["wall_time"] = time.perf_counter() - t0
+        partial = SweepResult(settings=plan.settings, vary=plan.vary, runs=done, summary=summarize(done, keys),
+                              engine=exc.info, missing=missing)
+        shown = ", ".join(map(str, missing[:10])) + (", ..." if len(missing) > 10 else "")
+        raise SweepIncomplete(f"{exc}; {len(missing)} of {len(exc.rows)} runs did not finish (runs {shown}), "
+                              f"{len(done)} did", result=partial, field=exc.field) from None
     info["wall_time"] = time.perf_counter() - t0
-    return SweepResult(settings=plan.settings, vary=plan.vary, runs=rows,
-                       summary=summarize(rows, [v.key for v in plan.vary]), engine=info)
+    return SweepResult(settings=plan.settings, vary=plan.vary, runs=rows, summary=summarize(rows, keys), engine=info)
 
 
 def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), *, runs: int = 200,

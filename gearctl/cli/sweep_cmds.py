@@ -65,6 +65,9 @@ def _text(result: Any) -> list[str]:
              f"{eng['wall_time']:.1f} s"]
     for v in result.vary:
         lines.append(f"  varied                 {v.describe()}")
+    if result.missing:
+        lines.append(f"  missing                {len(result.missing)} of {st['runs']} runs did not finish (the "
+                     f"cluster failed): the figures are the {s['runs']} others'")
     lines.append(f"  RMS error [urad]       {_fmt_urad(s['rms_error'])}")
     lines.append(f"  max error [urad]       {_fmt_urad(s['max_error'])}")
     f = s["fractions"]
@@ -167,7 +170,7 @@ def _write_out(result: Any, out: Path) -> list[str]:
         for k in result.keys:
             save_figure(plot_sweep_scatter(result, k), str(out / f"error_vs_{k}.png"))
             plots.append((f"error_vs_{k}.png", f"error against {k}"))
-        if result.settings["grid"] and len(result.keys) == 2:
+        if result.settings["grid"] and len(result.keys) == 2 and not result.missing:
             save_figure(plot_sweep_map(result), str(out / "map.png"))
             plots.append(("map.png", f"RMS error over {result.keys[0]} and {result.keys[1]}"))
     try:
@@ -180,7 +183,7 @@ def _write_out(result: Any, out: Path) -> list[str]:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     import logging
 
-    from ..sweep import sweep
+    from ..sweep import SweepIncomplete, sweep
 
     if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.workers:
         warn("sweep", ["--workers sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the "
@@ -227,11 +230,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     levels = [lg.level for lg in quiet]
     for lg in quiet:
         lg.setLevel(logging.CRITICAL + 1)
+    unfinished: SweepIncomplete | None = None
     try:
         result = sweep(args.model, args.controller, vary=args.vary or [], runs=args.runs, grid=args.grid,
                        reference_kind=args.reference, duration=args.duration, seed=args.seed, plant=args.plant,
                        precision=args.precision, workers=args.workers, scheduler=args.scheduler, batch=args.batch,
                        progress=progress)
+    except SweepIncomplete as exc:  # the cluster failed mid-sweep: what finished is written as a whole sweep's is
+        unfinished, result = exc, exc.result
     finally:
         for lg, lv in zip(quiet, levels, strict=True):
             lg.setLevel(lv)
@@ -248,6 +254,22 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         if gone:
             warn("sweep", [f"--out {args.out}: removed {', '.join(gone)}, which an earlier sweep wrote there and this "
                            f"one does not (its keys or runs differ)"], kind="note")
+    if unfinished is not None:  # the files, as a whole sweep's with "missing"; the summary; then the one error line
+        print("\n".join(_text(result)), file=sys.stderr if to_stdout else sys.stdout)
+        if to_stdout:
+            write_json(sys.stdout, result.as_dict())
+            print()
+        sys.stdout.flush()
+        wrote = [f"--json {args.json}" if args.json and not to_stdout else "",
+                 f"--out {args.out}" if args.out else "", "the JSON on standard output" if to_stdout else ""]
+        where = " and ".join(filter(None, wrote)) or "the summary above (no --json or --out given)"
+        raise InputError(f"{unfinished}; the finished runs are in {where}", field=unfinished.field)
+    from .. import parallel
+
+    for d in result.engine.get("dropped", ()):
+        warn("sweep", [f"the worker {d['worker']} was not heard from for {parallel.WORKER_TIMEOUT:g} s holding "
+                       f"{d['tasks']} task(s): dropped from the scheduler, its tasks rerun on the other workers"],
+             kind="note")
     design = result.settings.get("design", {})
     warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
     warn("sweep", yang_sun_notes(load_model(args.model), args.plant), kind="note")
