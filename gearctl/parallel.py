@@ -718,7 +718,7 @@ def _close_client(client: Any) -> None:
 
 
 def completed(client: Any, futures: Sequence[Any], *, where: str = "the cluster",
-              on_drop: Callable[[str, int], Any] | None = None) -> Iterator[tuple[Any, Any, BaseException | None]]:
+              on_drop: Callable[[str, int, str], Any] | None = None) -> Iterator[tuple[Any, Any, BaseException | None]]:
     """``(future, result, None)`` or ``(future, None, exception)`` for each future as it finishes
     (``distributed.as_completed`` on ``client``'s loop), its result fetched here. A cluster left without workers for
     :data:`WORKER_TIMEOUT` seconds is an :class:`~gearctl.InputError`: with every worker killed a sweep waited
@@ -728,8 +728,8 @@ def completed(client: Any, futures: Sequence[Any], *, where: str = "the cluster"
     is a worker the scheduler has not heard from for :data:`WORKER_TIMEOUT` seconds that holds some of the tasks
     (:func:`_held_by_silent`) when no other worker is left, or when the scheduler does not drop it.
 
-    A silent worker holding tasks is dropped from the scheduler (:func:`_drop_worker`: the scheduler's own
-    ``remove_worker``, as its ``worker-ttl`` does after 5 min) while another worker is heard from: its tasks, and
+    A silent worker holding tasks is dropped from the scheduler (:func:`_drop_worker`: as its own ``worker-ttl``
+    does after 5 min, restarted by its nanny or removed) while another worker is heard from: its tasks, and
     the finished results only it held, are recomputed on the workers left, and the sweep goes on (a worker stopped
     with ``kill -STOP`` ended an hour's sweep after 60 s, every finished run lost). A worker stopped and resumed
     within :data:`WORKER_TIMEOUT` is never dropped.
@@ -743,8 +743,9 @@ def completed(client: Any, futures: Sequence[Any], *, where: str = "the cluster"
     where : str
         How messages name the cluster (default ``"the cluster"``).
     on_drop : callable, optional
-        ``on_drop(worker, tasks)`` after a silent worker is dropped: its address and how many of ``futures`` it
-        held (default: nothing told).
+        ``on_drop(worker, tasks, how)`` after a silent worker is dropped: its address, how many of ``futures`` it
+        held, and what Dask did (:func:`_drop_worker`: ``"OK"``, restarted by its nanny; ``"removed"``;
+        ``"timed out"``, its nanny silent too: removed) (default: nothing told).
 
     Yields
     ------
@@ -868,31 +869,41 @@ def _held_by_silent(client: Any, workers: dict, heard: dict[str, tuple[Any, floa
 
 
 def _drop_workers(client: Any, held: dict[str, int], heard: dict[str, tuple[Any, float]],
-                  on_drop: Callable[[str, int], Any] | None) -> str:
+                  on_drop: Callable[[str, int, str], Any] | None) -> str:
     """Have the scheduler drop each worker of ``held`` (address: tasks it holds), telling ``on_drop``; ``""``, or
-    why one could not be dropped (the scheduler did not answer within :data:`ANSWER_TIMEOUT`, or refused)."""
+    why one could not be dropped (the scheduler did not answer within :data:`DROP_TIMEOUT` and
+    :data:`ANSWER_TIMEOUT`, or refused)."""
     for w, n in sorted(held.items()):
         try:
-            client.run_on_scheduler(_drop_worker, w, callback_timeout=ANSWER_TIMEOUT)
+            how = client.run_on_scheduler(_drop_worker, w, DROP_TIMEOUT,
+                                          callback_timeout=DROP_TIMEOUT + ANSWER_TIMEOUT)
         except (TimeoutError, OSError):
-            return f"the scheduler did not drop {w} within {ANSWER_TIMEOUT:g} s"
+            return f"the scheduler did not drop {w} within {DROP_TIMEOUT + ANSWER_TIMEOUT:g} s"
         except Exception as exc:  # a scheduler that refuses to run functions (distributed.scheduler.pickle off)
             return (f"the scheduler did not drop {w} ({type(exc).__name__}: "
                     f"{' '.join(str(exc).split())[:120]})")
         heard.pop(w, None)
         if on_drop is not None:
-            on_drop(w, n)
+            on_drop(w, n, str(how))
     return ""
 
 
-async def _drop_worker(address: str, dask_scheduler: Any = None) -> str:
-    """Run on the scheduler (``client.run_on_scheduler``): remove the worker ``address`` as Dask's own
-    ``worker-ttl`` check removes a worker without a nanny that has stopped sending heartbeats
-    (``Scheduler.remove_worker``, not expected: its tasks go back to be run elsewhere, its results held nowhere else
-    are recomputed, and the worker is told to close should it resume). ``retire_workers`` would first copy its
-    results off it, which waits for the silent worker. ``"OK"`` or ``"already-removed"``."""
-    return str(await dask_scheduler.remove_worker(address, stimulus_id=f"gearctl-silent-worker-{time.time()}",
-                                                  close=True))
+#: Seconds the scheduler gives a silent worker's nanny to end it (:func:`_drop_worker`), then removes it anyway.
+DROP_TIMEOUT = 10.0
+
+
+async def _drop_worker(address: str, timeout: float, dask_scheduler: Any = None) -> str:
+    """Run on the scheduler (``client.run_on_scheduler``): drop the worker ``address`` as Dask's own ``worker-ttl``
+    check drops one that has stopped sending heartbeats (``Scheduler.check_worker_ttl``: ``restart_workers``
+    without waiting for it to return). A worker with a nanny is ended by it, which starts a fresh one; one without,
+    or whose nanny does not answer within ``timeout`` seconds (a stopped machine), is removed
+    (``remove_worker``, told to close should it resume). Either way its tasks go back to be run elsewhere and its
+    results held nowhere else are recomputed. ``retire_workers`` would first copy its results off it, which waits
+    for the silent worker. What Dask says of it: ``"OK"`` (restarted by its nanny), ``"removed"`` (no nanny),
+    ``"timed out"`` (its nanny did not answer: removed), or ``""`` (already gone)."""
+    out = await dask_scheduler.restart_workers([address], timeout=timeout, wait_for_workers=False, on_error="return",
+                                               stimulus_id=f"gearctl-silent-worker-{time.time()}")
+    return str(out.get(address, ""))
 
 
 def killed_worker_text(exc: BaseException) -> str:

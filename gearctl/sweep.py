@@ -1047,8 +1047,8 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         info.update(workers=w, threads=threads, where=eng.where, batch=size)
         dropped: list[dict[str, Any]] = []
 
-        def on_drop(worker: str, tasks: int) -> None:
-            dropped.append({"worker": worker, "tasks": tasks})
+        def on_drop(worker: str, tasks: int, how: str) -> None:
+            dropped.append({"worker": worker, "tasks": tasks, "restarted": how == "OK"})
             info["dropped"] = dropped
         tag = uuid.uuid4().hex[:12]
         futures = {}
@@ -1122,7 +1122,8 @@ class SweepResult:
     engine : dict
         ``engine``, ``workers``, ``threads`` (theirs in all; on Dask), ``where``, ``batch`` (runs per task),
         ``wall_time`` [s]; ``dropped`` (on Dask, where a worker went silent holding tasks and was dropped from the
-        scheduler, its tasks rerun on the others): ``[{"worker": address, "tasks": n}, ...]``.
+        scheduler, its tasks rerun on the others): ``[{"worker": address, "tasks": n, "restarted": bool}, ...]``
+        (``restarted``: its nanny started a fresh worker in its place; else it was removed).
     missing : tuple of int
         The indices of the runs that did not finish (a :class:`SweepIncomplete`'s result only; ``runs`` then holds
         the others); empty for a whole sweep.

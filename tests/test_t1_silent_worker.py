@@ -108,13 +108,65 @@ def test_a_stopped_worker_is_dropped_and_the_sweep_ends_as_a_serial_run(
     notes = [line for line in err.getvalue().splitlines() if "dropped" in line]
     assert len(notes) == 1 and notes[0].startswith(f"gearctl sweep: note: the worker {stopped} was not heard from "
                                                    f"for 3 s holding "), err.getvalue()
+    assert notes[0].endswith("task(s): dropped from the scheduler (removed), its tasks rerun on the other workers")
     got = json.loads(out.read_text())
     want = _as_json(serial.as_dict())
     assert got["runs"] == want["runs"]
     assert got["summary"] == want["summary"]
     assert "missing" not in got
-    assert [d["worker"] for d in got["engine"]["dropped"]] == [stopped]
+    assert [(d["worker"], d["restarted"]) for d in got["engine"]["dropped"]] == [(stopped, False)]
     assert 3.0 < took < 35
+
+
+@pytest.mark.slow
+def test_a_stopped_worker_under_a_nanny_is_restarted_by_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, serial: gearctl.sweep.SweepResult) -> None:
+    # `dask worker` starts each worker under a nanny: Dask's worker-ttl has the nanny end it and start a fresh one,
+    # and so does the drop (the cluster keeps its workers); here the worker process alone is stopped
+    import subprocess
+    import sys
+
+    import psutil
+    from distributed import Client
+
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 3.0)
+    with subprocess_cluster(tmp_path, workers=1) as (address, procs):
+        nanny = subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
+                                  "--no-dashboard", "--host", "127.0.0.1", "--name", "n0",
+                                  "--local-directory", str(tmp_path / "n0")],
+                                 cwd=tmp_path, env={**os.environ, "PYTHONPATH": os.pathsep.join(
+                                     filter(None, [str(Path(gearctl.__file__).parents[1]),
+                                                   os.environ.get("PYTHONPATH")]))},
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        procs.append(nanny)  # (killed with its group at the end, as the others)
+        worker_pid = None
+        try:
+            with Client(address, timeout=30, set_as_default=False) as client:
+                client.wait_for_workers(2, timeout=60)
+                stopped = _names(address)["n0"]
+                pid = {int(p.pid) for p in psutil.Process(nanny.pid).children()
+                       if "spawn_main" in " ".join(p.cmdline())}
+                assert len(pid) == 1
+                worker_pid = pid.pop()
+
+                def progress(done: int, total: int) -> None:  # noqa: ARG001
+                    if done >= 2 and not getattr(progress, "stopped", False):
+                        progress.stopped = True  # type: ignore[attr-defined]
+                        os.kill(worker_pid, signal.SIGSTOP)
+
+                r = _within(40, lambda: gearctl.sweep.sweep("shing1993_servo", "pid", client=client,
+                                                            progress=progress, **_ARGS))
+                client.wait_for_workers(2, timeout=30)  # the nanny's fresh worker joined
+                names = sorted(d["name"] for d in client.scheduler_info(n_workers=-1)["workers"].values())
+        finally:
+            if worker_pid is not None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(worker_pid, signal.SIGCONT)
+    assert not isinstance(r, BaseException), r
+    assert r.engine["dropped"] == [{"worker": stopped, "tasks": r.engine["dropped"][0]["tasks"], "restarted": True}]
+    assert names == ["n0", "w0"]  # a fresh n0 in place of the stopped one, which its nanny ended
+    assert not psutil.pid_exists(worker_pid) or psutil.Process(worker_pid).status() == psutil.STATUS_ZOMBIE
+    assert _as_json(r.runs) == _as_json(serial.runs)
 
 
 @pytest.mark.slow
@@ -199,7 +251,7 @@ class _Refusing:
 
 
 @pytest.mark.parametrize(("exc", "why"), [
-    (TimeoutError(), "the scheduler did not drop tcp://10.0.0.1:1 within 5 s"),
+    (TimeoutError(), "the scheduler did not drop tcp://10.0.0.1:1 within 15 s"),
     (RuntimeError("pickle disallowed"), "the scheduler did not drop tcp://10.0.0.1:1 (RuntimeError: pickle "
                                          "disallowed)")])
 def test_a_drop_the_scheduler_does_not_do_is_said_and_not_counted(exc: BaseException, why: str) -> None:
@@ -210,8 +262,8 @@ def test_a_drop_the_scheduler_does_not_do_is_said_and_not_counted(exc: BaseExcep
     assert got == why
     assert told == [] and "tcp://10.0.0.1:1" in heard
     fn, args, kwargs = client.asked[0]
-    assert fn is gearctl.parallel._drop_worker and args == ("tcp://10.0.0.1:1",)
-    assert kwargs == {"callback_timeout": gearctl.parallel.ANSWER_TIMEOUT}
+    assert fn is gearctl.parallel._drop_worker and args == ("tcp://10.0.0.1:1", gearctl.parallel.DROP_TIMEOUT)
+    assert kwargs == {"callback_timeout": gearctl.parallel.DROP_TIMEOUT + gearctl.parallel.ANSWER_TIMEOUT}
 
 
 @pytest.mark.parametrize("where", ["out", "stdout", "nothing"])

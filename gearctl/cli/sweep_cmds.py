@@ -268,7 +268,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     for d in result.engine.get("dropped", ()):
         warn("sweep", [f"the worker {d['worker']} was not heard from for {parallel.WORKER_TIMEOUT:g} s holding "
-                       f"{d['tasks']} task(s): dropped from the scheduler, its tasks rerun on the other workers"],
+                       f"{d['tasks']} task(s): dropped from the scheduler ("
+                       f"{'its nanny started a fresh one' if d.get('restarted') else 'removed'}), its tasks rerun "
+                       f"on the other workers"],
              kind="note")
     design = result.settings.get("design", {})
     warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
