@@ -28,6 +28,7 @@ from .limits import available_memory
 __all__ = ["Engine", "check_one_cluster", "map_tasks", "check_local_workers", "WORKER_BYTES",
            "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
            "checked", "killed_worker_text", "numerics_versions", "NUMERICS", "CONNECT_TIMEOUT", "WORKER_TIMEOUT",
+           "DROP_TIMEOUT",
            "ANSWER_TIMEOUT"]
 
 #: Seconds to reach a scheduler, and for its first worker to join.

@@ -313,3 +313,26 @@ def test_an_unfinished_grid_sweep_writes_what_finished(tmp_path: Path, monkeypat
         return
     assert data["missing"] == list(gone) and [r["index"] for r in data["runs"]] == [0, 1, 3, 4, 6, 7, 8]
     assert data["summary"]["runs"] == 7 and data["settings"]["runs"] == 9
+
+
+@pytest.mark.slow
+def test_a_scheduler_lost_mid_sweep_hands_over_the_runs_finished(
+        tmp_path: Path, serial: gearctl.sweep.SweepResult) -> None:
+    # the other ways a cluster fails mid-sweep lost the runs finished too: the scheduler killed (kill -9) after 3
+    with subprocess_cluster(tmp_path, workers=1) as (address, procs):
+        def progress(done: int, total: int) -> None:  # noqa: ARG001
+            if done >= 3 and procs[0].poll() is None:
+                os.killpg(procs[0].pid, signal.SIGKILL)
+                procs[0].wait(timeout=30)
+
+        got = _within(40, lambda: gearctl.sweep.sweep("shing1993_servo", "pid", scheduler=address, progress=progress,
+                                                      **_ARGS))
+    assert isinstance(got, gearctl.sweep.SweepIncomplete), got
+    assert "the scheduler went away or cancelled them" in str(got)
+    data = _as_json(got.result.as_dict())
+    want = {r["index"]: r for r in _as_json(serial.runs)}
+    assert len(data["runs"]) >= 3 and sorted([r["index"] for r in data["runs"]] + data["missing"]) == list(range(24))
+    assert all(want[r["index"]] == r for r in data["runs"])
+    miss = data["missing"]
+    shown = ", ".join(map(str, miss[:10])) + (", ..." if len(miss) > 10 else "")
+    assert str(got).endswith(f"{len(miss)} of 24 runs did not finish (runs {shown}), {len(data['runs'])} did")
