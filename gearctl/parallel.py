@@ -462,6 +462,9 @@ class Engine:
 
         check_one_cluster(client, scheduler)
         self.cluster = None
+        #: The workers dropped at the check for not answering (:meth:`_ask_workers`): ``{"worker", "tasks": 0,
+        #: "restarted"}`` each, as :func:`completed`'s ``on_drop`` tells them.
+        self.dropped: list[dict[str, Any]] = []
         self.own = client is None
         address = scheduler or (env_scheduler() if client is None else None)
         if client is None and not address:  # a client the script opened as the default (dask's convention)
@@ -561,19 +564,34 @@ class Engine:
         """Each worker's answer to ``fn()``, or its exception (the refusals name the workers at fault), within
         :data:`WORKER_TIMEOUT`: a worker stopped or hung (``kill -STOP``) held the answer back, and the sweep with it,
         for good. A scheduler that stops answering meanwhile is named as such (``before``: its workers' heartbeats
-        before the question, to name the silent ones)."""
+        before the question, to name the silent ones). Workers named silent while others are heard from are dropped
+        from the scheduler (:func:`_drop_worker`, as mid-run in :func:`completed`; :attr:`dropped`) and the others
+        asked again: on a shared cluster a hung worker that is not the user's to restart refused every sweep until
+        Dask's ``worker-ttl`` (5 min) removed it."""
+        gone = {d["worker"] for d in self.dropped}
+        ask = None
+        if gone:  # the others only: a dropped worker may stay on the scheduler's list for a moment
+            ask = [w for w in (_scheduler_workers(self.client, CONNECT_TIMEOUT) or before) if w not in gone]
         try:
-            return cast("dict[str, Any]", self.client.run(fn, on_error="return", callback_timeout=WORKER_TIMEOUT))
+            return cast("dict[str, Any]", self.client.run(fn, workers=ask, on_error="return",
+                                                          callback_timeout=WORKER_TIMEOUT))
         except TimeoutError:
             after = _scheduler_workers(self.client, CONNECT_TIMEOUT)
             if after is None:  # the scheduler, not its workers
                 self.close()
                 raise _no_answer(self.where, CONNECT_TIMEOUT) from None
-            quiet = _silent_workers(before, after)
+            quiet = [w for w in _silent_workers(before, after) if w not in gone]
+            why = ""
+            if quiet and set(after) - set(quiet) - gone:
+                why = _drop_workers(self.client, dict.fromkeys(quiet, 0), {}, lambda w, n, how: self.dropped.append(
+                    {"worker": w, "tasks": n, "restarted": how == "OK"}))
+                if not why:
+                    return self._ask_workers(fn, after)
             self.close()
             raise InputError(f"the workers of {self.where} did not all answer within {WORKER_TIMEOUT:g} s "
-                             f"(stopped or hung{': ' + ', '.join(quiet) if quiet else ''}): restart them, or "
-                             f"stop them and run on the others", field="scheduler") from None
+                             f"(stopped or hung{': ' + ', '.join(quiet) if quiet else ''}"
+                             f"{'; ' + why if why else ''}): restart them, or stop them and run on the others",
+                             field="scheduler") from None
         except Exception as exc:  # the cluster itself, not a worker: say it in one line
             self.close()
             raise InputError(f"the workers of {self.where} cannot run gearctl: {type(exc).__name__}: {exc}",

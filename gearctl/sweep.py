@@ -1045,7 +1045,9 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         # threads idle (2 workers of 16 threads, 1000 runs: 8 tasks for 32 threads)
         size = batch or batch_size(n, threads, plan.context.duration, run_cost(plan.context))
         info.update(workers=w, threads=threads, where=eng.where, batch=size)
-        dropped: list[dict[str, Any]] = []
+        dropped: list[dict[str, Any]] = list(eng.dropped)  # at the workers' check
+        if dropped:
+            info["dropped"] = dropped
 
         def on_drop(worker: str, tasks: int, how: str) -> None:
             dropped.append({"worker": worker, "tasks": tasks, "restarted": how == "OK"})

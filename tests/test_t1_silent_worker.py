@@ -336,3 +336,27 @@ def test_a_scheduler_lost_mid_sweep_hands_over_the_runs_finished(
     miss = data["missing"]
     shown = ", ".join(map(str, miss[:10])) + (", ..." if len(miss) > 10 else "")
     assert str(got).endswith(f"{len(miss)} of 24 runs did not finish (runs {shown}), {len(data['runs'])} did")
+
+
+@pytest.mark.slow
+def test_a_worker_stopped_before_the_sweep_is_dropped_when_others_answer(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, serial: gearctl.sweep.SweepResult) -> None:
+    # a worker hung before the sweep (not the user's to restart on a shared cluster) refused every sweep with
+    # "did not all answer ... restart them, or stop them" until Dask's worker-ttl removed it; with another worker
+    # answering it is dropped at the check, and the sweep runs on the others
+    monkeypatch.setattr(gearctl.parallel, "WORKER_TIMEOUT", 3.0)
+    out = tmp_path / "sweep.json"
+    with subprocess_cluster(tmp_path, workers=2) as (address, procs):
+        stopped = _names(address)["w1"]
+        os.killpg(procs[2].pid, signal.SIGSTOP)
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            rc = _within(40, lambda: main([*_CLI, "--scheduler", address, "--json", str(out)]))
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(procs[2].pid, signal.SIGCONT)
+    assert rc == 0, err.getvalue()
+    assert f"gearctl sweep: note: the worker {stopped} was not heard from for 3 s at the check of the workers, " \
+           f"before any run: dropped from the scheduler (removed)" in err.getvalue()
+    got = json.loads(out.read_text())
+    assert got["engine"]["dropped"] == [{"worker": stopped, "tasks": 0, "restarted": False}]
+    assert got["runs"] == _as_json(serial.runs)

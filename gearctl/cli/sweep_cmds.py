@@ -267,8 +267,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     from .. import parallel
 
     for d in result.engine.get("dropped", ()):
-        warn("sweep", [f"the worker {d['worker']} was not heard from for {parallel.WORKER_TIMEOUT:g} s holding "
-                       f"{d['tasks']} task(s): dropped from the scheduler ("
+        held = f"holding {d['tasks']} task(s)" if d["tasks"] else "at the check of the workers, before any run"
+        warn("sweep", [f"the worker {d['worker']} was not heard from for {parallel.WORKER_TIMEOUT:g} s {held}: "
+                       f"dropped from the scheduler ("
                        f"{'its nanny started a fresh one' if d.get('restarted') else 'removed'}), its tasks rerun "
                        f"on the other workers"],
              kind="note")
