@@ -1157,7 +1157,7 @@ class SweepResult:
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: ``settings``, ``engine``, ``summary``, ``runs``; and ``missing`` (the indices of the runs
         that did not finish) for a sweep that did not finish."""
-        out = {"settings": self.settings, "engine": self.engine, "summary": self.summary, "runs": self.runs}
+        out: dict[str, Any] = {"settings": self.settings, "engine": self.engine, "summary": self.summary, "runs": self.runs}
         if self.missing:
             out["missing"] = list(self.missing)
         return out
