@@ -692,6 +692,15 @@ FOUND_CASES = {
         "fixed: modes.mesh_mode takes the overdamped mesh's real pole pair (natural frequency sqrt(k / "
         "m_eq), damping ratio 1.5 from the pair's product and sum); linearize reports it as overdamped, "
         "the PID-based designs run")),
+    "overdamped_mesh_slow_root": Found("overdamped_mesh_slow_root.toml", (
+        ("linearize", "MODEL"), ("track", "MODEL", "pid", "--reference", "ramp", "--duration", "0.1")), 30.0,
+        "traceback (the 3000-model draw, model 1951): damping_coefficient = 1e8 N s/m puts the mesh's slow real root "
+        "-k/c at -2.6 rad/s beside its fast one at -3.4e7; modes.clean_poles rounds roots below 1e-7 of the largest "
+        "to 0, and the slow root was set aside as a rigid body: no mesh mode left, a ValueError in linearize and in "
+        "every PID-based design",
+        fixed=(
+        "fixed in gearctl/modes.py (_modes_of, exact=True for mode_poles, whose zeros are exact): the mesh mode at "
+        "sqrt(k / m_eq) with damping ratio c / (2 sqrt(k m_eq)) = 1822")),
     "tiny_face_width": Found("tiny_face_width.toml", (("info", "MODEL"),), 30.0,
                              "traceback: face_width = 1e-300 m is allowed ((0, 1] m); the gear inertias underflow "
                              "to 0 and gearctl/plant.py natural_frequency divides by the equivalent mass "
