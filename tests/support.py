@@ -10,9 +10,11 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import gearctl
 
@@ -106,3 +108,20 @@ class RecordingBar:
 
     def __exit__(self, *exc: object) -> None:
         return None
+
+
+def within(seconds: float, fn: Callable[[], Any]) -> Any:
+    """``fn()`` in a thread: its result or its exception; a failed test if it has not ended within ``seconds``."""
+    box: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            box["out"] = fn()
+        except BaseException as exc:  # noqa: BLE001 (handed to the test)
+            box["out"] = exc
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(seconds)
+    assert not t.is_alive(), f"still waiting after {seconds:g} s"
+    return box["out"]

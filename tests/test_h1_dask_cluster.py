@@ -13,34 +13,17 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
 from support import subprocess_cluster
+from support import within as _within
 
 import gearctl
 import gearctl.parallel
 import gearctl.sweep
 from gearctl.cli import main
-
-
-def _within(seconds: float, fn: Callable[[], Any]) -> BaseException | Any:
-    """``fn()`` in a thread: its result or its exception; a failed test if it has not ended within ``seconds``."""
-    box: dict[str, Any] = {}
-
-    def run() -> None:
-        try:
-            box["out"] = fn()
-        except BaseException as exc:  # noqa: BLE001 (handed to the test)
-            box["out"] = exc
-
-    t = threading.Thread(target=run, daemon=True)
-    t.start()
-    t.join(seconds)
-    assert not t.is_alive(), f"still waiting after {seconds:g} s"
-    return box["out"]
 
 
 @pytest.mark.slow

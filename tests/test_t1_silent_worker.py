@@ -25,6 +25,7 @@ from typing import Any
 
 import pytest
 from support import subprocess_cluster
+from support import within as _within
 
 import gearctl.parallel
 import gearctl.sweep
@@ -36,21 +37,6 @@ _CLI = ["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs
         "--batch", "1", "--quiet"]
 
 
-def _within(seconds: float, fn: Callable[[], Any]) -> Any:
-    """``fn()`` in a thread: its result or its exception; a failed test if it has not ended within ``seconds``."""
-    box: dict[str, Any] = {}
-
-    def run() -> None:
-        try:
-            box["out"] = fn()
-        except BaseException as exc:  # noqa: BLE001 (handed to the test)
-            box["out"] = exc
-
-    t = threading.Thread(target=run, daemon=True)
-    t.start()
-    t.join(seconds)
-    assert not t.is_alive(), f"still waiting after {seconds:g} s"
-    return box["out"]
 
 
 def _as_json(obj: Any) -> Any:
