@@ -301,7 +301,9 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
         ``runs`` (every run's figures), ``precision`` (the ISO rows), ``ratios`` {``over_pid``,
         ``over_backlash_free``, ``improved_over_yang_sun``, ``cross_design``, ``iso_over_backlash_free``,
         ``iso_over_pid`` (A, B, R over the PID's on the improved plant)},
-        ``spec``, ``skipped`` (:meth:`BenchSpec.skipped`).
+        ``spec``, ``skipped`` (:meth:`BenchSpec.skipped`); ``dropped`` where a silent worker was dropped from the
+        Dask scheduler and its tasks rerun on the others: ``[{"worker": address, "tasks": n, "restarted": bool}, ...]``
+        as a sweep's ``engine["dropped"]`` (:class:`gearctl.sweep.SweepResult`).
     """
     check_one_cluster(None, scheduler)  # an empty address, before the designs
     skipped = spec.skipped()
@@ -312,16 +314,24 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     tasks += [(_precision_row, j) for j in iso]
     # each local worker holds one run at once: the largest, at its controller file's sample time
     task_bytes = max((loop_bytes(r.plant, r.duration, run_sample_time(r)) for r in runs), default=0)
+    dropped: list[dict[str, Any]] = []  # silent workers dropped from the scheduler, their tasks rerun elsewhere
+
+    def on_drop(worker: str, n: int, how: str) -> None:
+        dropped.append({"worker": worker, "tasks": n, "restarted": how == "OK"})
+
     results = map_tasks(_task, tasks, workers=jobs, scheduler=scheduler, progress=progress, name="gearctl-bench",
-                        task_bytes=task_bytes)
+                        task_bytes=task_bytes, on_drop=on_drop)
     rows = [r for r in results[:len(runs)] if r is not None]
     rows.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
     iso_rows = [r for r in results[len(runs):] if r is not None]
     _warn_worse_than_pid(iso_rows)
     _warn_tracks_worse_than_pid(rows)
     spec_d = dataclasses.asdict(spec)
-    return {"spec": spec_d, "runs": rows, "precision": iso_rows, "ratios": _ratios(rows, iso_rows),
-            "skipped": skipped, "tasks": len(tasks)}
+    out = {"spec": spec_d, "runs": rows, "precision": iso_rows, "ratios": _ratios(rows, iso_rows),
+           "skipped": skipped, "tasks": len(tasks)}
+    if dropped:
+        out["dropped"] = dropped
+    return out
 
 
 #: An ISO accuracy A this many times the PID's on the same plant is warned of even where the PID's constant offset

@@ -957,7 +957,8 @@ def local_processes(tasks: int, workers: int | None = None) -> int:
 
 def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | None = None,
               scheduler: str | None = None, progress: Callable[[int, int], Any] | None = None,
-              name: str = "gearctl", task_bytes: int = 0) -> list[Any]:
+              name: str = "gearctl", task_bytes: int = 0,
+              on_drop: Callable[[str, int, str], Any] | None = None) -> list[Any]:
     """``[fn(x) for x in items]``, in parallel on Dask; in this process when one worker would do.
 
     Parameters
@@ -974,6 +975,9 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
         Prefix of the Dask task keys (shown on the dashboard).
     task_bytes : int
         Memory of the largest task while it runs [bytes] (see :class:`Engine`).
+    on_drop : callable, optional
+        ``on_drop(worker, tasks, how)`` for each silent worker dropped from the scheduler, at the workers' check
+        (:attr:`Engine.dropped`, ``tasks`` 0) or holding tasks (as :func:`completed`'s) (default: nothing told).
 
     Returns
     -------
@@ -996,12 +1000,16 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
 
     results: list[Any] = [None] * n
     with Engine(workers=local_processes(n, workers), scheduler=scheduler, task_bytes=task_bytes) as eng:
+        if on_drop is not None:  # the workers dropped at the check, before any task (told as the sweep tells them)
+            for d in eng.dropped:
+                on_drop(d["worker"], d["tasks"], "OK" if d["restarted"] else "removed")
         tag = uuid.uuid4().hex[:12]
         mine, stack = code_id(), numerics_versions()
         futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False, numerics=stack): k
                    for k, x in enumerate(items)}
         try:
-            for done, (fut, got, exc) in enumerate(completed(eng.client, list(futures), where=eng.where), start=1):
+            for done, (fut, got, exc) in enumerate(completed(eng.client, list(futures), where=eng.where,
+                                                             on_drop=on_drop), start=1):
                 if isinstance(exc, KilledWorker):  # Dask's traceback and exit 1 (a bench on workers of 120 MB)
                     raise InputError(f"{eng.where}: the task {fut.key} could not run: {killed_worker_text(exc)}",
                                      field="scheduler") from None

@@ -9,7 +9,7 @@ import json
 import math
 import re
 import sys
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +23,7 @@ from ..units import POINTS, Spec
 __all__ = ["spec_arg", "positive_float", "positive_quantity", "finite_float", "nonnegative_float", "dump_json",
            "write_csv_stream", "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE",
            "TARGETS", "CYCLES", "STAGE", "JOBS", "WHOLE", "write_whole", "iter_json", "write_json", "earlier_plots",
-           "remove_earlier_plots"]
+           "remove_earlier_plots", "dropped_notes"]
 
 #: command-line quantities not in a model file (POINTS is the schema's: the Python API checks the same range)
 OMEGA = Spec(unit="rad/s", doc="initial shaft speed", low=-1e5, high=1e5)
@@ -712,6 +712,30 @@ def warn(command: str, warnings: Iterable[str], *, kind: str = "warning") -> Non
     """
     for w in warnings:
         print(f"gearctl {command}: {kind}: {w}", file=sys.stderr)
+
+
+def dropped_notes(dropped: Iterable[Mapping[str, Any]]) -> list[str]:
+    """One note per silent worker dropped from the Dask scheduler (a sweep's ``engine["dropped"]``, a bench's
+    ``dropped``): sweep and bench say it alike.
+
+    Parameters
+    ----------
+    dropped : iterable of dict
+        ``{"worker": address, "tasks": n, "restarted": bool}`` each (``tasks`` 0: at the check of the workers).
+
+    Returns
+    -------
+    list of str
+    """
+    from .. import parallel
+
+    out = []
+    for d in dropped:
+        held = f"holding {d['tasks']} task(s)" if d["tasks"] else "at the check of the workers, before any run"
+        out.append(f"the worker {d['worker']} was not heard from for {parallel.WORKER_TIMEOUT:g} s {held}: dropped "
+                   f"from the scheduler ({'its nanny started a fresh one' if d.get('restarted') else 'removed'}), "
+                   f"its tasks rerun on the other workers")
+    return out
 
 
 def unused_estimate(kind: str | None, estimate: float | None) -> list[str]:

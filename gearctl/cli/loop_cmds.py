@@ -18,6 +18,7 @@ from .common import (
     JOBS,
     TARGETS,
     check_writable,
+    dropped_notes,
     dump_json,
     earlier_plots,
     format_rate,
@@ -308,6 +309,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     result["jobs"] = None if where else local_processes(result["tasks"], args.jobs)
     text = bench_table(result)
     notes, warnings = bench_notes(result), bench_warnings(result)
+    notes = dropped_notes(result.get("dropped", ())) + notes  # as the sweep says it (and in report.md's notes)
     from ..catalog import load_model
     from ..plant import build_plant
     from ..runs import unholdable_load_torque

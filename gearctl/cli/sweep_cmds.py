@@ -15,6 +15,7 @@ from ..units import DURATION, SEED, Spec
 from .common import (
     JOBS,
     check_writable,
+    dropped_notes,
     earlier_plots,
     remove_earlier_plots,
     save_figure,
@@ -264,15 +265,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                  f"--out {args.out}" if args.out else "", "the JSON on standard output" if to_stdout else ""]
         where = " and ".join(filter(None, wrote)) or "the summary above (no --json or --out given)"
         raise InputError(f"{unfinished}; the finished runs are in {where}", field=unfinished.field)
-    from .. import parallel
-
-    for d in result.engine.get("dropped", ()):
-        held = f"holding {d['tasks']} task(s)" if d["tasks"] else "at the check of the workers, before any run"
-        warn("sweep", [f"the worker {d['worker']} was not heard from for {parallel.WORKER_TIMEOUT:g} s {held}: "
-                       f"dropped from the scheduler ("
-                       f"{'its nanny started a fresh one' if d.get('restarted') else 'removed'}), its tasks rerun "
-                       f"on the other workers"],
-             kind="note")
+    warn("sweep", dropped_notes(result.engine.get("dropped", ())), kind="note")
     design = result.settings.get("design", {})
     warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
     warn("sweep", yang_sun_notes(load_model(args.model), args.plant), kind="note")
