@@ -100,8 +100,8 @@ from .references import DEFAULT_DURATION, REFERENCES, Reference, reference
 from .runs import Design, Run, RunResult, controller_spec, design_controller
 from .units import BACKLASH, DURATION, SEED, Spec, check_number, describe_rule
 
-__all__ = ["Vary", "SweepResult", "SweepIncomplete", "SweepContext", "SweepPlan", "sweep", "plan_sweep", "run_batch",
-           "parse_vary",
+__all__ = ["Vary", "SweepResult", "SweepIncomplete", "SweepInterrupted", "SweepContext", "SweepPlan", "sweep",
+           "plan_sweep", "run_batch", "parse_vary",
            "parse_set", "perturb_model", "Scale", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
            "ROW_BYTES", "KEY_BYTES", "PRECISION_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size",
            "run_cost", "default_workers",
@@ -1021,17 +1021,20 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     if engine == "serial":
         size = batch or batch_size(n, 1, plan.context.duration, run_cost(plan.context))
         info.update(workers=1, where="this process", batch=size)
-        for i0 in range(0, n, size):
-            for r in sweep_task(plan.context, jobs[i0:i0 + size]):
-                rows[r["index"]] = r
-            done = min(n, i0 + size)
-            if progress:
-                progress(done, n)
+        try:
+            for i0 in range(0, n, size):
+                for r in sweep_task(plan.context, jobs[i0:i0 + size]):
+                    rows[r["index"]] = r
+                done = min(n, i0 + size)
+                if progress:
+                    progress(done, n)
+        except KeyboardInterrupt:  # Ctrl-C: the batches finished are handed over (none finished: a plain Ctrl-C)
+            if not any(r is not None for r in rows):
+                raise
+            raise _Interrupted(rows=rows, info=info) from None
         return rows, info  # type: ignore[return-value]
     if engine != "dask":
         raise InputError(f"engine = {engine!r}: expected 'dask' or 'serial'", field="engine")
-    from distributed import KilledWorker
-
     if client is None and not (scheduler or env_scheduler()):
         # a local cluster of no more processes than tasks (3 runs: 3, not 8; 2 runs in one --batch 1000 task: 1)
         workers = local_processes(math.ceil(n / batch) if batch else n, workers)
@@ -1039,6 +1042,25 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     ctx = plan.context
     task_bytes = loop_bytes(ctx.design.nominal, ctx.duration, design_controller(ctx.design).Ts)
     eng = Engine(workers=workers, scheduler=scheduler, client=client, task_bytes=task_bytes)
+    try:
+        _run_on(eng, plan, rows, info, batch, progress)
+    except KeyboardInterrupt:  # Ctrl-C (after the cluster's tasks were cancelled and it was closed, below)
+        if not any(r is not None for r in rows):
+            raise
+        raise _Interrupted(rows=rows, info=info) from None
+    missing = [i for i, r in enumerate(rows) if r is None]
+    if missing:
+        raise RuntimeError(f"runs {missing[:5]} never came back")
+    return rows, info  # type: ignore[return-value]
+
+
+def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], info: dict[str, Any],
+            batch: int | None, progress: Callable[[int, int], Any] | None) -> None:
+    """Run ``plan``'s jobs on ``eng``'s cluster into ``rows`` (by index) and ``info``; close ``eng`` at the end,
+    whatever ends it (a Ctrl-C too: the cluster's tasks cancelled first)."""
+    from distributed import KilledWorker
+
+    jobs, n, done = plan.jobs, len(plan.jobs), 0
     try:
         w, threads = eng.workers, eng.threads
         # four tasks per thread: sized per worker, a cluster of `dask worker` (a thread per core) left most of its
@@ -1086,10 +1108,6 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
                 fut.cancel()
     finally:
         eng.close()
-    missing = [i for i, r in enumerate(rows) if r is None]
-    if missing:
-        raise RuntimeError(f"runs {missing[:5]} never came back")
-    return rows, info  # type: ignore[return-value]
 
 
 class _Unfinished(InputError):
@@ -1098,6 +1116,14 @@ class _Unfinished(InputError):
     def __init__(self, message: str, *, rows: list[dict[str, Any] | None], info: dict[str, Any],
                  field: str | None) -> None:
         super().__init__(message, field=field)
+        self.rows, self.info = rows, info
+
+
+class _Interrupted(KeyboardInterrupt):
+    """A Ctrl-C after some runs had finished: the rows so far (None: not finished) and the engine's info."""
+
+    def __init__(self, *, rows: list[dict[str, Any] | None], info: dict[str, Any]) -> None:
+        super().__init__()
         self.rows, self.info = rows, info
 
 
@@ -1125,10 +1151,11 @@ class SweepResult:
         ``engine``, ``workers``, ``threads`` (theirs in all; on Dask), ``where``, ``batch`` (runs per task),
         ``wall_time`` [s]; ``dropped`` (on Dask, where a worker went silent holding tasks and was dropped from the
         scheduler, its tasks rerun on the others): ``[{"worker": address, "tasks": n, "restarted": bool}, ...]``
-        (``restarted``: its nanny started a fresh worker in its place; else it was removed).
+        (``restarted``: its nanny started a fresh worker in its place; else it was removed); ``interrupted``: true
+        where a Ctrl-C stopped the sweep (a :class:`SweepInterrupted`'s result only).
     missing : tuple of int
-        The indices of the runs that did not finish (a :class:`SweepIncomplete`'s result only; ``runs`` then holds
-        the others); empty for a whole sweep.
+        The indices of the runs that did not finish (a :class:`SweepIncomplete`'s or :class:`SweepInterrupted`'s
+        result only; ``runs`` then holds the others); empty for a whole sweep.
     """
 
     settings: dict[str, Any]
@@ -1157,7 +1184,8 @@ class SweepResult:
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: ``settings``, ``engine``, ``summary``, ``runs``; and ``missing`` (the indices of the runs
         that did not finish) for a sweep that did not finish."""
-        out: dict[str, Any] = {"settings": self.settings, "engine": self.engine, "summary": self.summary, "runs": self.runs}
+        out: dict[str, Any] = {"settings": self.settings, "engine": self.engine, "summary": self.summary,
+                               "runs": self.runs}
         if self.missing:
             out["missing"] = list(self.missing)
         return out
@@ -1193,6 +1221,27 @@ class SweepIncomplete(InputError):
 
     def __init__(self, message: str, *, result: SweepResult, field: str | None = None) -> None:
         super().__init__(message, field=field)
+        self.result = result
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """A sweep stopped by Ctrl-C (``KeyboardInterrupt``) after some runs had finished: they are not lost.
+
+    A ``KeyboardInterrupt`` still (``except KeyboardInterrupt`` and a notebook's stop button see it as one; an
+    ``except Exception`` or ``except InputError`` does not swallow it), carrying what finished. The cluster's tasks
+    are cancelled and a local cluster closed before it is raised.
+
+    Parameters
+    ----------
+    message : str
+        How many runs finished, and how many did not.
+    result : SweepResult
+        The runs that finished (by index), their summary, ``missing`` (the indices of the others) and
+        ``engine["interrupted"]`` true.
+    """
+
+    def __init__(self, message: str, *, result: SweepResult) -> None:
+        super().__init__(message)
         self.result = result
 
 
@@ -1405,6 +1454,10 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
         (``missing``), where the cluster failed mid-sweep after some had finished: no worker left, the scheduler
         gone or silent, or a silent worker holding tasks that could not be dropped (a silent worker is dropped
         while another is left, and the sweep goes on: ``engine["dropped"]``).
+    SweepInterrupted
+        A ``KeyboardInterrupt`` (Ctrl-C) after some runs had finished, whose ``result`` holds them as
+        :class:`SweepIncomplete`'s does (``engine["interrupted"]`` true); before any had finished, a plain
+        ``KeyboardInterrupt``. Either way the cluster's tasks are cancelled first.
     InputError
         Before any run: a bad spec or setting, a draw outside its key's range, an invalid perturbed model,
         a design that fails on the nominal model, too many runs for the memory; a scheduler that cannot be
@@ -1420,6 +1473,14 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
     try:
         rows, info = _run_jobs(plan, engine=engine, workers=workers, scheduler=scheduler, client=client,
                                batch=batch, progress=progress)
+    except _Interrupted as exc:  # Ctrl-C: a KeyboardInterrupt still, with the runs that finished
+        done = [r for r in exc.rows if r is not None]
+        missing = tuple(i for i, r in enumerate(exc.rows) if r is None)
+        exc.info.update(wall_time=time.perf_counter() - t0, interrupted=True)
+        partial = SweepResult(settings=plan.settings, vary=plan.vary, runs=done, summary=summarize(done, keys),
+                              engine=exc.info, missing=missing)
+        raise SweepInterrupted(f"interrupted: {len(done)} of {len(exc.rows)} runs finished, {len(missing)} did not",
+                               result=partial) from None
     except _Unfinished as exc:
         done = [r for r in exc.rows if r is not None]
         missing = tuple(i for i, r in enumerate(exc.rows) if r is None)

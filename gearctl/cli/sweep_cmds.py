@@ -67,8 +67,9 @@ def _text(result: Any) -> list[str]:
     for v in result.vary:
         lines.append(f"  varied                 {v.describe()}")
     if result.missing:
-        lines.append(f"  missing                {len(result.missing)} of {st['runs']} runs did not finish (the "
-                     f"cluster failed): the figures are the {s['runs']} others'")
+        why = "interrupted" if eng.get("interrupted") else "the cluster failed"
+        lines.append(f"  missing                {len(result.missing)} of {st['runs']} runs did not finish ({why}): "
+                     f"the figures are the {s['runs']} others'")
     lines.append(f"  RMS error [urad]       {_fmt_urad(s['rms_error'])}")
     lines.append(f"  max error [urad]       {_fmt_urad(s['max_error'])}")
     f = s["fractions"]
@@ -184,7 +185,7 @@ def _write_out(result: Any, out: Path) -> list[str]:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     import logging
 
-    from ..sweep import SweepIncomplete, sweep
+    from ..sweep import SweepIncomplete, SweepInterrupted, sweep
 
     if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.workers:
         warn("sweep", ["--workers sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the "
@@ -231,14 +232,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     levels = [lg.level for lg in quiet]
     for lg in quiet:
         lg.setLevel(logging.CRITICAL + 1)
-    unfinished: SweepIncomplete | None = None
+    unfinished: SweepIncomplete | SweepInterrupted | None = None
     try:
         result = sweep(args.model, args.controller, vary=args.vary or [], runs=args.runs, grid=args.grid,
                        reference_kind=args.reference, duration=args.duration, seed=args.seed, plant=args.plant,
                        precision=args.precision, workers=args.workers, scheduler=args.scheduler, batch=args.batch,
                        progress=progress)
-    except SweepIncomplete as exc:  # the cluster failed mid-sweep: what finished is written as a whole sweep's is
-        unfinished, result = exc, exc.result
+    except (SweepIncomplete, SweepInterrupted) as exc:  # the cluster failed mid-sweep, or Ctrl-C: what finished is
+        unfinished, result = exc, exc.result           # written as a whole sweep's is (a second Ctrl-C ends it)
     finally:
         for lg, lv in zip(quiet, levels, strict=True):
             lg.setLevel(lv)
@@ -264,6 +265,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         wrote = [f"--json {args.json}" if args.json and not to_stdout else "",
                  f"--out {args.out}" if args.out else "", "the JSON on standard output" if to_stdout else ""]
         where = " and ".join(filter(None, wrote)) or "the summary above (no --json or --out given)"
+        if isinstance(unfinished, SweepInterrupted):  # one line, and the shell's code for SIGINT (128 + 2)
+            sys.stdout.flush()
+            print(f"gearctl sweep: {unfinished}; the finished runs are in {where}", file=sys.stderr)
+            return 130
         raise InputError(f"{unfinished}; the finished runs are in {where}", field=unfinished.field)
     warn("sweep", dropped_notes(result.engine.get("dropped", ())), kind="note")
     design = result.settings.get("design", {})
