@@ -349,7 +349,7 @@ def local_cluster(workers: int) -> Any:
 
 
 @contextlib.contextmanager
-def _sigint_held() -> Iterator[Callable[[], bool]]:
+def _sigint_held(*, tracker: bool = True) -> Iterator[Callable[[], bool]]:
     """Hold a Ctrl-C while the local cluster's processes start; yields a function that tells, after the block,
     whether one came.
 
@@ -365,7 +365,8 @@ def _sigint_held() -> Iterator[Callable[[], bool]]:
 
     Multiprocessing's resource tracker is launched first: launched by the IO loop, it unblocks SIGINT in that
     thread. Only from the main thread (where Python handles signals), where the platform has signal masks and where
-    SIGINT is not ignored; elsewhere a no-op.
+    SIGINT is not ignored; elsewhere a no-op. ``tracker=False`` (while a cluster closes: no process starts) leaves
+    the resource tracker alone.
     """
     if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
         yield lambda: False
@@ -375,9 +376,10 @@ def _sigint_held() -> Iterator[Callable[[], bool]]:
         # end the command once the cluster is up; None, a handler set outside Python, could not be restored
         yield lambda: False
         return
-    from multiprocessing import resource_tracker
+    if tracker:
+        from multiprocessing import resource_tracker
 
-    resource_tracker.ensure_running()
+        resource_tracker.ensure_running()
     came = False
 
     def note(signum: int, frame: Any) -> None:  # noqa: ARG001 (a signal handler's signature)
@@ -615,11 +617,29 @@ class Engine:
             raise _no_answer(self.where, CONNECT_TIMEOUT)
         return max(1, sum(int(d.get("nthreads") or 1) for d in workers.values()))
 
-    def close(self) -> None:
-        if self.own:
-            _close_client(self.client)
-            if self.cluster is not None:
-                self.cluster.close()
+    def close(self, cancel: Sequence[Any] = ()) -> None:
+        """Cancel ``cancel``, then close the client and the local cluster this engine opened (a client given is left
+        open). A Ctrl-C meanwhile is held until they are done (a few seconds at most), then raised as
+        ``KeyboardInterrupt``: a second Ctrl-C in the close that follows a first stopped it half-way, and the local
+        cluster's scheduler, in this process, printed Dask's tracebacks (``CommClosedError``) and a list of lost keys.
+
+        Parameters
+        ----------
+        cancel : sequence of distributed.Future
+            The tasks left to cancel, one by one (``client.cancel`` of them all at once, followed at once by the
+            client's close, lost the message: the scheduler then logged a traceback for each task that finished).
+        """
+        with _sigint_held(tracker=False) as interrupted:
+            try:
+                for fut in cancel:
+                    fut.cancel()
+            finally:
+                if self.own:
+                    _close_client(self.client)
+                    if self.cluster is not None:
+                        self.cluster.close()
+        if interrupted():
+            raise KeyboardInterrupt
 
     def __enter__(self) -> Engine:
         return self
@@ -1020,6 +1040,5 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
                 if progress:
                     progress(done, n)
         finally:
-            for fut in futures:
-                fut.cancel()
+            eng.close(cancel=list(futures))
     return results

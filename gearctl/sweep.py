@@ -1061,6 +1061,7 @@ def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], inf
     from distributed import KilledWorker
 
     jobs, n, done = plan.jobs, len(plan.jobs), 0
+    futures: dict[Any, Any] = {}
     try:
         w, threads = eng.workers, eng.threads
         # four tasks per thread: sized per worker, a cluster of `dask worker` (a thread per core) left most of its
@@ -1075,7 +1076,6 @@ def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], inf
             dropped.append({"worker": worker, "tasks": tasks, "restarted": how == "OK"})
             info["dropped"] = dropped
         tag = uuid.uuid4().hex[:12]
-        futures = {}
         # each task checks them on its worker: one may join mid-sweep (parallel.checked)
         mine, stack = code_id(), numerics_versions()
         for b, i0 in enumerate(range(0, n, size)):
@@ -1103,11 +1103,8 @@ def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], inf
             if not done:
                 raise
             raise _Unfinished(str(exc), rows=rows, info=info, field=exc.field) from None
-        finally:
-            for fut in futures:
-                fut.cancel()
     finally:
-        eng.close()
+        eng.close(cancel=list(futures))  # (a Ctrl-C meanwhile is held until the cluster is closed)
 
 
 class _Unfinished(InputError):

@@ -144,6 +144,38 @@ def test_a_second_ctrl_c_while_writing_ends_the_command(
     assert not (tmp_path / "s.json").exists()
 
 
+class _Closing:
+    """A client or a cluster whose close is interrupted by a Ctrl-C (the client's), recording the closes."""
+
+    def __init__(self, log: list[str], name: str, ctrl_c: bool) -> None:
+        self.log, self.name, self.ctrl_c = log, name, ctrl_c
+
+    def close(self, **kw: Any) -> None:  # noqa: ARG002
+        if self.ctrl_c:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # (where the handler would raise)
+        self.log.append(self.name)
+
+
+class _Cancellable:
+    def __init__(self, log: list[str]) -> None:
+        self.log = log
+
+    def cancel(self) -> None:
+        self.log.append("cancel")
+
+
+def test_a_ctrl_c_while_the_cluster_closes_is_held_until_it_is_closed() -> None:
+    log: list[str] = []
+    eng = object.__new__(gearctl.parallel.Engine)
+    eng.own, eng.client = True, _Closing(log, "client", ctrl_c=True)
+    eng.cluster = _Closing(log, "cluster", ctrl_c=False)
+    with pytest.raises(KeyboardInterrupt):
+        eng.close(cancel=[_Cancellable(log), _Cancellable(log)])
+    assert log == ["cancel", "cancel", "client", "cluster"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 # --- a real Ctrl-C ---------------------------------------------------------------------------------------
 
 _CHILD = """
@@ -172,9 +204,11 @@ def _env() -> dict[str, str]:
                                                                        os.environ.get("PYTHONPATH")]))}
 
 
-def _ctrl_c_after_some_runs(tmp_path: Path, extra: list[str]) -> tuple[int, str, str, float, int]:
+def _ctrl_c_after_some_runs(tmp_path: Path, extra: list[str], second: float | None = None,
+                            ) -> tuple[int, str, str, float, int]:
     """Run the CLI sweep in a process of its own session; once 4 runs are in, SIGINT its whole group (as a
-    terminal's Ctrl-C); its exit code, stdout, stderr, the seconds it took to end and its session id."""
+    terminal's Ctrl-C; again ``second`` seconds later); its exit code, stdout, stderr, the seconds it took to end
+    and its session id."""
     mark = tmp_path / "four.txt"
     p = subprocess.Popen([sys.executable, "-c", _CHILD, str(mark), "sweep", "shing1993_servo", "pid", "--vary",
                           "backlash=0.5x:2x", "--runs", "4000", "--duration", "1", "--batch", "1", "--quiet",
@@ -188,6 +222,10 @@ def _ctrl_c_after_some_runs(tmp_path: Path, extra: list[str]) -> tuple[int, str,
         assert mark.exists(), p.communicate(timeout=30)
         t0 = time.monotonic()
         os.killpg(p.pid, signal.SIGINT)
+        if second is not None:
+            time.sleep(second)
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGINT)
         out, err = p.communicate(timeout=60)
         took = time.monotonic() - t0
     finally:
@@ -215,10 +253,13 @@ def _check_handed_over(tmp_path: Path, rc: int, out: str, err: str) -> dict[str,
 
 
 @pytest.mark.slow
-def test_ctrl_c_on_a_local_cluster_keeps_the_runs_finished(tmp_path: Path) -> None:
+@pytest.mark.parametrize("second", [None, 0.3])
+def test_ctrl_c_on_a_local_cluster_keeps_the_runs_finished(tmp_path: Path, second: float | None) -> None:
+    # a second Ctrl-C 0.3 s after the first falls in the cluster's close: held until it is closed (it stopped the
+    # close half-way, and the scheduler's tracebacks, CommClosedError, filled stderr), then the runs handed over
     import psutil
 
-    rc, out, err, took, sid = _ctrl_c_after_some_runs(tmp_path, ["--workers", "2"])
+    rc, out, err, took, sid = _ctrl_c_after_some_runs(tmp_path, ["--workers", "2"], second)
     data = _check_handed_over(tmp_path, rc, out, err)
     assert data["engine"]["where"] == "local cluster (2 processes)"
     assert took < 20
