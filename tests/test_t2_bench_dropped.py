@@ -43,6 +43,9 @@ class _Engine:
         self.client, self.where = _Client(), "tcp://10.0.0.1:8786"
         self.dropped = [{"worker": "tcp://10.0.0.7:1", "tasks": 0, "restarted": False}]
 
+    def close(self, cancel: Any = ()) -> None:
+        pass
+
     def __enter__(self) -> _Engine:
         return self
 

@@ -124,6 +124,25 @@ def test_an_interrupted_sweep_writes_what_finished_and_exits_130(
     assert data["runs"] == _as_json(partial.runs)
 
 
+def test_an_interrupted_sweep_names_the_worker_it_dropped_before(
+        monkeypatch: pytest.MonkeyPatch, whole: gearctl.sweep.SweepResult) -> None:
+    # a worker dropped mid-sweep, then Ctrl-C: the note was said only for a whole sweep (the JSON alone had it)
+    partial = _partial(whole, (4,))
+    partial.engine["dropped"] = [{"worker": "tcp://10.0.0.9:1", "tasks": 1, "restarted": False}]
+
+    def interrupted(*a: Any, **kw: Any) -> Any:  # noqa: ARG001
+        raise gearctl.sweep.SweepInterrupted("interrupted: 11 of 12 runs finished, 1 did not", result=partial)
+
+    monkeypatch.setattr(gearctl.sweep, "sweep", interrupted)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = main(_CLI)
+    lines = err.getvalue().splitlines()
+    assert rc == 130 and len(lines) == 2, err.getvalue()
+    assert lines[0].startswith("gearctl sweep: note: the worker tcp://10.0.0.9:1 was not heard from for ")
+    assert lines[1].startswith("gearctl sweep: interrupted: 11 of 12 runs finished, 1 did not; ")
+
+
 def test_a_second_ctrl_c_while_writing_ends_the_command(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, whole: gearctl.sweep.SweepResult) -> None:
     import gearctl.cli.sweep_cmds as cmds

@@ -256,6 +256,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         if gone:
             warn("sweep", [f"--out {args.out}: removed {', '.join(gone)}, which an earlier sweep wrote there and this "
                            f"one does not (its keys or runs differ)"], kind="note")
+    # (a worker dropped before the cluster failed or the Ctrl-C is said too: it was only in the JSON)
+    warn("sweep", dropped_notes(result.engine.get("dropped", ())), kind="note")
     if unfinished is not None:  # the files, as a whole sweep's with "missing"; the summary; then the one error line
         print("\n".join(_text(result)), file=sys.stderr if to_stdout else sys.stdout)
         if to_stdout:
@@ -266,11 +268,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                  f"--out {args.out}" if args.out else "", "the JSON on standard output" if to_stdout else ""]
         where = " and ".join(filter(None, wrote)) or "the summary above (no --json or --out given)"
         if isinstance(unfinished, SweepInterrupted):  # one line, and the shell's code for SIGINT (128 + 2)
-            sys.stdout.flush()
             print(f"gearctl sweep: {unfinished}; the finished runs are in {where}", file=sys.stderr)
             return 130
         raise InputError(f"{unfinished}; the finished runs are in {where}", field=unfinished.field)
-    warn("sweep", dropped_notes(result.engine.get("dropped", ())), kind="note")
     design = result.settings.get("design", {})
     warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
     warn("sweep", yang_sun_notes(load_model(args.model), args.plant), kind="note")
