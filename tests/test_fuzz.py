@@ -701,6 +701,14 @@ FOUND_CASES = {
         fixed=(
         "fixed in gearctl/modes.py (_modes_of, exact=True for mode_poles, whose zeros are exact): the mesh mode at "
         "sqrt(k / m_eq) with damping ratio c / (2 sqrt(k m_eq)) = 1822")),
+    "mpc_exact_load_reading_rigid": Found("mpc_exact_load_reading_rigid.toml", (
+        ("track", "MODEL", "mpc", "--reference", "sine", "--duration", "0.1"),), 30.0,
+        "traceback (the 6000-model draw, model 3929): a backlash-free pair without sensors; the MPC's rigid observer "
+        "weighs the load reading by its error, 0 for an exact reading with no gap to add, so the measurement's "
+        "variance was 0 and the Kalman gain's inverse singular (numpy LinAlgError)",
+        fixed=(
+        "fixed in gearctl/design/mpc.py (_build_observer): an exact load reading is given MEASUREMENT_NOISE_FLOOR, "
+        "as measurement_noise is without sensors")),
     "tiny_face_width": Found("tiny_face_width.toml", (("info", "MODEL"),), 30.0,
                              "traceback: face_width = 1e-300 m is allowed ((0, 1] m); the gear inertias underflow "
                              "to 0 and gearctl/plant.py natural_frequency divides by the equivalent mass "

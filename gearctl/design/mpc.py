@@ -1346,8 +1346,11 @@ class MPC(Controller):
         elif self._rigid and self._load_std is not None and self._load_std != sm:
             # the rigid plan does not track the gap: phi = y1 - c s_m with the c that minimises the error's variance
             # (the gap uniform within +-b, each encoder its own noise; c = kappa1 is the exact centre of inertia)
+            # (an exact load reading, no encoder and no noise, is given the least noise, as measurement_noise is
+            # without sensors: with no gap either, its error's variance was 0 and the filter's gain singular, a
+            # LinAlgError traceback on a fuzzed backlash-free pair without sensors)
             rb1, rb2 = self.info.plant.rb1, self.info.plant.rb2
-            vs, v1, v2 = self._b**2 / 3.0, sm**2, self._load_std**2
+            vs, v1, v2 = self._b**2 / 3.0, sm**2, (self._load_std or MEASUREMENT_NOISE_FLOOR)**2
             c = (m.kappa1 * vs + rb1 * v1) / (vs + rb1**2 * v1 + rb2**2 * v2)
             self._c_centre = c
             r_phi = math.sqrt((m.kappa1 - c)**2 * vs + (1.0 - c * rb1)**2 * v1 + (c * rb2)**2 * v2)
