@@ -1470,20 +1470,17 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
     try:
         rows, info = _run_jobs(plan, engine=engine, workers=workers, scheduler=scheduler, client=client,
                                batch=batch, progress=progress)
-    except _Interrupted as exc:  # Ctrl-C: a KeyboardInterrupt still, with the runs that finished
-        done = [r for r in exc.rows if r is not None]
-        missing = tuple(i for i, r in enumerate(exc.rows) if r is None)
-        exc.info.update(wall_time=time.perf_counter() - t0, interrupted=True)
-        partial = SweepResult(settings=plan.settings, vary=plan.vary, runs=done, summary=summarize(done, keys),
-                              engine=exc.info, missing=missing)
-        raise SweepInterrupted(f"interrupted: {len(done)} of {len(exc.rows)} runs finished, {len(missing)} did not",
-                               result=partial) from None
-    except _Unfinished as exc:
+    except (_Interrupted, _Unfinished) as exc:  # the runs that finished, as a whole sweep's result with `missing`
         done = [r for r in exc.rows if r is not None]
         missing = tuple(i for i, r in enumerate(exc.rows) if r is None)
         exc.info["wall_time"] = time.perf_counter() - t0
+        if isinstance(exc, _Interrupted):
+            exc.info["interrupted"] = True
         partial = SweepResult(settings=plan.settings, vary=plan.vary, runs=done, summary=summarize(done, keys),
                               engine=exc.info, missing=missing)
+        if isinstance(exc, _Interrupted):  # Ctrl-C: a KeyboardInterrupt still, with the runs that finished
+            raise SweepInterrupted(f"interrupted: {len(done)} of {len(exc.rows)} runs finished, {len(missing)} did "
+                                   f"not", result=partial) from None
         shown = ", ".join(map(str, missing[:10])) + (", ..." if len(missing) > 10 else "")
         raise SweepIncomplete(f"{exc}; {len(missing)} of {len(exc.rows)} runs did not finish (runs {shown}), "
                               f"{len(done)} did", result=partial, field=exc.field) from None

@@ -9,6 +9,7 @@ import json
 import math
 import re
 import sys
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,7 @@ from ..units import POINTS, Spec
 __all__ = ["spec_arg", "positive_float", "positive_quantity", "finite_float", "nonnegative_float", "dump_json",
            "write_csv_stream", "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE",
            "TARGETS", "CYCLES", "STAGE", "JOBS", "WHOLE", "write_whole", "iter_json", "write_json", "earlier_plots",
-           "remove_earlier_plots", "dropped_notes"]
+           "remove_earlier_plots", "dropped_notes", "quiet_unawaited_coroutines"]
 
 #: command-line quantities not in a model file (POINTS is the schema's: the Python API checks the same range)
 OMEGA = Spec(unit="rad/s", doc="initial shaft speed", low=-1e5, high=1e5)
@@ -712,6 +713,18 @@ def warn(command: str, warnings: Iterable[str], *, kind: str = "warning") -> Non
     """
     for w in warnings:
         print(f"gearctl {command}: {kind}: {w}", file=sys.stderr)
+
+
+def quiet_unawaited_coroutines() -> None:
+    """Silence Python's warning of a coroutine never awaited, for the rest of a Dask command (sweep, bench).
+
+    A Ctrl-C that lands while the Dask client waits on a result leaves the client's request (a tornado coroutine)
+    unawaited, and Python warns of it when it is collected: on a loaded machine a
+    ``RuntimeWarning: coroutine 'Future._result' was never awaited`` line, with the source line, came before the
+    command's own ``interrupted`` line. gearctl awaits every coroutine of its own; these are Dask's, left by the
+    interrupt the user asked for.
+    """
+    warnings.filterwarnings("ignore", message=r"coroutine '.*' was never awaited", category=RuntimeWarning)
 
 
 def dropped_notes(dropped: Iterable[Mapping[str, Any]]) -> list[str]:

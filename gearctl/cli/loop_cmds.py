@@ -24,6 +24,7 @@ from .common import (
     format_rate,
     positive_quantity,
     progress_bar,
+    quiet_unawaited_coroutines,
     ratio_changed,
     remove_earlier_plots,
     save_figure,
@@ -258,6 +259,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from ..bench import BenchSpec, bench_notes, bench_table, bench_warnings, error_traces, run_bench
     from ..parallel import env_scheduler
 
+    quiet_unawaited_coroutines()  # what a Ctrl-C leaves of Dask's requests (see there)
     if (args.scheduler or env_scheduler()) and args.jobs:  # as sweep's --workers
         warn("bench", ["--jobs sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the cluster's "
                        "own workers run the bench"])

@@ -17,6 +17,7 @@ from .common import (
     check_writable,
     dropped_notes,
     earlier_plots,
+    quiet_unawaited_coroutines,
     remove_earlier_plots,
     save_figure,
     spec_arg,
@@ -187,6 +188,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     from ..sweep import SweepIncomplete, SweepInterrupted, sweep
 
+    quiet_unawaited_coroutines()  # what a Ctrl-C leaves of Dask's requests (see there)
     if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.workers:
         warn("sweep", ["--workers sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the "
                        "cluster's own workers run the sweep"])
