@@ -25,7 +25,7 @@ from .plant import Mode, Plant, check_plant, mesh_force, signal_names
 from .units import DURATION, OUTPUT_INTERVAL, RTOL, check_progress
 
 __all__ = ["Event", "SimulationResult", "simulate", "report_case", "contact_force", "CASES", "DIVERGENCE_LIMIT",
-           "default_output_interval", "output_steps", "located_events", "stiff_steps"]
+           "default_output_interval", "output_steps", "located_events"]
 
 #: |omega| above which a simulation is declared divergent [rad/s].
 DIVERGENCE_LIMIT = 1e6
@@ -88,38 +88,6 @@ def default_output_interval(duration: float) -> float:
         if m * 10.0**k >= d * (1 - 1e-12):
             return m * 10.0**k
     return 10.0 ** (k + 1)
-
-
-#: DOPRI5's stability bound along the negative real axis, ``|h lambda|`` (about 3.3; 3.4 along the imaginary axis)
-DOPRI5_STABILITY = 3.3
-
-
-def stiff_steps(plant: Plant, duration: float) -> float:
-    """The least steps an explicit solver (DOPRI5, the ODE path of the Yang-Sun, tvms and smooth-friction plants) takes
-    over ``duration``: the fastest mesh root over :data:`DOPRI5_STABILITY`; 0 on the exact path.
-
-    The fastest root of a stage's mesh in contact is its ``sqrt(k / m_eq)``, or ``c / m_eq`` where the mesh is
-    overdamped: there the step, not the accuracy, sets the cost. A fuzzed pair with a 1e-4 kg mesh mass and
-    ``c = 7.4e6`` N s/m has a root at 7.4e10 rad/s: 6.7e7 steps, 15 s of wall time for 3 ms of tvms simulation. The
-    command-line ``simulate`` shows its progress bar from this figure (the output rows alone said 7 ms).
-
-    Parameters
-    ----------
-    plant : Plant
-        The plant.
-    duration : float
-        Simulated time [s].
-
-    Returns
-    -------
-    float
-        Steps [1].
-    """
-    if plant.is_piecewise_linear:
-        return 0.0
-    fastest = max(max(math.sqrt(s.k / m), s.c / m) for s, m in
-                  ((s, plant.stage_m_eq(i)) for i, s in enumerate(plant.stages)))
-    return duration * fastest / DOPRI5_STABILITY
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

@@ -251,16 +251,15 @@ PENETRATION_WARNING = 0.05
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from ..plant import build_plant
-    from ..simulate import default_output_interval, output_steps, report_case, stiff_steps
+    from ..simulate import default_output_interval, output_steps, report_case
 
     model = load_model(args.model)
     plant = build_plant(model, args.plant)
     dt = args.dt if args.dt is not None else default_output_interval(args.duration)
     rows = output_steps(args.duration, dt, field="--dt") + 1
     check_output_size(rows, 3 * plant.nx + 3 * plant.n_stages + 4, field="--dt", fix="a larger --dt")
-    # a rough figure for the progress bar: ~2 us per output row, 2 us per 10 us of simulated time, and on the ODE
-    # path 0.25 us per step its fastest mesh root asks for (a strongly overdamped, light mesh: 15 s for 3 ms)
-    expected = rows * 2e-6 + args.duration * 0.2 + stiff_steps(plant, args.duration) * 2.5e-7
+    # a rough figure for the progress bar: ~2 us per output row, 2 us per 10 us of simulated time
+    expected = rows * 2e-6 + args.duration * 0.2
     with progress_bar("gearctl simulate", expected_s=expected) as bar:
         try:
             res = report_case(plant, args.case, args.duration, omega1=args.omega1, omega2=args.omega2,
