@@ -20,7 +20,7 @@ from .errors import InputError
 from .geometry import GearPair, Geometry, pair_geometry
 from .params import FrictionLaw, MeshDynamics, Sensors, Servo
 from .stiffness import equivalent_mass, mesh_stiffness
-from .units import BACKLASH, BASE_RADIUS, INERTIA, MESH_DAMPING
+from .units import BACKLASH, BASE_RADIUS, DAMPING_RATIO, INERTIA, MESH_DAMPING
 
 __all__ = ["StageModel", "GearModel", "check_model", "disk_inertia", "MAX_INERTIA_RATIO", "MAX_FRICTION_RATE",
            "STIFFNESS_FACTOR", "MAX_BACKLASH_PER_MODULE", "MIN_FACE_WIDTH_PER_MODULE", "GEAR_INERTIA_FACTOR"]
@@ -351,9 +351,30 @@ def _check_smooth_friction(servo: Servo, total: list[float], viscous: list[float
 
 def _check_mesh_damping(sm: StageModel, geo: Geometry, J1: float, J2: float, k: float | None, multi: bool,
                         i: int) -> None:
-    """The mesh damping ``c = 2 zeta sqrt(k m_eq)`` the plant will compute, within MESH_DAMPING's range."""
+    """The mesh damping ``c = 2 zeta sqrt(k m_eq)`` the plant will compute, within MESH_DAMPING's range; a given
+    ``damping_coefficient``, a damping ratio ``c / (2 sqrt(k m_eq))`` within DAMPING_RATIO's.
+
+    Why the second: a given coefficient was bounded by MESH_DAMPING alone, and on a light mesh 1e8 N s/m is a damping
+    ratio of 1e3 to 1e4 (fuzzed pairs: 1822 and 10800). Such a mesh's fast root, ``c / m_eq`` (7.4e10 rad/s), sets
+    every solver's step: 3.7e8 steps for 3 ms, 10 s of the exact solver and 15 s of the ODE path, and a 0.1 s loop
+    ran 13 s. A gear mesh's damping ratio is a few hundredths to about 0.2 (damping_ratio allows up to 2)."""
     dyn = sm.dynamics
-    if dyn.damping_coefficient is not None or dyn.damping_ratio == 0.0:
+    if dyn.damping_coefficient is not None:
+        if dyn.damping_coefficient > 0.0:
+            m_eq = equivalent_mass(J1, J2, *geo.base_radius)
+            if k is None:
+                k = dyn.mesh_stiffness or mesh_stiffness(sm.pair, points=16).mean
+            zeta = dyn.damping_coefficient / (2.0 * math.sqrt(k * m_eq))
+            if zeta > DAMPING_RATIO.upper:
+                cmax = DAMPING_RATIO.upper * 2.0 * math.sqrt(k * m_eq)
+                raise InputError(f"{_label(multi, i, 'damping_coefficient')} = {dyn.damping_coefficient!r} is out of "
+                                 f"range: expected 0 <= value <= {cmax:.4g} [N s/m] for this "
+                                 f"{'stage' if multi else 'pair'} (a damping ratio c / (2 sqrt(k m_eq)) of at most "
+                                 f"{DAMPING_RATIO.high:g}, as damping_ratio's, with k = {k:.4g} N/m and m_eq = "
+                                 f"{m_eq:.4g} kg of the shaft inertias; this value is {zeta:.4g})",
+                                 field="damping_coefficient")
+        return
+    if dyn.damping_ratio == 0.0:
         return
     m_eq = equivalent_mass(J1, J2, *geo.base_radius)
     # cheap bound first: a mean mesh stiffness is well below E f (0.07 E f for the report's pair)

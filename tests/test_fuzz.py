@@ -699,8 +699,10 @@ FOUND_CASES = {
         "to 0, and the slow root was set aside as a rigid body: no mesh mode left, a ValueError in linearize and in "
         "every PID-based design",
         fixed=(
-        "fixed in gearctl/modes.py (_modes_of, exact=True for mode_poles, whose zeros are exact): the mesh mode at "
-        "sqrt(k / m_eq) with damping ratio c / (2 sqrt(k m_eq)) = 1822")),
+        "fixed in gearctl/modes.py (_modes_of, exact=True for mode_poles, whose zeros are exact: the mesh mode at "
+        "sqrt(k / m_eq), damping ratio 1822, for a plant built so in Python), and refused in the model file since a "
+        "given damping_coefficient is held to the damping ratio damping_ratio allows (2: at most 1.1e5 N s/m here), "
+        "naming [dynamics] damping_coefficient")),
     "mpc_exact_load_reading_rigid": Found("mpc_exact_load_reading_rigid.toml", (
         ("track", "MODEL", "mpc", "--reference", "sine", "--duration", "0.1"),), 30.0,
         "traceback (the 6000-model draw, model 3929): a backlash-free pair without sensors; the MPC's rigid observer "

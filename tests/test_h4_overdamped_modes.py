@@ -8,6 +8,7 @@ resonances for four stages.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -77,17 +78,40 @@ def test_catalog_train_modes_match_the_undamped_ones() -> None:
 
 
 @pytest.mark.parametrize("c", [1e6, 1e8])
-def test_strongly_overdamped_pair(tmp_path: Path, c: float) -> None:
-    """A mesh damped far past critical (``damping_coefficient`` up to 1e8 N s/m): its slow root -k/c lies below the
-    rounding that sets a rigid body's near-zero poles to 0 (-2.6 rad/s beside -3.4e7 at 1e8 on a fuzzed pair); taken
-    for a rigid body, it left no mesh mode and `gearctl linearize` (and every loop design) ended in a traceback.
-    The mesh mode is still the undamped sqrt(k / m_eq) with damping ratio c / (2 sqrt(k m_eq))."""
-    text = (DATA.parent.parent / "models" / "shing1993_servo.toml").read_text()
-    path = tmp_path / "overdamped.toml"
-    path.write_text(text.replace("[dynamics]\n", f"[dynamics]\ndamping_coefficient = {c:g}\n", 1))
-    plant = gearctl.build_plant(gearctl.load_model(path))
-    assert plant.c == c
+def test_strongly_overdamped_mesh_mode(c: float) -> None:
+    """A mesh damped far past critical: its slow root -k/c lies below the rounding that sets a rigid body's near-zero
+    poles to 0 (-2.6 rad/s beside -3.4e7 at 1e8 on a fuzzed pair); taken for a rigid body, it left no mesh mode and
+    `gearctl linearize` (and every loop design) ended in a traceback. A model file now refuses such a coefficient
+    (below); a plant built in Python may still have it, and its mesh mode is the undamped sqrt(k / m_eq) with
+    damping ratio c / (2 sqrt(k m_eq))."""
+    servo = gearctl.build_plant(gearctl.load_model("shing1993_servo"))
+    plant = dataclasses.replace(servo, stages=(dataclasses.replace(servo.stages[0], c=c),))
     mesh = gearctl.linearize_modes(plant).mesh
     np.testing.assert_allclose(mesh.natural_frequency, math.sqrt(plant.k / plant.m_eq), rtol=1e-6)
     np.testing.assert_allclose(mesh.damping_ratio, c / (2.0 * math.sqrt(plant.k * plant.m_eq)), rtol=1e-6)
-    assert cli_main(["linearize", str(path)]) == 0
+
+
+def test_a_damping_coefficient_past_the_damping_ratio_range_is_refused(tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """A given damping_coefficient was bounded by 1e8 N s/m alone: on fuzzed light pairs that is a damping ratio of
+    1822 and 10800, whose fast root c / m_eq set every solver's step (10 s for 3 ms of the exact solver, a 0.1 s loop
+    13 s). It is now held to the damping ratio damping_ratio allows, 2: the largest coefficient that gives, refused
+    beyond, and just inside accepted."""
+    servo = gearctl.build_plant(gearctl.load_model("shing1993_servo"))
+    cmax = 2.0 * 2.0 * math.sqrt(servo.k * servo.m_eq)
+    text = (DATA.parent.parent / "models" / "shing1993_servo.toml").read_text()
+    for c, ok in ((0.999 * cmax, True), (1.001 * cmax, False), (1e8, False)):
+        path = tmp_path / f"c{c:.6g}.toml"
+        path.write_text(text.replace("[dynamics]\n", f"[dynamics]\ndamping_coefficient = {c!r}\n", 1))
+        if ok:
+            assert gearctl.build_plant(gearctl.load_model(path)).c == c
+            assert cli_main(["linearize", str(path)]) == 0
+            capsys.readouterr()
+            continue
+        with pytest.raises(gearctl.InputError, match=r"damping_coefficient = .* expected 0 <= value <= ") as err:
+            gearctl.load_model(path)
+        assert err.value.field == "damping_coefficient"
+        assert f"{cmax:.4g}" in str(err.value)
+        assert cli_main(["info", str(path)]) == 2
+        line = capsys.readouterr().err.strip().splitlines()
+        assert len(line) == 1 and "[dynamics] damping_coefficient" in line[0]
