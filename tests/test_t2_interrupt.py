@@ -224,7 +224,7 @@ def _env() -> dict[str, str]:
 
 
 def _ctrl_c_after_some_runs(tmp_path: Path, extra: list[str], second: float | None = None,
-                            ) -> tuple[int, str, str, float, int]:
+                            sig: int = signal.SIGINT) -> tuple[int, str, str, float, int]:
     """Run the CLI sweep in a process of its own session; once 4 runs are in, SIGINT its whole group (as a
     terminal's Ctrl-C; again ``second`` seconds later); its exit code, stdout, stderr, the seconds it took to end
     and its session id."""
@@ -240,7 +240,7 @@ def _ctrl_c_after_some_runs(tmp_path: Path, extra: list[str], second: float | No
             time.sleep(0.05)
         assert mark.exists(), p.communicate(timeout=30)
         t0 = time.monotonic()
-        os.killpg(p.pid, signal.SIGINT)
+        os.killpg(p.pid, sig)
         if second is not None:
             time.sleep(second)
             if p.poll() is None:
@@ -308,3 +308,12 @@ def test_ctrl_c_on_a_scheduler_keeps_the_runs_finished_and_cancels_the_rest(tmp_
                 time.sleep(0.2)
             assert c.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)) == 0
             assert c.submit(sum, [1, 2]).result(timeout=30) == 3
+
+
+@pytest.mark.slow
+def test_sigterm_hands_over_the_runs_finished_as_ctrl_c_does(tmp_path: Path) -> None:
+    # `kill PID` (SIGTERM; a batch system at the end of a job's time sends it to the job's processes) ended the sweep
+    # at once, nothing written: it is now taken as a Ctrl-C, the finished runs handed over, exit 130
+    rc, out, err, took, _ = _ctrl_c_after_some_runs(tmp_path, ["--workers", "2"], sig=signal.SIGTERM)
+    data = _check_handed_over(tmp_path, rc, out, err)
+    assert data["engine"]["interrupted"] is True and took < 20

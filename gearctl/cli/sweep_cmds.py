@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import os
+import signal
 import sys
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -183,6 +186,25 @@ def _write_out(result: Any, out: Path) -> list[str]:
     return remove_earlier_plots(out, earlier, [name for name, _ in plots])
 
 
+@contextlib.contextmanager
+def _sigterm_as_ctrl_c() -> Iterator[None]:
+    """While the sweep runs, a SIGTERM (``kill PID``; a batch system at the end of a job's time) is taken as a
+    Ctrl-C: the process sends itself SIGINT, so the runs finished are handed over and the cluster closed as for a
+    Ctrl-C (held while the local cluster starts or closes). Before, it ended the sweep at once with nothing written.
+    From the main thread only (where Python handles signals), and only where SIGINT is not ignored (a background
+    job of a non-interactive shell ignores it: a SIGTERM turned into it would be lost, and the sweep unkillable but
+    by SIGKILL); the previous handler is put back after."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, None)):
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: os.kill(os.getpid(), signal.SIGINT))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
     import logging
 
@@ -236,10 +258,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         lg.setLevel(logging.CRITICAL + 1)
     unfinished: SweepIncomplete | SweepInterrupted | None = None
     try:
-        result = sweep(args.model, args.controller, vary=args.vary or [], runs=args.runs, grid=args.grid,
-                       reference_kind=args.reference, duration=args.duration, seed=args.seed, plant=args.plant,
-                       precision=args.precision, workers=args.workers, scheduler=args.scheduler, batch=args.batch,
-                       progress=progress)
+        with _sigterm_as_ctrl_c():
+            result = sweep(args.model, args.controller, vary=args.vary or [], runs=args.runs, grid=args.grid,
+                           reference_kind=args.reference, duration=args.duration, seed=args.seed, plant=args.plant,
+                           precision=args.precision, workers=args.workers, scheduler=args.scheduler,
+                           batch=args.batch, progress=progress)
     except (SweepIncomplete, SweepInterrupted) as exc:  # the cluster failed mid-sweep, or Ctrl-C: what finished is
         unfinished, result = exc, exc.result           # written as a whole sweep's is (a second Ctrl-C ends it)
     finally:
