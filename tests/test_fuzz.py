@@ -711,6 +711,15 @@ FOUND_CASES = {
         fixed=(
         "fixed in gearctl/design/mpc.py (_build_observer): an exact load reading is given MEASUREMENT_NOISE_FLOOR, "
         "as measurement_noise is without sensors")),
+    "heavy_motor_damping_mesh_mode": Found("heavy_motor_damping_mesh_mode.toml", (
+        ("linearize", "MODEL"), ("track", "MODEL", "pid", "--reference", "ramp", "--duration", "0.1")), 30.0,
+        "traceback (the 12000-model draw, models 11554 and 11726): a motor viscous friction of 488 /s of its inertia "
+        "beside a 231 rad/s mesh moves the contact roots far from the rigid train's (-168.6): roots -407.6 and "
+        "-38.5 +- 143.8j. The rigid body's root was set aside as the nearest root, one of the complex pair, whose lone "
+        "conjugate then counted as no mode: no mesh mode, a ValueError in linearize and every PID design",
+        fixed=(
+        "fixed in gearctl/modes.py (_modes_of): a real rigid-body root sets aside the nearest real root; the mesh "
+        "mode is the complex pair (23.7 Hz, damping ratio 0.26)")),
     "tiny_face_width": Found("tiny_face_width.toml", (("info", "MODEL"),), 30.0,
                              "traceback: face_width = 1e-300 m is allowed ((0, 1] m); the gear inertias underflow "
                              "to 0 and gearctl/plant.py natural_frequency divides by the equivalent mass "
