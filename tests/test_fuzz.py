@@ -720,6 +720,15 @@ FOUND_CASES = {
         fixed=(
         "fixed in gearctl/modes.py (_modes_of): a real rigid-body root sets aside the nearest real root; the mesh "
         "mode is the complex pair (23.7 Hz, damping ratio 0.26)")),
+    "undamped_mesh_stick_slip_chatter": Found("undamped_mesh_stick_slip_chatter.toml", (
+        ("track", "MODEL", "pid", "--reference", "move", "--duration", "0.1"),), 30.0,
+        "event cascade (the 12000-model draw, model 8744; open): a backlash-free 30 um-module pair with damping_ratio "
+        "2.2e-16 (a 717 kHz mesh that never rings down) and stick-slip load friction (0.316 N m) under a load torque "
+        "of 0.352 N m: the mesh mode turns the load's speed through zero twice a cycle, each a stick or a slip event, "
+        "216 104 by t = 0.076 s, and the run stops at its event budget with the Zeno cascade's message under every "
+        "controller. With damping_ratio 1e-6 or more the run ends normally. Not a Zeno accumulation (the events "
+        "come at the mesh's own rate); to decide: a stick-slip law that does not resolve a load speed oscillating "
+        "at the mesh frequency, or a budget message that says this"),
     "tiny_face_width": Found("tiny_face_width.toml", (("info", "MODEL"),), 30.0,
                              "traceback: face_width = 1e-300 m is allowed ((0, 1] m); the gear inertias underflow "
                              "to 0 and gearctl/plant.py natural_frequency divides by the equivalent mass "
