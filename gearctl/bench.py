@@ -315,12 +315,8 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     # each local worker holds one run at once: the largest, at its controller file's sample time
     task_bytes = max((loop_bytes(r.plant, r.duration, run_sample_time(r)) for r in runs), default=0)
     dropped: list[dict[str, Any]] = []  # silent workers dropped from the scheduler, their tasks rerun elsewhere
-
-    def on_drop(worker: str, n: int, how: str) -> None:
-        dropped.append({"worker": worker, "tasks": n, "restarted": how == "OK"})
-
     results = map_tasks(_task, tasks, workers=jobs, scheduler=scheduler, progress=progress, name="gearctl-bench",
-                        task_bytes=task_bytes, on_drop=on_drop)
+                        task_bytes=task_bytes, on_drop=dropped.append)
     rows = [r for r in results[:len(runs)] if r is not None]
     rows.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
     iso_rows = [r for r in results[len(runs):] if r is not None]

@@ -585,8 +585,7 @@ class Engine:
             quiet = [w for w in _silent_workers(before, after) if w not in gone]
             why = ""
             if quiet and set(after) - set(quiet) - gone:
-                why = _drop_workers(self.client, dict.fromkeys(quiet, 0), {}, lambda w, n, how: self.dropped.append(
-                    {"worker": w, "tasks": n, "restarted": how == "OK"}))
+                why = _drop_workers(self.client, dict.fromkeys(quiet, 0), {}, self.dropped.append)
                 if not why:
                     return self._ask_workers(fn, after)
             self.close()
@@ -757,7 +756,8 @@ def _close_client(client: Any) -> None:
 
 
 def completed(client: Any, futures: Sequence[Any], *, where: str = "the cluster",
-              on_drop: Callable[[str, int, str], Any] | None = None) -> Iterator[tuple[Any, Any, BaseException | None]]:
+              on_drop: Callable[[dict[str, Any]], Any] | None = None,
+              ) -> Iterator[tuple[Any, Any, BaseException | None]]:
     """``(future, result, None)`` or ``(future, None, exception)`` for each future as it finishes
     (``distributed.as_completed`` on ``client``'s loop), its result fetched here. A cluster left without workers for
     :data:`WORKER_TIMEOUT` seconds is an :class:`~gearctl.InputError`: with every worker killed a sweep waited
@@ -782,9 +782,9 @@ def completed(client: Any, futures: Sequence[Any], *, where: str = "the cluster"
     where : str
         How messages name the cluster (default ``"the cluster"``).
     on_drop : callable, optional
-        ``on_drop(worker, tasks, how)`` after a silent worker is dropped: its address, how many of ``futures`` it
-        held, and what Dask did (:func:`_drop_worker`: ``"OK"``, restarted by its nanny; ``"removed"``;
-        ``"timed out"``, its nanny silent too: removed) (default: nothing told).
+        ``on_drop(record)`` after a silent worker is dropped, ``record`` ``{"worker": address, "tasks": n,
+        "restarted": bool}``: how many of ``futures`` it held, and whether its nanny started a fresh one in its place
+        (:func:`_drop_worker`; else it was removed) (default: nothing told).
 
     Yields
     ------
@@ -908,8 +908,9 @@ def _held_by_silent(client: Any, workers: dict, heard: dict[str, tuple[Any, floa
 
 
 def _drop_workers(client: Any, held: dict[str, int], heard: dict[str, tuple[Any, float]],
-                  on_drop: Callable[[str, int, str], Any] | None) -> str:
-    """Have the scheduler drop each worker of ``held`` (address: tasks it holds), telling ``on_drop``; ``""``, or
+                  on_drop: Callable[[dict[str, Any]], Any] | None) -> str:
+    """Have the scheduler drop each worker of ``held`` (address: tasks it holds), telling ``on_drop`` its record
+    (``{"worker", "tasks", "restarted"}``: restarted by its nanny, Dask's ``"OK"``); ``""``, or
     why one could not be dropped (the scheduler did not answer within :data:`DROP_TIMEOUT` and
     :data:`ANSWER_TIMEOUT`, or refused)."""
     for w, n in sorted(held.items()):
@@ -923,7 +924,7 @@ def _drop_workers(client: Any, held: dict[str, int], heard: dict[str, tuple[Any,
                     f"{' '.join(str(exc).split())[:120]})")
         heard.pop(w, None)
         if on_drop is not None:
-            on_drop(w, n, str(how))
+            on_drop({"worker": w, "tasks": n, "restarted": str(how) == "OK"})
     return ""
 
 
@@ -978,7 +979,7 @@ def local_processes(tasks: int, workers: int | None = None) -> int:
 def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | None = None,
               scheduler: str | None = None, progress: Callable[[int, int], Any] | None = None,
               name: str = "gearctl", task_bytes: int = 0,
-              on_drop: Callable[[str, int, str], Any] | None = None) -> list[Any]:
+              on_drop: Callable[[dict[str, Any]], Any] | None = None) -> list[Any]:
     """``[fn(x) for x in items]``, in parallel on Dask; in this process when one worker would do.
 
     Parameters
@@ -996,7 +997,7 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     task_bytes : int
         Memory of the largest task while it runs [bytes] (see :class:`Engine`).
     on_drop : callable, optional
-        ``on_drop(worker, tasks, how)`` for each silent worker dropped from the scheduler, at the workers' check
+        ``on_drop(record)`` for each silent worker dropped from the scheduler, at the workers' check
         (:attr:`Engine.dropped`, ``tasks`` 0) or holding tasks (as :func:`completed`'s) (default: nothing told).
 
     Returns
@@ -1022,7 +1023,7 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     with Engine(workers=local_processes(n, workers), scheduler=scheduler, task_bytes=task_bytes) as eng:
         if on_drop is not None:  # the workers dropped at the check, before any task (told as the sweep tells them)
             for d in eng.dropped:
-                on_drop(d["worker"], d["tasks"], "OK" if d["restarted"] else "removed")
+                on_drop(d)
         tag = uuid.uuid4().hex[:12]
         mine, stack = code_id(), numerics_versions()
         futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False, numerics=stack): k

@@ -1072,8 +1072,8 @@ def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], inf
         if dropped:
             info["dropped"] = dropped
 
-        def on_drop(worker: str, tasks: int, how: str) -> None:
-            dropped.append({"worker": worker, "tasks": tasks, "restarted": how == "OK"})
+        def on_drop(record: dict[str, Any]) -> None:
+            dropped.append(record)
             info["dropped"] = dropped
         tag = uuid.uuid4().hex[:12]
         # each task checks them on its worker: one may join mid-sweep (parallel.checked)

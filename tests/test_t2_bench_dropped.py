@@ -56,7 +56,7 @@ class _Engine:
 def _completed(client: Any, futures: list, *, where: str, on_drop: Any = None) -> Any:  # noqa: ARG001
     # the second worker goes silent holding 2 tasks and is dropped (its nanny restarts it) before the results come
     if on_drop is not None:
-        on_drop("tcp://10.0.0.9:1", 2, "OK")
+        on_drop({"worker": "tcp://10.0.0.9:1", "tasks": 2, "restarted": True})
     for f in futures:
         yield f, f.value, None
 
