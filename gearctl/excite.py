@@ -35,7 +35,7 @@ from .errors import InputError
 from .limits import check_output_size
 from .logs import MAX_LOG_SAMPLES, EncoderLog
 from .plant import Plant, build_plant
-from .references import move_point, move_times
+from .references import move_point, move_times, pointwise
 from .units import DURATION, SEED, Spec, check_choice
 
 __all__ = ["MOTIONS", "AMPLITUDE", "ExcitationProgram", "excitation", "Excitation", "record_excitation",
@@ -157,11 +157,7 @@ class ExcitationProgram:
         tuple
             ``(r, r', r'')``: three floats for a scalar ``t``, else three arrays of ``t``'s shape.
         """
-        if isinstance(t, float | int):
-            return self._scalar(float(t))
-        ta = np.asarray(t, dtype=float)
-        out = np.array([self._scalar(float(x)) for x in ta.ravel()]).reshape(-1, 3).T
-        return out[0].reshape(ta.shape), out[1].reshape(ta.shape), out[2].reshape(ta.shape)
+        return pointwise(self._scalar, t)
 
     def load_disturbance(self, t: float) -> float:
         """No load disturbance during an excitation [N m].

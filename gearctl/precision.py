@@ -22,7 +22,7 @@ from .design.base import Controller
 from .errors import InputError
 from .params import Sensors
 from .plant import Plant, check_plant
-from .references import move_point, move_times
+from .references import move_point, move_times, pointwise
 from .units import DURATION, SEED
 
 __all__ = ["MotionProgram", "PrecisionResult", "iso230_statistics", "precision_test"]
@@ -83,12 +83,11 @@ class MotionProgram:
         tuple
             ``(r, r', r'')``: three floats for a scalar ``t``, else three arrays of ``t``'s shape.
         """
-        if isinstance(t, float | int):
-            k = max(0, bisect.bisect_right(self.starts, float(t)) - 1)
-            return self._move(k, float(t) - self.starts[k])
-        t = np.asarray(t, dtype=float)
-        out = np.array([self.at(float(x)) for x in t.ravel()]).T
-        return out[0].reshape(t.shape), out[1].reshape(t.shape), out[2].reshape(t.shape)
+        return pointwise(self._at, t)
+
+    def _at(self, t: float) -> tuple[float, float, float]:
+        k = max(0, bisect.bisect_right(self.starts, t) - 1)
+        return self._move(k, t - self.starts[k])
 
     def load_disturbance(self, t: float) -> float:
         """No disturbance during a positioning test.

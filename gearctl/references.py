@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,7 @@ from numpy.typing import ArrayLike
 from .errors import InputError
 from .units import quantity, validate_fields
 
-__all__ = ["Reference", "reference", "REFERENCES", "DEFAULT_DURATION", "move_times", "move_point"]
+__all__ = ["Reference", "reference", "REFERENCES", "DEFAULT_DURATION", "move_times", "move_point", "pointwise"]
 
 REFERENCES = ("sine", "step", "ramp", "move")
 
@@ -323,3 +324,27 @@ def reference(kind: str, **kwargs: float | str) -> Reference:
             raise InputError(f"{key} is not a setting of a reference: expected one of {', '.join(keys)}{hint}",
                              field=key)
     return Reference(kind=kind, **{**defaults[kind], **kwargs})  # type: ignore[arg-type]
+
+
+def pointwise(scalar: Callable[[float], tuple[float, float, float]], t: Any) -> tuple[Any, Any, Any]:
+    """``(r, r', r'')`` of a reference whose ``scalar(t)`` gives them at one time: three floats for a scalar ``t``,
+    else ``scalar`` at each element, three arrays of ``t``'s shape (the ``at`` of the excitation and of the ISO
+    test's motion program).
+
+    Parameters
+    ----------
+    scalar : callable
+        ``scalar(t)`` -> ``(r, r', r'')`` at one time [s].
+    t : float or array_like
+        Time(s) [s].
+
+    Returns
+    -------
+    tuple
+        ``(r, r', r'')``.
+    """
+    if isinstance(t, float | int):
+        return scalar(float(t))
+    ta = np.asarray(t, dtype=float)
+    out = np.array([scalar(float(x)) for x in ta.ravel()]).reshape(-1, 3).T
+    return out[0].reshape(ta.shape), out[1].reshape(ta.shape), out[2].reshape(ta.shape)
