@@ -1021,6 +1021,42 @@ class Kernel:
         """
         return _STATUS.get(status, f"status {status}")
 
+    def budget_message(self) -> str:
+        """Words for status 3 (the run's event budget spent), from the events located so far.
+
+        Two kinds of run spend it. A *cascade*: the events crowd towards one instant (every Zeno cascade the
+        kernel meets it resolves, so one that does not settle is the kernel's fault). A *steady rate*: a motion
+        that repeats faster than the run may locate events (:attr:`max_event_rate`), e.g. stick-slip friction
+        driven by a mesh mode that never rings down; that is the model's, and the message says at what rate,
+        which events, and the plant's fastest mesh mode beside it.
+
+        Returns
+        -------
+        str
+            One line: ``event cascade: ...`` or ``event rate: ...``.
+        """
+        t = self.event_log["t"]
+        n = self.events_total
+        head = f"{n} by t = {self.t:.6g} s"
+        if t.size < 256 or t[-1] <= t[-256]:  # too few recorded to tell, or all at one instant
+            return (f"event cascade: more contact events than the run may locate ({head}); the contact chatters "
+                    "without settling")
+        recent = 64 / max(t[-1] - t[-65], 1e-300)
+        wider = 255 / (t[-1] - t[-256])
+        if recent > 4.0 * wider:  # the events come faster and faster: they accumulate
+            return (f"event cascade: more contact events than the run may locate ({head}, the last 64 within "
+                    f"{t[-1] - t[-65]:.3g} s); the contact chatters without settling")
+        kinds = self.event_log["kind"][-256:]
+        friction = int(np.count_nonzero(kinds >= EventKind.STICK))
+        what = ("stick and slip of the friction" if friction > 128 else "impacts and separations of the meshes")
+        zeta = min(s.c / (2.0 * math.sqrt(s.k * self.plant.stage_m_eq(i))) if s.k > 0 else math.inf
+                   for i, s in enumerate(self.plant.stages))
+        f_mesh = self.plant.natural_frequency / (2 * math.pi)
+        return (f"event rate: the run's events come at a steady {wider:.3g} per s ({what}), more than it may "
+                f"locate ({self.max_event_rate:.3g} per simulated s on top of {self.max_events}; {head}): a motion "
+                f"repeating that fast never settles (the fastest mesh mode {f_mesh:.3g} Hz, damping ratio "
+                f"{zeta:.3g}); not a Zeno cascade: more damping or a shorter run")
+
     def c_force(self, i: int, mode: int, d_ys: float, x: np.ndarray) -> float:
         """The C kernel's force law for stage ``i`` (for the test that it agrees with :func:`mesh_force`).
 
