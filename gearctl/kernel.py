@@ -1049,13 +1049,13 @@ class Kernel:
         kinds = self.event_log["kind"][-256:]
         friction = int(np.count_nonzero(kinds >= EventKind.STICK))
         what = ("stick and slip of the friction" if friction > 128 else "impacts and separations of the meshes")
-        zeta = min(s.c / (2.0 * math.sqrt(s.k * self.plant.stage_m_eq(i))) if s.k > 0 else math.inf
-                   for i, s in enumerate(self.plant.stages))
-        f_mesh = self.plant.natural_frequency / (2 * math.pi)
+        mode = f"the fastest mesh mode {self.plant.natural_frequency / (2 * math.pi):.3g} Hz"
+        if self.plant.kind is not PlantKind.YANG_SUN:  # (Yang-Sun's damping is its restitution law, eq 37)
+            zeta = min(s.c / (2.0 * math.sqrt(s.k * self.plant.stage_m_eq(i))) for i, s in enumerate(self.plant.stages))
+            mode += f", damping ratio {zeta:.3g}"
         return (f"event rate: the run's events come at a steady {wider:.3g} per s ({what}), more than it may "
                 f"locate ({self.max_event_rate:.3g} per simulated s on top of {self.max_events}; {head}): a motion "
-                f"repeating that fast never settles (the fastest mesh mode {f_mesh:.3g} Hz, damping ratio "
-                f"{zeta:.3g}); not a Zeno cascade: more damping or a shorter run")
+                f"repeating that fast never settles ({mode}); not a Zeno cascade: more damping or a shorter run")
 
     def c_force(self, i: int, mode: int, d_ys: float, x: np.ndarray) -> float:
         """The C kernel's force law for stage ``i`` (for the test that it agrees with :func:`mesh_force`).
