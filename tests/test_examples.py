@@ -23,13 +23,6 @@ def test_bode_step_margins(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     assert "PID on the contact" in out and "PID on the separation" in out
 
 
-def test_benchmark_report(tmp_path: Path) -> None:
-    _main("05_benchmark_report")(["--out", str(tmp_path), "--duration", "0.05"])
-    report = (tmp_path / "report.md").read_text()
-    assert "| controller |" in report and "backlash-free" in report
-    assert (tmp_path / "rms_by_controller.png").stat().st_size > 0
-
-
 @pytest.mark.slow
 def test_simulator_benchmark(capsys: pytest.CaptureFixture[str]) -> None:
     _main("02_simulator_benchmark")([])

@@ -232,6 +232,10 @@ def test_benchmark_report_example_shows_progress_on_a_terminal_only(terminal: bo
         assert re.search(r"bench: +\d+%\|", text), text[-500:]
     else:
         assert text == ""
+    # the report itself (one run of the example serves both checks: it is the suite's slowest example)
+    report = (tmp_path / "report.md").read_text()
+    assert "| controller |" in report and "backlash-free" in report
+    assert (tmp_path / "rms_by_controller.png").stat().st_size > 0
 
 
 class _Engine:
