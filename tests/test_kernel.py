@@ -354,6 +354,12 @@ def test_a_steady_event_rate_is_told_from_a_cascade(compiled: bool) -> None:
     rate = float(message.split("steady ")[1].split(" per s")[0])
     f_mesh = p.natural_frequency / (2 * math.pi)
     assert rate == pytest.approx(4 * f_mesh, rel=0.03)  # measured 2.84e6 against 4 x 717 kHz = 2.87e6
+    # a log kept to 100 records (max_records): the run's mean rate, the same
+    kn = Kernel(p, np.zeros(p.nx), dt=2e-3, compiled=compiled, max_events=3000, max_event_rate=1e4, max_records=100)
+    assert kn.advance(-p.load_torque / p.stages[0].ratio, p.load_torque, 2e-3) == 3 and kn.dropped_events > 0
+    message = kn.budget_message()
+    assert message.startswith("event rate: ") and "stick and slip" in message
+    assert float(message.split("steady ")[1].split(" per s")[0]) == pytest.approx(rate, rel=0.03)
 
 
 @pytest.mark.parametrize("compiled", KERNELS)
