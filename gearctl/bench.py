@@ -17,12 +17,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any, TypedDict
 
 import numpy as np
 
 from .catalog import controller_names, load_model, resolve
-from .closedloop import loop_bytes
+from .closedloop import check_loop_duration, loop_bytes
 from .errors import GearctlError, InputError
 from .kernel import compiled_available
 from .parallel import check_one_cluster, map_tasks
@@ -309,6 +310,8 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     skipped = spec.skipped()
     runs = list(runs if runs is not None else spec.runs(skipped))
     iso = spec.precision_runs(skipped)
+    for r in runs:  # a run of no sample is refused before any starts (each failed alone, and the bench ended exit 0)
+        check_loop_duration(r.duration, run_sample_time(r), who=f" of {Path(r.design.label).stem}")
     compiled_available()  # compile the kernel once before the workers start
     tasks: list[tuple[Callable[[Any], dict[str, Any]], Any]] = [(_row, r) for r in runs]
     tasks += [(_precision_row, j) for j in iso]

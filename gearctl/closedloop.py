@@ -187,10 +187,7 @@ def loop_samples(plant: Plant, controller: Controller, duration: float, seed: in
     """
     DURATION.check("duration", duration)
     SEED.check("seed", seed)
-    n = int(round(duration / controller.Ts))
-    if n < 1:
-        raise InputError(f"duration = {duration!r} is shorter than one sample ({controller.Ts:g} s)",
-                         field="duration")
+    n = check_loop_duration(duration, controller.Ts)
     # what a sample costs while the loop runs, not only the arrays it returns: the per-sample lists of the loop and
     # of the controller (torques, statuses, solve and step times): the peak RSS grew by 581 B (a pair's PID), 736 B
     # (its MPC) and 1173 B (the three-stage train's MPC) per sample. The arrays alone, nx + 8 doubles, let a reviewer's
@@ -202,6 +199,39 @@ def loop_samples(plant: Plant, controller: Controller, duration: float, seed: in
 #: The catalog controllers' sample time [s] (``LoopSettings.sample_time``): what a run is sized at before its
 #: controller is designed (``bench``, ``sweep``); each run checks again at its own.
 DEFAULT_TS = 1e-3
+
+
+def check_loop_duration(duration: float, Ts: float, *, field: str = "duration", who: str = "") -> int:
+    """The samples of a closed loop of ``duration`` [s] sampled every ``Ts`` [s], ``round(duration / Ts)``; a run of
+    none is refused, naming ``field`` and the least duration (``bench`` and ``sweep`` check their runs with it before
+    any starts: each run failed alone, and the command ended with exit 0).
+
+    Parameters
+    ----------
+    duration : float
+        Simulated time [s].
+    Ts : float
+        The controller's sample time [s].
+    field : str
+        The name the message gives the duration (default ``"duration"``; ``"--duration"`` from the command line).
+    who : str
+        Whose sample it is, for the message (``" of pid"``, the controller; default ``""``).
+
+    Returns
+    -------
+    int
+        The number of samples, at least 1.
+
+    Raises
+    ------
+    InputError
+        If ``duration`` holds no sample (shorter than half of ``Ts``, which rounds to none).
+    """
+    n = int(round(duration / Ts))
+    if n < 1:
+        raise InputError(f"{field} = {duration!r} is shorter than one sample{who} ({Ts:g} s): expected "
+                         f"{field} >= {Ts / 2:g} s (a run is rounded to whole samples, at least one)", field="duration")
+    return n
 
 
 def check_loop_memory(plant: Plant, duration: float, Ts: float = DEFAULT_TS, *, field: str = "duration",

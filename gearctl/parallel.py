@@ -1007,10 +1007,12 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     """
     check_one_cluster(None, scheduler)
     n = len(items)
-    scheduler = scheduler or env_scheduler()
+    # the address the user typed stays apart from DASK_SCHEDULER_ADDRESS's, which the Engine reads itself and names
+    # when it cannot be reached (a bench's error named an address the user had not typed, as the sweep's no longer did)
+    address = scheduler or env_scheduler()
     if n == 0:
         return []
-    if scheduler is None and local_processes(n, workers) == 1:
+    if address is None and local_processes(n, workers) == 1:
         out = []
         for i, x in enumerate(items):
             out.append(fn(x))

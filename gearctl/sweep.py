@@ -65,7 +65,7 @@ from typing import Any
 import numpy as np
 
 from .catalog import load_model
-from .closedloop import check_loop_memory, loop_bytes
+from .closedloop import check_loop_duration, check_loop_memory, loop_bytes
 from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
 from .model import GearModel
@@ -184,6 +184,10 @@ def _key_meta(key: str, *, what: str = "sweep key") -> dict[str, Any]:
     every = {f.name for cls in MODEL_CLASSES for f in dataclasses.fields(cls)}
     if key in every:
         doing = "a sweep can vary" if sweep else "--set can change"
+        if key.startswith("intermediate_"):  # a list of numbers, not "not a number"
+            who = "--vary" if sweep else "--set"
+            raise InputError(f"{key} is a list (one value per intermediate shaft): {who} takes keys of one number; "
+                             "change the list in a copy of the model file", field=key)
         raise InputError(f"{key} is not a number {doing}: numeric keys only (e.g. backlash, mesh_stiffness, "
                          f"coulomb_friction2, load_inertia, load_noise{', estimate' if sweep else ''})", field=key)
     if key in FILE_NAMES:  # a pair file's name of a key the overrides spell as the train's (a review's
@@ -750,6 +754,8 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
     # a run that would not fit is refused here, at the controller's own sample time: the command line checked it at
     # the catalog's 1 ms, and a 0.1 ms controller's 1000 s runs on a train all failed, exit 0
     check_loop_memory(design.nominal, dur, ctrl.Ts)
+    # and a run of no sample: every run failed alone ("diverged 100%"), exit 0
+    check_loop_duration(dur, ctrl.Ts, field="--duration", who=f" of {Path(label).stem}")
     if {"estimate", "estimate_error"} & set(keys) and not _uses_estimate(ctrl):
         raise InputError(f"--vary {'estimate' if 'estimate' in keys else 'estimate_error'}: "
                          f"{Path(label).stem} uses no backlash estimate (vary it for a controller that takes one: "

@@ -273,12 +273,14 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     runs = spec.runs(skipped)
     n = len(runs)
     tasks = n + len(spec.precision_runs(skipped))  # what the bar counts: the ISO rows are tasks too
-    from ..closedloop import check_loop_memory
+    from ..closedloop import check_loop_duration, check_loop_memory
     from ..runs import run_sample_time as sample_time  # the file's (a 0.1 ms PID's 1000 s runs all failed, exit 0)
 
     # a run that would not fit: refused first (and all the local workers' runs at once, in run_bench)
     for r in {(id(run.plant), run.duration, sample_time(run)): run for run in runs}.values():
         check_loop_memory(r.plant, r.duration, sample_time(r))
+    for r in runs:  # and a run of no sample (each failed alone, exit 0)
+        check_loop_duration(r.duration, sample_time(r), field="--duration", who=f" of {Path(r.design.label).stem}")
     to_stdout = args.json == "-"  # the JSON on standard output, the tables then on standard error
     if args.json and not to_stdout:  # checked before the runs, as the sweep's
         check_writable(args.json, key="json")

@@ -62,10 +62,14 @@ def _cmd_models(args: argparse.Namespace) -> int:
             eps = "/".join(f"{pair_geometry(p).contact_ratio:.2f}" for p in ps)
         rows.append((name, teeth, mod, phi, eps, m.source.get("citation", "")))
         extra.append({"stages": m.n_stages, "contact_ratio": pair_geometry(m.pair).contact_ratio,
-                      "contact_ratios": [pair_geometry(s.pair).contact_ratio for s in m.stages]})
+                      "contact_ratios": [pair_geometry(s.pair).contact_ratio for s in m.stages],
+                      "module_mm": m.pair.module * 1e3, "pressure_angle_deg": math.degrees(m.pair.pressure_angle),
+                      "modules_mm": [s.pair.module * 1e3 for s in m.stages],
+                      "pressure_angles_deg": [math.degrees(s.pair.pressure_angle) for s in m.stages]})
     if args.json:
         keys = ("name", "teeth", "module_mm", "pressure_angle_deg", "contact_ratio", "source")
-        # contact_ratio: the first stage's (a pair's own), as a number; every stage's in contact_ratios
+        # contact_ratio, module_mm, pressure_angle_deg: the first stage's (a pair's own), as numbers (the table's
+        # text, "1/1" on a train, had been given); every stage's in contact_ratios, modules_mm, pressure_angles_deg
         print(dump_json([{**dict(zip(keys, r, strict=True)), **x} for r, x in zip(rows, extra, strict=True)]))
         return 0
     head = ("name", "teeth", "m [mm]", "phi [deg]", "eps", "source")
@@ -162,7 +166,7 @@ def _cmd_stiffness(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     n = model.n_stages
     if not 1 <= args.stage <= n:
-        raise InputError(f"stage = {args.stage} is out of range: {model.name} has {n} stage(s), expected 1 <= value <= "
+        raise InputError(f"--stage {args.stage} is out of range: {model.name} has {n} stage(s), expected 1 <= value <= "
                          f"{n}", field="stage")
     pair = model.stages[args.stage - 1].pair
     ms = mesh_stiffness(pair, points=args.points)
@@ -207,7 +211,10 @@ def _simulate_summary(model: Any, plant: Any, args: argparse.Namespace, res: Any
         "separated_past_flank": separated_past_flank(plant, res.s, res.mode),
         "events_dropped": res.events_dropped, "energy": {"initial": E0, "final": E1},
         "mesh_stiffness": plant.k if n == 1 else [s.k for s in plant.stages],
-        "damping_coefficient": plant.c if n == 1 else [s.c for s in plant.stages],
+        # the Yang-Sun plant has no viscous mesh damping (its damping is the restitution law, eqs 36-37): its c,
+        # carried but unused, read as if it damped the run
+        "damping_coefficient": (None if plant.kind.value == "yang-sun" else
+                                plant.c if n == 1 else [s.c for s in plant.stages]),
     }
     if n == 1:
         out["impacts"] = res.impact_counts()
@@ -215,6 +222,7 @@ def _simulate_summary(model: Any, plant: Any, args: argparse.Namespace, res: Any
         out["final"] = dict(zip(("theta1", "theta2", "omega1", "omega2"), res.x[:, -1].tolist(), strict=True))
         out["final_mode"] = res.mode_labels()[-1]
         out["backlash"] = plant.backlash
+        out["lost_motion"] = plant.lost_motion  # as a train's (a pair's had none)
     else:
         out["impacts"] = res.stage_impacts()
         out["impact_times"] = [imp["t"][imp["where"] == i].tolist() for i in range(n)]
