@@ -26,14 +26,14 @@ from .catalog import controller_names, load_model, resolve
 from .closedloop import check_loop_duration, loop_bytes
 from .errors import GearctlError, InputError
 from .kernel import compiled_available
-from .parallel import check_one_cluster, map_tasks
+from .parallel import TasksInterrupted, check_one_cluster, map_tasks
 from .plant import PlantKind, build_plant
 from .references import DEFAULT_DURATION, REFERENCES, reference
 from .runs import Design, Run, controller_spec, design_controller, execute, run_sample_time, unholdable_load_step
 from .units import DURATION, SEED
 
-__all__ = ["BenchSpec", "run_bench", "bench_table", "bench_notes", "bench_warnings", "grouped_warnings",
-           "DEFAULT_DURATION", "FREE", "ISO_SETTINGS"]
+__all__ = ["BenchSpec", "BenchInterrupted", "run_bench", "bench_table", "bench_notes", "bench_warnings",
+           "grouped_warnings", "DEFAULT_DURATION", "FREE", "ISO_SETTINGS"]
 
 #: Label of the backlash-free plant (the physical limit).
 FREE = "backlash-free"
@@ -305,6 +305,13 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
         ``spec``, ``skipped`` (:meth:`BenchSpec.skipped`); ``dropped`` where a silent worker was dropped from the
         Dask scheduler and its tasks rerun on the others: ``[{"worker": address, "tasks": n, "restarted": bool}, ...]``
         as a sweep's ``engine["dropped"]`` (:class:`gearctl.sweep.SweepResult`).
+
+    Raises
+    ------
+    BenchInterrupted
+        A Ctrl-C after some runs had finished (the cluster's tasks cancelled and a local cluster closed first): its
+        ``result`` is this function's, over the runs finished, with ``interrupted`` true and ``not_run``, the cells
+        that did not finish. Before any had finished, a plain ``KeyboardInterrupt``.
     """
     check_one_cluster(None, scheduler)  # an empty address, before the designs
     skipped = spec.skipped()
@@ -318,8 +325,31 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     # each local worker holds one run at once: the largest, at its controller file's sample time
     task_bytes = max((loop_bytes(r.plant, r.duration, run_sample_time(r)) for r in runs), default=0)
     dropped: list[dict[str, Any]] = []  # silent workers dropped from the scheduler, their tasks rerun elsewhere
-    results = map_tasks(_task, tasks, workers=jobs, scheduler=scheduler, progress=progress, name="gearctl-bench",
-                        task_bytes=task_bytes, on_drop=dropped.append)
+    try:
+        results = map_tasks(_task, tasks, workers=jobs, scheduler=scheduler, progress=progress, name="gearctl-bench",
+                            task_bytes=task_bytes, on_drop=dropped.append)
+    except TasksInterrupted as exc:  # Ctrl-C: the cells that finished, as a whole bench's result, and those not run
+        out = _bench_result(spec, runs, exc.results, skipped, len(tasks), dropped)
+        out["interrupted"] = True
+        out["not_run"] = [_cell(runs, iso, i) for i in exc.missing]
+        raise BenchInterrupted(f"interrupted: {len(tasks) - len(exc.missing)} of {len(tasks)} runs finished, "
+                               f"{len(exc.missing)} did not", result=out) from None
+    return _bench_result(spec, runs, results, skipped, len(tasks), dropped)
+
+
+def _cell(runs: Sequence[Run], iso: Sequence[dict[str, Any]], i: int) -> dict[str, Any]:
+    """Task ``i`` of the bench (its tracking runs, then its ISO rows) as the cell it fills: ``{model, controller,
+    plant, design, reference}``, an ISO row's reference ``"ISO 230-2"``."""
+    if i < len(runs):
+        return {k: runs[i].tags.get(k) for k in ("model", "controller", "plant", "design", "reference")}
+    job = iso[i - len(runs)]
+    return {"model": job["model"], "controller": job["controller"], "plant": job["plant"], "design": job["plant"],
+            "reference": "ISO 230-2"}
+
+
+def _bench_result(spec: BenchSpec, runs: Sequence[Run], results: Sequence[dict[str, Any] | None],
+                  skipped: list[dict[str, str]], tasks: int, dropped: list[dict[str, Any]]) -> dict[str, Any]:
+    """:func:`run_bench`'s result from its tasks' results (None: a task that did not finish, left out)."""
     rows = [r for r in results[:len(runs)] if r is not None]
     rows.sort(key=lambda r: (r["model"], r["controller"], r["reference"], r["design"], r["plant"]))
     iso_rows = [r for r in results[len(runs):] if r is not None]
@@ -327,10 +357,32 @@ def run_bench(spec: BenchSpec, *, jobs: int | None = None, progress: Callable[[i
     _warn_tracks_worse_than_pid(rows)
     spec_d = dataclasses.asdict(spec)
     out = {"spec": spec_d, "runs": rows, "precision": iso_rows, "ratios": _ratios(rows, iso_rows),
-           "skipped": skipped, "tasks": len(tasks)}
+           "skipped": skipped, "tasks": tasks}
     if dropped:
         out["dropped"] = dropped
     return out
+
+
+class BenchInterrupted(KeyboardInterrupt):
+    """A bench stopped by Ctrl-C (``KeyboardInterrupt``) after some runs had finished: they are not lost, as a
+    sweep's (:class:`gearctl.sweep.SweepInterrupted`).
+
+    A ``KeyboardInterrupt`` still (an ``except Exception`` does not swallow it), raised once the cluster's tasks are
+    cancelled and a local cluster closed.
+
+    Parameters
+    ----------
+    message : str
+        How many runs (ISO rows included) finished, and how many did not.
+    result : dict
+        :func:`run_bench`'s result over the runs finished, with ``interrupted`` true and ``not_run``: the cells that
+        did not finish, ``{model, controller, plant, design, reference}`` each (an ISO row's reference
+        ``"ISO 230-2"``).
+    """
+
+    def __init__(self, message: str, *, result: dict[str, Any]) -> None:
+        super().__init__(message)
+        self.result = result
 
 
 #: An ISO accuracy A this many times the PID's on the same plant is warned of even where the PID's constant offset
@@ -662,6 +714,9 @@ def bench_table(result: dict[str, Any], *, markdown: bool = False) -> str:
             lines.append(f"FAILED: {r['controller']} on {model}{r['plant']} (ISO 230-2): {r.get('message')}")
     for s in result.get("skipped", ()):
         lines.append(f"not run: {s['controller']} on {s['model']}: {s['reason']}")
+    if result.get("not_run"):  # an interrupted bench: its cells read "—" (the list is in --json)
+        lines.append(f"interrupted: {len(result['not_run'])} of {result['tasks']} runs did not run (their cells read "
+                     f"—; not_run in --json)")
     return "\n".join(lines).rstrip() + "\n"
 
 

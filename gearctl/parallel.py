@@ -28,8 +28,7 @@ from .limits import available_memory
 __all__ = ["Engine", "check_one_cluster", "map_tasks", "check_local_workers", "WORKER_BYTES",
            "completed", "default_workers", "local_cluster", "probe_scheduler", "code_id",
            "checked", "killed_worker_text", "numerics_versions", "NUMERICS", "CONNECT_TIMEOUT", "WORKER_TIMEOUT",
-           "DROP_TIMEOUT",
-           "ANSWER_TIMEOUT"]
+           "DROP_TIMEOUT", "ANSWER_TIMEOUT", "TasksInterrupted"]
 
 #: Seconds to reach a scheduler, and for its first worker to join.
 CONNECT_TIMEOUT, WORKER_TIMEOUT = 10.0, 60.0
@@ -976,6 +975,35 @@ def local_processes(tasks: int, workers: int | None = None) -> int:
     return max(1, min(workers or default_workers(), tasks))
 
 
+class TasksInterrupted(KeyboardInterrupt):
+    """A Ctrl-C (or a SIGTERM taken as one) after some tasks had finished: what they gave is not lost.
+
+    A ``KeyboardInterrupt`` still (``except Exception`` does not swallow it), raised once the cluster's tasks are
+    cancelled and a local cluster closed. :func:`map_tasks` raises it, and the sweep's engine (``gearctl.sweep``):
+    a sweep and a bench keep the runs finished alike.
+
+    Parameters
+    ----------
+    results : list
+        One entry per task, in the order given: its result, or None where it did not finish.
+    info : dict, optional
+        What the caller records of the engine (the sweep's ``engine``).
+
+    Attributes
+    ----------
+    results : list
+    info : dict
+    missing : tuple of int
+        The positions of the tasks that did not finish.
+    """
+
+    def __init__(self, results: list[Any], info: dict[str, Any] | None = None,
+                 missing: Sequence[int] | None = None) -> None:
+        super().__init__()
+        self.results, self.info = results, {} if info is None else info
+        self.missing = tuple(i for i, r in enumerate(results) if r is None) if missing is None else tuple(missing)
+
+
 def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | None = None,
               scheduler: str | None = None, progress: Callable[[int, int], Any] | None = None,
               name: str = "gearctl", task_bytes: int = 0,
@@ -1004,6 +1032,13 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     -------
     list
         The results, in the order of ``items``. An exception in a task is raised here.
+
+    Raises
+    ------
+    TasksInterrupted
+        A Ctrl-C after some tasks had finished (the cluster's tasks cancelled and a local cluster closed first; a
+        second Ctrl-C during that close is held until it is done): their results, None for the others. Before any
+        had finished, a plain ``KeyboardInterrupt``.
     """
     check_one_cluster(None, scheduler)
     n = len(items)
@@ -1012,36 +1047,50 @@ def map_tasks(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | 
     address = scheduler or env_scheduler()
     if n == 0:
         return []
+    results: list[Any] = [None] * n
+    finished = [False] * n
+
+    def interrupted() -> KeyboardInterrupt:
+        if not any(finished):
+            return KeyboardInterrupt()
+        return TasksInterrupted(results, missing=[i for i, f in enumerate(finished) if not f])
+
     if address is None and local_processes(n, workers) == 1:
-        out = []
-        for i, x in enumerate(items):
-            out.append(fn(x))
-            if progress:
-                progress(i + 1, n)
-        return out
+        try:
+            for i, x in enumerate(items):
+                results[i] = fn(x)
+                finished[i] = True
+                if progress:
+                    progress(i + 1, n)
+        except KeyboardInterrupt:
+            raise interrupted() from None
+        return results
     from distributed import KilledWorker
 
-    results: list[Any] = [None] * n
-    with Engine(workers=local_processes(n, workers), scheduler=scheduler, task_bytes=task_bytes) as eng:
-        if on_drop is not None:  # the workers dropped at the check, before any task (told as the sweep tells them)
-            for d in eng.dropped:
-                on_drop(d)
-        tag = uuid.uuid4().hex[:12]
-        mine, stack = code_id(), numerics_versions()
-        futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False, numerics=stack): k
-                   for k, x in enumerate(items)}
-        try:
-            for done, (fut, got, exc) in enumerate(completed(eng.client, list(futures), where=eng.where,
-                                                             on_drop=on_drop), start=1):
-                if isinstance(exc, KilledWorker):  # Dask's traceback and exit 1 (a bench on workers of 120 MB)
-                    raise InputError(f"{eng.where}: the task {fut.key} could not run: {killed_worker_text(exc)}",
-                                     field="scheduler") from None
-                if exc is not None:
-                    raise exc
-                results[futures[fut]] = got
-                fut.release()
-                if progress:
-                    progress(done, n)
-        finally:
-            eng.close(cancel=list(futures))
+    try:
+        with Engine(workers=local_processes(n, workers), scheduler=scheduler, task_bytes=task_bytes) as eng:
+            if on_drop is not None:  # the workers dropped at the check, before any task (told as the sweep tells them)
+                for d in eng.dropped:
+                    on_drop(d)
+            tag = uuid.uuid4().hex[:12]
+            mine, stack = code_id(), numerics_versions()
+            futures = {eng.client.submit(checked, mine, fn, x, key=f"{name}-{tag}-{k}", pure=False,
+                                         numerics=stack): k for k, x in enumerate(items)}
+            try:
+                for done, (fut, got, exc) in enumerate(completed(eng.client, list(futures), where=eng.where,
+                                                                 on_drop=on_drop), start=1):
+                    if isinstance(exc, KilledWorker):  # Dask's traceback and exit 1 (a bench on workers of 120 MB)
+                        raise InputError(f"{eng.where}: the task {fut.key} could not run: {killed_worker_text(exc)}",
+                                         field="scheduler") from None
+                    if exc is not None:
+                        raise exc
+                    k = futures.pop(fut)
+                    results[k], finished[k] = got, True
+                    fut.release()
+                    if progress:
+                        progress(done, n)
+            finally:
+                eng.close(cancel=list(futures))  # (a Ctrl-C meanwhile is held until the cluster is closed)
+    except KeyboardInterrupt:  # Ctrl-C, after the cluster's tasks were cancelled and it was closed
+        raise interrupted() from None
     return results

@@ -46,6 +46,10 @@ Decisions
   CPU either way).
 - :func:`run_batch` is the one place where closed loops run (the compiled loop of issue 14 plugs in
   there); everything a worker returns is a small dict per run.
+- A sweep that did not finish (:class:`SweepIncomplete`, :class:`SweepInterrupted`) is finished by :func:`resume`:
+  planned again from its settings, it reruns the ``missing`` runs alone (seeded per run, they are the runs they
+  would have been). Its settings record what must not have changed since: this gearctl (``gearctl``, version and
+  code hash), its numerical libraries (``numerics``) and the model's and controller's files (``files``, SHA-256).
 """
 
 from __future__ import annotations
@@ -84,6 +88,7 @@ from .parallel import (
     CONNECT_TIMEOUT,
     WORKER_TIMEOUT,
     Engine,
+    TasksInterrupted,
     check_one_cluster,
     checked,
     code_id,
@@ -101,7 +106,7 @@ from .runs import Design, Run, RunResult, controller_spec, design_controller
 from .units import BACKLASH, DURATION, SEED, Spec, check_number, describe_rule
 
 __all__ = ["Vary", "SweepResult", "SweepIncomplete", "SweepInterrupted", "SweepContext", "SweepPlan", "sweep",
-           "plan_sweep", "run_batch", "parse_vary",
+           "resume", "file_hashes", "plan_sweep", "run_batch", "parse_vary",
            "parse_set", "perturb_model", "Scale", "sweep_keys", "summarize", "grid_axes", "compare_grids", "sweep_perf",
            "ROW_BYTES", "KEY_BYTES", "PRECISION_BYTES", "noise_seed", "sweep_task", "check_memory", "batch_size",
            "run_cost", "default_workers",
@@ -802,7 +807,10 @@ def plan_sweep(model: str | Path = "shing1993_servo", controller: str | Path = "
                 "factors": [v.key for v in varies if v.scale],  # keys whose values are factors of each stage's
                 "nominal": {k: x for k, x in ((v.key, _shown_nominal(v, nominal_model, spec)) for v in varies)
                             if x is not None},
-                "design": ctrl.describe()}
+                "design": ctrl.describe(),
+                # what a resumed sweep (resume) checks: this gearctl (version and code), its numerical libraries, and
+                # the model's and controller's files (their SHA-256)
+                "gearctl": code_id(), "numerics": numerics_versions(), "files": file_hashes(model, controller)}
     return SweepPlan(context=ctx, jobs=jobs, vary=varies, grid=grid, points=points, seed=seed, settings=settings)
 
 
@@ -1021,7 +1029,8 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
               batch: int | None, progress: Callable[[int, int], Any] | None) -> tuple[list[dict[str, Any]], dict]:
     jobs = plan.jobs
     n = len(jobs)
-    rows: list[dict[str, Any] | None] = [None] * n
+    rows: list[dict[str, Any] | None] = [None] * n  # by position in plan.jobs (a resumed sweep's are some indices)
+    at = {job[0]: k for k, job in enumerate(jobs)}
     done = 0
     info: dict[str, Any] = {"engine": engine}
     if engine == "serial":
@@ -1030,14 +1039,14 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
         try:
             for i0 in range(0, n, size):
                 for r in sweep_task(plan.context, jobs[i0:i0 + size]):
-                    rows[r["index"]] = r
+                    rows[at[r["index"]]] = r
                 done = min(n, i0 + size)
                 if progress:
                     progress(done, n)
         except KeyboardInterrupt:  # Ctrl-C: the batches finished are handed over (none finished: a plain Ctrl-C)
             if not any(r is not None for r in rows):
                 raise
-            raise _Interrupted(rows=rows, info=info) from None
+            raise TasksInterrupted(rows, info) from None
         return rows, info  # type: ignore[return-value]
     if engine != "dask":
         raise InputError(f"engine = {engine!r}: expected 'dask' or 'serial'", field="engine")
@@ -1053,8 +1062,8 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     except KeyboardInterrupt:  # Ctrl-C (after the cluster's tasks were cancelled and it was closed, below)
         if not any(r is not None for r in rows):
             raise
-        raise _Interrupted(rows=rows, info=info) from None
-    missing = [i for i, r in enumerate(rows) if r is None]
+        raise TasksInterrupted(rows, info) from None
+    missing = [jobs[k][0] for k, r in enumerate(rows) if r is None]
     if missing:
         raise RuntimeError(f"runs {missing[:5]} never came back")
     return rows, info  # type: ignore[return-value]
@@ -1067,6 +1076,7 @@ def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], inf
     from distributed import KilledWorker
 
     jobs, n, done = plan.jobs, len(plan.jobs), 0
+    at = {job[0]: k for k, job in enumerate(jobs)}  # a run's position in rows, by its index
     futures: dict[Any, Any] = {}
     try:
         w, threads = eng.workers, eng.threads
@@ -1099,9 +1109,9 @@ def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], inf
                     raise exc
                 fut.release()
                 for r in got:
-                    if rows[r["index"]] is not None:
+                    if rows[at[r["index"]]] is not None:
                         raise RuntimeError(f"run {r['index']} came back twice")
-                    rows[r["index"]] = r
+                    rows[at[r["index"]]] = r
                 done += len(got)
                 if progress:
                     progress(done, n)
@@ -1119,14 +1129,6 @@ class _Unfinished(InputError):
     def __init__(self, message: str, *, rows: list[dict[str, Any] | None], info: dict[str, Any],
                  field: str | None) -> None:
         super().__init__(message, field=field)
-        self.rows, self.info = rows, info
-
-
-class _Interrupted(KeyboardInterrupt):
-    """A Ctrl-C after some runs had finished: the rows so far (None: not finished) and the engine's info."""
-
-    def __init__(self, *, rows: list[dict[str, Any] | None], info: dict[str, Any]) -> None:
-        super().__init__()
         self.rows, self.info = rows, info
 
 
@@ -1472,26 +1474,247 @@ def sweep(model: str | Path = "shing1993_servo", controller: str | Path = "deadz
                       duration=duration, seed=seed, plant=plant, precision=precision)
     if batch is not None:
         SWEEP_RUNS.check("batch", batch)
+    return _execute(plan, t0=t0, engine=engine, workers=workers, scheduler=scheduler, client=client, batch=batch,
+                    progress=progress)
+
+
+def _execute(plan: SweepPlan, *, t0: float, engine: str, workers: int | None, scheduler: str | None, client: Any,
+             batch: int | None, progress: Callable[[int, int], Any] | None, before: Sequence[dict[str, Any]] = (),
+             record: Mapping[str, Any] | None = None) -> SweepResult:
+    """Run ``plan``'s jobs and make the sweep's result: with ``before`` (the runs a resumed sweep reuses; ``plan``'s
+    jobs are then its missing ones) merged in by index, the summary over them all, and ``record`` added to the
+    engine's record. A Ctrl-C or a cluster failed mid-way: :class:`SweepInterrupted` or :class:`SweepIncomplete`
+    carrying the runs finished, ``before`` included."""
     keys = [v.key for v in plan.vary]
+    total = int(plan.settings["runs"])
+
+    def whole(got: Sequence[dict[str, Any] | None], info: dict[str, Any]) -> SweepResult:
+        done = sorted([*before, *(r for r in got if r is not None)], key=lambda r: r["index"])
+        missing = tuple(plan.jobs[k][0] for k, r in enumerate(got) if r is None)
+        info["wall_time"] = time.perf_counter() - t0
+        info.update(record or {})
+        return SweepResult(settings=plan.settings, vary=plan.vary, runs=done, summary=summarize(done, keys),
+                           engine=info, missing=missing)
+
     try:
         rows, info = _run_jobs(plan, engine=engine, workers=workers, scheduler=scheduler, client=client,
                                batch=batch, progress=progress)
-    except (_Interrupted, _Unfinished) as exc:  # the runs that finished, as a whole sweep's result with `missing`
-        done = [r for r in exc.rows if r is not None]
-        missing = tuple(i for i, r in enumerate(exc.rows) if r is None)
-        exc.info["wall_time"] = time.perf_counter() - t0
-        if isinstance(exc, _Interrupted):
-            exc.info["interrupted"] = True
-        partial = SweepResult(settings=plan.settings, vary=plan.vary, runs=done, summary=summarize(done, keys),
-                              engine=exc.info, missing=missing)
-        if isinstance(exc, _Interrupted):  # Ctrl-C: a KeyboardInterrupt still, with the runs that finished
-            raise SweepInterrupted(f"interrupted: {len(done)} of {len(exc.rows)} runs finished, {len(missing)} did "
-                                   f"not", result=partial) from None
+    except TasksInterrupted as exc:  # Ctrl-C: a KeyboardInterrupt still, with the runs that finished
+        exc.info["interrupted"] = True
+        partial = whole(exc.results, exc.info)
+        raise SweepInterrupted(f"interrupted: {len(partial.runs)} of {total} runs finished, {len(partial.missing)} "
+                               f"did not", result=partial) from None
+    except _Unfinished as exc:  # the runs that finished, as a whole sweep's result with `missing`
+        partial = whole(exc.rows, exc.info)
+        missing = partial.missing
         shown = ", ".join(map(str, missing[:10])) + (", ..." if len(missing) > 10 else "")
-        raise SweepIncomplete(f"{exc}; {len(missing)} of {len(exc.rows)} runs did not finish (runs {shown}), "
-                              f"{len(done)} did", result=partial, field=exc.field) from None
-    info["wall_time"] = time.perf_counter() - t0
-    return SweepResult(settings=plan.settings, vary=plan.vary, runs=rows, summary=summarize(rows, keys), engine=info)
+        raise SweepIncomplete(f"{exc}; {len(missing)} of {total} runs did not finish (runs {shown}), "
+                              f"{len(partial.runs)} did", result=partial, field=exc.field) from None
+    return whole(rows, info)
+
+
+# --- resuming a sweep that did not finish -------------------------------------------------------------------
+
+#: The settings a sweep's JSON must hold to be resumed (:func:`resume`).
+_RESUME_SETTINGS = ("model", "controller", "plant", "reference", "duration", "seed", "grid", "points", "runs",
+                    "precision", "vary", "gearctl", "numerics", "files")
+
+
+def file_hashes(model: str | Path, controller: str | Path) -> dict[str, str]:
+    """SHA-256 of the model's and the controller's files (a catalog name's too), as a sweep's ``settings.files``
+    records them: a sweep resumed after either file changed would run other plants or another controller.
+
+    Parameters
+    ----------
+    model, controller : str or Path
+        Catalog names or TOML paths, as the sweep was given them.
+
+    Returns
+    -------
+    dict
+        ``{"model": hex digest, "controller": hex digest}``.
+    """
+    import hashlib
+
+    from .files import resolve
+
+    return {kind[:-1]: hashlib.sha256(resolve(name, kind).read_bytes()).hexdigest()
+            for kind, name in (("models", model), ("controllers", controller))}
+
+
+def _default(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def _as_json(obj: Any) -> Any:
+    """``obj`` as its JSON reads back (tuples as lists, numpy values as Python's, not-finite numbers as null, as
+    ``gearctl sweep --json`` writes them): what settings and draws are compared as."""
+    import json
+
+    def finite(o: Any) -> Any:
+        if isinstance(o, float):
+            return float(o) if math.isfinite(o) else None
+        if isinstance(o, dict):
+            return {str(k): finite(v) for k, v in o.items()}
+        if isinstance(o, list):
+            return [finite(v) for v in o]
+        return o
+
+    return finite(json.loads(json.dumps(obj, default=_default)))
+
+
+def _load_previous(previous: Any) -> tuple[dict[str, Any], str | None, SweepResult | None]:
+    """The previous sweep as its JSON dict, the file it came from (None: not a file) and the result (a
+    :class:`SweepResult` given)."""
+    import json
+    import os
+
+    if isinstance(previous, SweepResult):
+        return _as_json(previous.as_dict()), None, previous
+    if isinstance(previous, Mapping):
+        return dict(previous), None, None
+    if not isinstance(previous, str | os.PathLike):
+        raise InputError(f"previous = {type(previous).__name__}: expected a SweepResult, the dict of a sweep's JSON "
+                         f"or the path of a `gearctl sweep --json` file", field="resume")
+    path = str(previous)
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+    except OSError as exc:
+        raise InputError(f"--resume {path}: cannot read it: {exc.strerror or exc}", field="resume") from None
+    except UnicodeDecodeError:
+        raise InputError(f"--resume {path}: not a gearctl sweep's JSON (not text)", field="resume") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"--resume {path}: not a gearctl sweep's JSON (not JSON: {exc.msg} at line {exc.lineno})",
+                         field="resume") from None
+    return data, path, None
+
+
+def _refuse(what: str, why: str) -> InputError:
+    return InputError(f"{what}: {why}", field="resume")
+
+
+def resume(previous: SweepResult | Mapping[str, Any] | str | Path, *, workers: int | None = None,
+           scheduler: str | None = None, client: Any = None, engine: str = "dask", batch: int | None = None,
+           progress: Callable[[int, int], Any] | None = None) -> SweepResult:
+    """Finish a sweep that did not: rerun only its ``missing`` runs and return the whole sweep.
+
+    A sweep the cluster could not finish (:class:`SweepIncomplete`) or a Ctrl-C stopped (:class:`SweepInterrupted`)
+    hands over the runs finished and ``missing``, the indices of the others; ``gearctl sweep --json`` writes them.
+    Every setting (model, controller, plant, reference, duration, seed, grid, points, vary, precision) is the
+    previous sweep's: the sweep is planned again from them (the draws of run ``i`` depend on the seed, ``i`` and the
+    key alone, so run ``i`` is the very run it would have been), the reused runs' draws are checked against the plan,
+    and the missing runs are run. The result is the sweep a whole run would have given: runs in index order (the
+    same figures), the summary over all of them, ``missing`` empty or what still did not finish; its ``engine``
+    records this part and ``resumed`` ``{"from": file or None, "reused": n, "rerun": n, "previous": the previous
+    sweep's engine record}``.
+
+    Parameters
+    ----------
+    previous : SweepResult, dict, str or Path
+        The previous sweep: its result (``exc.result`` of the exception), the dict of its JSON, or the path of its
+        ``--json`` file.
+    workers, scheduler, client, engine, batch
+        As :func:`sweep` (how the runs are run, not what they are). ``batch``: default sized for the runs rerun.
+    progress : callable, optional
+        ``progress(done, total)`` after each batch, over the runs rerun.
+
+    Returns
+    -------
+    SweepResult
+
+    Raises
+    ------
+    SweepIncomplete, SweepInterrupted
+        As :func:`sweep`: their ``result`` holds the runs reused and those finished now, ``missing`` the others
+        (resume that in turn).
+    InputError
+        ``field`` ``resume``, one line naming what is wrong, before any run: not a sweep's JSON; a sweep of another
+        gearctl (``settings.gearctl``, its version and a hash of its code: the settings and figures could differ in
+        meaning; one written before sweeps recorded it) or other numerical libraries (``settings.numerics``); a
+        sweep with no ``missing`` runs; runs and ``missing`` that do not make up its runs; a model or controller
+        file changed since (``settings.files``, their SHA-256), or settings or draws that differ from the plan
+        made again from them. Else as :func:`sweep`.
+    """
+    t0 = time.perf_counter()
+    check_one_cluster(client, scheduler)
+    data, source, given = _load_previous(previous)
+    what = f"--resume {source}" if source is not None else "the previous sweep"
+    if not (isinstance(data, Mapping) and isinstance(data.get("settings"), Mapping)
+            and isinstance(data.get("runs"), list) and isinstance(data.get("engine"), Mapping)):
+        raise _refuse(what, "not a gearctl sweep's JSON (expected settings, engine, summary and runs, as `gearctl "
+                            "sweep --json` writes them)")
+    st = dict(data["settings"])
+    if "gearctl" not in st:
+        raise _refuse(what, "written by a gearctl that did not record its version and files (before sweeps could "
+                            "be resumed): run the whole sweep again")
+    lacking = [k for k in _RESUME_SETTINGS if k not in st]
+    if lacking:
+        raise _refuse(what, f"not a gearctl sweep's JSON: its settings lack {', '.join(lacking)}")
+    if st["gearctl"] != code_id():
+        raise _refuse(what, f"written by gearctl {st['gearctl']}, this is {code_id()} (version+code hash): its "
+                            f"settings and figures may not mean the same here; resume it with that gearctl, or run "
+                            f"the whole sweep again")
+    differ = ", ".join(f"{k} {v} (this process: {numerics_versions().get(k, 'not reported')})"
+                       for k, v in sorted(dict(st["numerics"]).items()) if numerics_versions().get(k) != v)
+    if differ:
+        raise _refuse(what, f"run on {differ}: the runs rerun here would differ in their last digits; resume it "
+                            f"where the sweep ran, or run the whole sweep again")
+    runs_n = st["runs"]
+    if not (type(runs_n) is int and isinstance(st["files"], Mapping) and isinstance(st["numerics"], Mapping)
+            and isinstance(st["vary"], Mapping)):
+        raise _refuse(what, "not a gearctl sweep's JSON: its settings runs, vary, numerics or files are not what "
+                            "`gearctl sweep --json` writes")
+    missing = data.get("missing")
+    if not missing:
+        raise _refuse(what, f"the sweep finished (no missing runs: all {runs_n} ran): nothing to resume")
+    done = [dict(r) for r in (given.runs if given is not None else data["runs"])]
+    ids = [r.get("index") if isinstance(r, Mapping) else None for r in done]
+    if not (isinstance(missing, list | tuple) and all(type(i) is int for i in (*missing, *ids))
+            and sorted([*missing, *ids]) == list(range(int(runs_n)))):
+        raise _refuse(what, f"its runs ({len(done)}) and missing ({len(missing) if isinstance(missing, list) else '?'})"
+                            f" do not make up its {runs_n} runs, each once")
+    try:
+        now = file_hashes(st["model"], st["controller"])
+    except InputError as exc:
+        raise _refuse(what, f"{exc}") from None
+    for kind in ("model", "controller"):
+        if dict(st["files"]).get(kind) != now[kind]:
+            raise _refuse(what, f"the {kind} file {st[kind]} changed since the sweep (its SHA-256 differs): the "
+                                f"runs rerun would not be the same {'plants' if kind == 'model' else 'controller'}; "
+                                f"run the whole sweep again")
+    try:
+        plan = plan_sweep(st["model"], st["controller"], vary=dict(st["vary"]), runs=st["points"], grid=st["grid"],
+                          reference_kind=st["reference"], duration=st["duration"], seed=st["seed"], plant=st["plant"],
+                          precision=st["precision"])
+    except InputError as exc:
+        raise _refuse(what, f"its settings are refused here: {exc}") from None
+    mine, theirs = _as_json(plan.settings), _as_json(st)
+    changed = [k for k in sorted(set(mine) | set(theirs)) if mine.get(k) != theirs.get(k)]
+    if changed:
+        raise _refuse(what, f"its settings differ from those planned again from them ({', '.join(changed)}): the "
+                            f"runs rerun would not be the sweep's; run the whole sweep again")
+    jobs = {job[0]: job for job in plan.jobs}
+    factors = set(st.get("factors") or ())
+    for r in done:
+        job = jobs[r["index"]]
+        if _as_json([r.get("params"), r.get("seed")]) != _as_json([job[1], job[2]]):
+            raise _refuse(what, f"run {r['index']}'s draws ({r.get('params')}, seed {r.get('seed')}) differ from "
+                                f"those planned again ({job[1]}, seed {job[2]}): run the whole sweep again")
+        if given is None:  # read back from JSON: a factor of each stage's value is a Scale again, as the run's own
+            r["params"] = {k: Scale(v) if k in factors else v for k, v in r["params"].items()}
+    if batch is not None:
+        SWEEP_RUNS.check("batch", batch)
+    todo = sorted(missing)
+    record = {"resumed": {"from": source, "reused": len(done), "rerun": len(todo), "previous": dict(data["engine"])}}
+    return _execute(dataclasses.replace(plan, jobs=[jobs[i] for i in todo]), t0=t0, engine=engine, workers=workers,
+                    scheduler=scheduler, client=client, batch=batch, progress=progress, before=done, record=record)
 
 
 def sweep_perf(controllers: Sequence[str] = ("pid", "deadzone_inverse", "mpc"), *, runs: int = 200,

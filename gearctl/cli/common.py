@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import errno
 import json
@@ -24,7 +25,7 @@ from ..units import POINTS, Spec
 __all__ = ["spec_arg", "positive_float", "positive_quantity", "finite_float", "nonnegative_float", "dump_json",
            "write_csv_stream", "say_written", "save_figure", "progress_bar", "warn", "POINTS", "OMEGA", "TORQUE",
            "TARGETS", "CYCLES", "STAGE", "JOBS", "WHOLE", "write_whole", "iter_json", "write_json", "earlier_plots",
-           "remove_earlier_plots", "dropped_notes", "quiet_unawaited_coroutines"]
+           "remove_earlier_plots", "dropped_notes", "quiet_unawaited_coroutines", "sigterm_as_ctrl_c"]
 
 #: command-line quantities not in a model file (POINTS is the schema's: the Python API checks the same range)
 OMEGA = Spec(unit="rad/s", doc="initial shaft speed", low=-1e5, high=1e5)
@@ -725,6 +726,29 @@ def quiet_unawaited_coroutines() -> None:
     interrupt the user asked for.
     """
     warnings.filterwarnings("ignore", message=r"coroutine '.*' was never awaited", category=RuntimeWarning)
+
+
+@contextlib.contextmanager
+def sigterm_as_ctrl_c() -> Iterator[None]:
+    """While a Dask command runs (sweep, bench), a SIGTERM (``kill PID``; a batch system at the end of a job's time) is
+    taken as a Ctrl-C: the process sends itself SIGINT, so the runs finished are handed over and the cluster closed as
+    for a Ctrl-C (held while the local cluster starts or closes). Before, it ended the sweep at once with nothing
+    written. From the main thread only (where Python handles signals), and only where SIGINT is not ignored (a
+    background job of a non-interactive shell ignores it: a SIGTERM turned into it would be lost, and the command
+    unkillable but by SIGKILL); the previous handler is put back after."""
+    import os
+    import signal
+    import threading
+
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, None)):
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: os.kill(os.getpid(), signal.SIGINT))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def dropped_notes(dropped: Iterable[Mapping[str, Any]]) -> list[str]:

@@ -30,6 +30,7 @@ from .common import (
     save_figure,
     say_written,
     separated_past_flank,
+    sigterm_as_ctrl_c,
     spec_arg,
     unused_estimate,
     warn,
@@ -256,7 +257,8 @@ def _refuse_models_among_controllers(names: list[str]) -> None:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from ..bench import BenchSpec, bench_notes, bench_table, bench_warnings, error_traces, run_bench
+    from .. import bench as benches
+    from ..bench import BenchInterrupted, BenchSpec, bench_notes, bench_table, bench_warnings, error_traces
     from ..parallel import env_scheduler
 
     quiet_unawaited_coroutines()  # what a Ctrl-C leaves of Dask's requests (see there)
@@ -299,8 +301,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             bar.update(done - bar.n)
 
     t0 = time.perf_counter()
+    interrupted: BenchInterrupted | None = None
     try:
-        result = run_bench(spec, jobs=args.jobs, progress=progress, runs=runs, scheduler=args.scheduler)
+        with sigterm_as_ctrl_c():  # a SIGTERM (kill, a batch system's end of time) as a Ctrl-C, as the sweep's
+            result = benches.run_bench(spec, jobs=args.jobs, progress=progress, runs=runs, scheduler=args.scheduler)
+    except BenchInterrupted as exc:  # Ctrl-C: the cells that finished are written as a whole bench's are, then one
+        interrupted, result = exc, exc.result  # line and exit 130 (a second Ctrl-C while writing ends it at once)
     finally:
         if bar is not None:
             bar.close()
@@ -312,6 +318,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     # the processes the runs had: never more than the runs (bench --jobs 256 with 2 runs started 2)
     result["jobs"] = None if where else local_processes(result["tasks"], args.jobs)
     text = bench_table(result)
+    # (interrupted: the runs that finished of those asked for; the ISO rows are not counted, as before)
+    ran = f"{len(result['runs'])} of {n}" if interrupted is not None else str(n)
     notes, warnings = bench_notes(result), bench_warnings(result)
     notes = dropped_notes(result.get("dropped", ())) + notes  # as the sweep says it (and in report.md's notes)
     from ..catalog import load_model
@@ -344,7 +352,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             save_figure(plot_bench_errors(traces, reference=ref), str(out / f"errors_{ref}.png"))
         save_figure(plot_bench_bars(result), str(out / "rms_by_controller.png"))
         on = where or f"{result['jobs']} process(es)"
-        md = ["# gearctl bench", "", f"{n} runs, {wall:.1f} s on {on}; models "
+        md = ["# gearctl bench", "", f"{ran} runs, {wall:.1f} s on {on}; models "
               f"{', '.join(spec.models)}; plants {', '.join(spec.plants)} and the backlash-free limit.", "",
               bench_table(result, markdown=True)]
         # what the command says on standard error belongs to the figures: a report without it showed runs that no
@@ -354,16 +362,27 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                 md += [f"## {title}", "", *(f"- {w}" for w in items), ""]
         md += ["![RMS error by controller and plant](rms_by_controller.png)", ""]
         md += [f"![errors, {ref}](errors_{ref}.png)" for ref in spec.references]
-        try:
-            (out / "report.md").write_text("\n".join(md) + "\n")
+        try:  # whole or not at all (a Ctrl-C while it is written)
+            write_whole(out / "report.md", "\n".join(md) + "\n")
         except OSError as exc:
             raise InputError(f"cannot write {out / 'report.md'}: {exc.strerror}") from None
         wrote.append(f"wrote {out}/report.md and plots")
         gone = remove_earlier_plots(out, earlier, ["rms_by_controller.png",
                                                    *(f"errors_{ref}.png" for ref in spec.references)])
     print(text, end="", file=tables)
-    print(f"{n} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
+    print(f"{ran} runs in {wall:.1f} s " + (f"on the Dask cluster at {where}" if where else
                                           f"on {result['jobs']} process(es)"), file=tables)
+    if interrupted is not None:  # the files and the tables of what finished, then the one line (as the sweep's)
+        warn("bench", dropped_notes(result.get("dropped", ())), kind="note")
+        if to_stdout:
+            tables.flush()
+            print(dump_json(result))
+        sys.stdout.flush()
+        named = [f"--json {args.json}" if args.json and not to_stdout else "", f"--out {args.out}" if args.out else "",
+                 "the JSON on standard output" if to_stdout else ""]
+        there = " and ".join(filter(None, named)) or "the tables above (no --json or --out given)"
+        print(f"gearctl bench: {interrupted}; the finished runs are in {there}", file=sys.stderr)
+        return 130
     warn("bench", notes, kind="note")
     warn("bench", warnings)
     if gone:

@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import csv
 import os
-import signal
 import sys
-import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +20,7 @@ from .common import (
     quiet_unawaited_coroutines,
     remove_earlier_plots,
     save_figure,
+    sigterm_as_ctrl_c,
     spec_arg,
     warn,
     write_json,
@@ -70,6 +68,10 @@ def _text(result: Any) -> list[str]:
              f"{eng['wall_time']:.1f} s"]
     for v in result.vary:
         lines.append(f"  varied                 {v.describe()}")
+    if eng.get("resumed"):
+        res = eng["resumed"]
+        lines.append(f"  resumed                from {res['from'] or 'a previous sweep'}: {res['reused']} runs reused, "
+                     f"{res['rerun']} rerun")
     if result.missing:
         why = "interrupted" if eng.get("interrupted") else "the cluster failed"
         lines.append(f"  missing                {len(result.missing)} of {st['runs']} runs did not finish ({why}): "
@@ -186,31 +188,46 @@ def _write_out(result: Any, out: Path) -> list[str]:
     return remove_earlier_plots(out, earlier, [name for name, _ in plots])
 
 
-@contextlib.contextmanager
-def _sigterm_as_ctrl_c() -> Iterator[None]:
-    """While the sweep runs, a SIGTERM (``kill PID``; a batch system at the end of a job's time) is taken as a
-    Ctrl-C: the process sends itself SIGINT, so the runs finished are handed over and the cluster closed as for a
-    Ctrl-C (held while the local cluster starts or closes). Before, it ended the sweep at once with nothing written.
-    From the main thread only (where Python handles signals), and only where SIGINT is not ignored (a background
-    job of a non-interactive shell ignores it: a SIGTERM turned into it would be lost, and the sweep unkillable but
-    by SIGKILL); the previous handler is put back after."""
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, None)):
-        yield
-        return
-    previous = signal.signal(signal.SIGTERM, lambda signum, frame: os.kill(os.getpid(), signal.SIGINT))
+#: The options that set what a sweep's runs are: a resumed sweep (--resume) takes them all from its JSON.
+_SETTINGS_FLAGS = (("model", "MODEL"), ("controller", "CONTROLLER"), ("vary", "--vary"), ("runs", "--runs"),
+                   ("grid", "--grid"), ("plant", "--plant"), ("reference", "--reference"), ("duration", "--duration"),
+                   ("seed", "--seed"), ("precision", "--precision"))
+#: Their defaults (None in the parser, so that one given with --resume is seen).
+_DEFAULTS = {"model": "shing1993_servo", "controller": "deadzone_inverse", "plant": "improved", "reference": "sine",
+             "seed": 0}
+
+
+def _resumed_keys(path: str) -> list[str]:
+    """The varied keys of the sweep ``path`` holds, for the --out check before the runs (none where it cannot be
+    read: :func:`gearctl.sweep.resume` then says what is wrong with it)."""
+    import json
+
     try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+        with open(path, encoding="utf-8") as fh:
+            vary = json.load(fh)["settings"]["vary"]
+        return [str(k) for k in vary]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     import logging
 
-    from ..sweep import SweepIncomplete, SweepInterrupted, sweep
+    from .. import sweep as sweeps
+    from ..sweep import SweepIncomplete, SweepInterrupted
 
     quiet_unawaited_coroutines()  # what a Ctrl-C leaves of Dask's requests (see there)
+    if args.resume is not None:  # every setting is the previous sweep's: one given here would change the runs
+        given = [flag for key, flag in _SETTINGS_FLAGS  # (is: --seed 0 is given, and 0 == False)
+                 if getattr(args, key) is not None and getattr(args, key) is not False]
+        if given:
+            raise InputError(f"--resume {args.resume} and {', '.join(given)}: a resumed sweep takes every setting "
+                             f"from the previous sweep's JSON (another would change what its runs are); give only "
+                             f"--workers, --scheduler, --batch, --json, --out and --quiet", field="resume")
+    else:
+        for key, value in _DEFAULTS.items():
+            if getattr(args, key) is None:
+                setattr(args, key, value)
     if (args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")) and args.workers:
         warn("sweep", ["--workers sizes the local cluster; with --scheduler (or DASK_SCHEDULER_ADDRESS) the "
                        "cluster's own workers run the sweep"])
@@ -219,16 +236,19 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     from ..plant import build_plant
     from ..runs import DEFAULT_DURATION
 
-    # a run that would not fit in memory is refused before the sweep, not reported as every run failed (here at the
-    # catalog's 1 ms loop, before the controller is read; plan_sweep checks again at the controller's sample time)
-    dur = args.duration if args.duration is not None else DEFAULT_DURATION[args.reference]
-    check_loop_memory(build_plant(load_model(args.model)), dur)
+    if args.resume is None:
+        # a run that would not fit in memory is refused before the sweep, not reported as every run failed (here at
+        # the catalog's 1 ms loop, before the controller is read; plan_sweep checks again at the controller's sample
+        # time)
+        dur = args.duration if args.duration is not None else DEFAULT_DURATION[args.reference]
+        check_loop_memory(build_plant(load_model(args.model)), dur)
     # where the results go is checked before the runs: a sweep of hours must not end unable to write them
     to_stdout = args.json == "-"  # the JSON on standard output, the summary then on standard error
     if args.json and not to_stdout:
         check_writable(args.json, key="json")
     if args.out:
-        keys = [text.partition("=")[0].strip() for text in args.vary or ()]
+        keys = ([text.partition("=")[0].strip() for text in args.vary or ()] if args.resume is None
+                else _resumed_keys(args.resume))
         check_writable(args.out, directory=True, key="out", files=["runs.csv", "summary.md", "histogram.png", "map.png",
                                                                      *(f"error_vs_{k}.png" for k in keys)])
     bar: Any = None
@@ -258,11 +278,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         lg.setLevel(logging.CRITICAL + 1)
     unfinished: SweepIncomplete | SweepInterrupted | None = None
     try:
-        with _sigterm_as_ctrl_c():
-            result = sweep(args.model, args.controller, vary=args.vary or [], runs=args.runs, grid=args.grid,
-                           reference_kind=args.reference, duration=args.duration, seed=args.seed, plant=args.plant,
-                           precision=args.precision, workers=args.workers, scheduler=args.scheduler,
-                           batch=args.batch, progress=progress)
+        with sigterm_as_ctrl_c():
+            if args.resume is not None:
+                result = sweeps.resume(args.resume, workers=args.workers, scheduler=args.scheduler, batch=args.batch,
+                                       progress=progress)
+            else:
+                result = sweeps.sweep(args.model, args.controller, vary=args.vary or [], runs=args.runs,
+                                      grid=args.grid, reference_kind=args.reference, duration=args.duration,
+                                      seed=args.seed, plant=args.plant, precision=args.precision,
+                                      workers=args.workers, scheduler=args.scheduler, batch=args.batch,
+                                      progress=progress)
     except (SweepIncomplete, SweepInterrupted) as exc:  # the cluster failed mid-sweep, or Ctrl-C: what finished is
         unfinished, result = exc, exc.result           # written as a whole sweep's is (a second Ctrl-C ends it)
     finally:
@@ -298,8 +323,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         raise InputError(f"{unfinished}; the finished runs are in {where}", field=unfinished.field)
     design = result.settings.get("design", {})
     warn("sweep", [f"{design.get('name')}: {n}" for n in design.get("design_notes", ())], kind="note")
-    warn("sweep", yang_sun_notes(load_model(args.model), args.plant), kind="note")
-    if not args.vary:
+    warn("sweep", yang_sun_notes(load_model(result.settings["model"]), result.settings["plant"]), kind="note")
+    if not result.settings["vary"]:
         warn("sweep", ["nothing varied (no --vary): every run is the nominal plant, the runs differ only in their "
                        "sensor-noise seeds"], kind="note")
     summary = sys.stderr if to_stdout else sys.stdout
@@ -335,22 +360,22 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     """
     p = sub.add_parser("sweep", help="robustness sweep: one design against many perturbed plants (Dask)",
                        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("model", nargs="?", default="shing1993_servo", help="model (default shing1993_servo)")
-    p.add_argument("controller", nargs="?", default="deadzone_inverse",
-                   help="controller: catalog name or TOML path (default deadzone_inverse)")
+    # (the settings' defaults are None here, filled in by _cmd_sweep: one given with --resume is refused)
+    p.add_argument("model", nargs="?", help="model (default shing1993_servo)")
+    p.add_argument("controller", nargs="?", help="controller: catalog name or TOML path (default deadzone_inverse)")
     p.add_argument("--vary", action="append", metavar="KEY=SPEC",
                    help="a key and its tolerance (repeat for more); on a train a stage key sets every stage, "
                         "stageN.KEY (e.g. stage2.backlash=0.5x:2x) stage N's alone")
     p.add_argument("--runs", type=spec_arg(_COUNT), help="Monte Carlo runs (default 100); with --grid, points per "
                                                          "range (default 5; 1: its midpoint)")
     p.add_argument("--grid", action="store_true", help="a full grid over the keys instead of Monte Carlo draws")
-    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"), default="improved",
+    p.add_argument("--plant", choices=("improved", "yang-sun", "tvms"),
                    help="true plant (default improved; the design is on the improved plant)")
-    p.add_argument("--reference", choices=("sine", "step", "ramp", "move"), default="sine",
+    p.add_argument("--reference", choices=("sine", "step", "ramp", "move"),
                    help="reference (default sine)")
     p.add_argument("--duration", type=spec_arg(DURATION), help="simulated time of each run [s] (default per "
                                                                "reference: sine 3 s, step 2 s, ramp 1.5 s, move 1 s)")
-    p.add_argument("--seed", type=spec_arg(SEED), default=0, help="seed of the draws and the sensor noise (default 0)")
+    p.add_argument("--seed", type=spec_arg(SEED), help="seed of the draws and the sensor noise (default 0)")
     p.add_argument("--workers", "--jobs", dest="workers", type=spec_arg(JOBS),
                    help="processes of the local cluster (default: all cores; --jobs as in bench)")
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -363,4 +388,8 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
                                                   "output; the summary then goes to standard error)")
     p.add_argument("--out", metavar="DIR", help="write runs.csv, plots and summary.md")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--resume", metavar="PREVIOUS.json",
+                   help="rerun only the runs a sweep did not finish (its --json: interrupted, or the cluster failed), "
+                        "every setting taken from it, and write the whole sweep (with --json, --out); MODEL, "
+                        "CONTROLLER and the options that set the runs are refused with it")
     return {"sweep": _cmd_sweep}
