@@ -20,12 +20,14 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
+import numpy as np
+
 from .errors import InputError, short_repr
 from .units import describe_range
 
 __all__ = ["catalog_dirs", "catalog_names", "resolve", "read_toml", "toml_value", "toml_dumps", "build_dataclass",
            "check_source",
-           "Binding", "MAX_FILE_BYTES", "spec_values", "table_values", "Layout"]
+           "Binding", "MAX_FILE_BYTES", "spec_values", "table_values", "Layout", "json_ready"]
 
 _PKG = Path(__file__).resolve().parent
 
@@ -513,6 +515,50 @@ def _descriptor_link(path: Path) -> bool:
             return False
         path = path.absolute().parent / os.readlink(path)
     return False
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    if hasattr(obj, "as_dict"):
+        return obj.as_dict()
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def json_ready(o: Any) -> Any:
+    """``o`` as the values ``json`` writes as they are: numpy arrays and scalars as lists and Python numbers, paths
+    as strings, objects with ``as_dict`` as their dict, tuples as lists, inf and nan as None (JSON has no inf/nan:
+    null); dict keys are left to ``json``. What every ``--json`` of the command line writes, and what a sweep's
+    settings read back from one are compared as.
+
+    Parameters
+    ----------
+    o : object
+        Dicts, lists, tuples, numbers, strings, numpy arrays and scalars, paths, objects with ``as_dict``.
+
+    Returns
+    -------
+    object
+        A new object of dicts, lists, strings, ints, floats, bools and None.
+
+    Raises
+    ------
+    TypeError
+        Anything else.
+    """
+    if isinstance(o, str | int) or o is None:  # bool is an int
+        return o
+    if isinstance(o, float):
+        return o if math.isfinite(o) else None
+    if isinstance(o, dict):
+        return {k: json_ready(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [json_ready(v) for v in o]
+    return json_ready(_json_default(o))
 
 
 def write_whole(path: str | Path, write: str | Callable[[TextIO], Any], *,

@@ -72,6 +72,7 @@ from .catalog import load_model
 from .closedloop import check_loop_duration, check_loop_memory, loop_bytes
 from .errors import GearctlError, InputError
 from .export.batch import BATCH_KINDS, run_compiled
+from .files import json_ready
 from .model import GearModel
 from .overrides import (
     FILE_NAMES,
@@ -1542,31 +1543,12 @@ def file_hashes(model: str | Path, controller: str | Path) -> dict[str, str]:
             for kind, name in (("models", model), ("controllers", controller))}
 
 
-def _default(o: Any) -> Any:
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-
 def _as_json(obj: Any) -> Any:
-    """``obj`` as its JSON reads back (tuples as lists, numpy values as Python's, not-finite numbers as null, as
-    ``gearctl sweep --json`` writes them): what settings and draws are compared as."""
+    """``obj`` as its JSON reads back (as ``gearctl sweep --json`` writes it, dict keys as strings): what settings
+    and draws are compared as."""
     import json
 
-    def finite(o: Any) -> Any:
-        if isinstance(o, float):
-            return float(o) if math.isfinite(o) else None
-        if isinstance(o, dict):
-            return {str(k): finite(v) for k, v in o.items()}
-        if isinstance(o, list):
-            return [finite(v) for v in o]
-        return o
-
-    return finite(json.loads(json.dumps(obj, default=_default)))
+    return json.loads(json.dumps(json_ready(obj)))
 
 
 def _load_previous(previous: Any) -> tuple[dict[str, Any], str | None, SweepResult | None]:

@@ -981,7 +981,9 @@ def test_the_json_of_a_large_sweep_is_written_without_copies(tmp_path: Path, mon
 
 
 def test_dump_json_writes_what_it_wrote_before() -> None:
-    from gearctl.cli.common import _json_default, _plain, dump_json, iter_json
+    from gearctl.cli.common import dump_json, iter_json
+    from gearctl.files import _json_default
+    from gearctl.files import json_ready as _plain
 
     class WithDict:
         def as_dict(self) -> dict:

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
-from ..files import write_whole
+from ..files import json_ready, write_whole
 from ..units import POINTS, Spec
 
 __all__ = ["spec_arg", "positive_float", "positive_quantity", "finite_float", "nonnegative_float", "dump_json",
@@ -201,32 +201,6 @@ def nonnegative_float(text: str) -> float:
     return v
 
 
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    if hasattr(obj, "as_dict"):
-        return obj.as_dict()
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
-def _plain(o: Any) -> Any:
-    """``o`` as the values ``json`` writes as they are (what ``json.dumps`` with :func:`_json_default` reads), inf and
-    nan as None (JSON has no inf/nan: null); dict keys are left to ``json``, as they were."""
-    if isinstance(o, str | int) or o is None:  # bool is an int
-        return o
-    if isinstance(o, float):
-        return o if math.isfinite(o) else None
-    if isinstance(o, dict):
-        return {k: _plain(v) for k, v in o.items()}
-    if isinstance(o, list | tuple):
-        return [_plain(v) for v in o]
-    return _plain(_json_default(o))
-
-
 def dump_json(obj: Any) -> str:
     """``obj`` as indented JSON (numpy values, dataclasses with ``as_dict``, inf/nan as null).
 
@@ -244,8 +218,8 @@ def dump_json(obj: Any) -> str:
 
 def iter_json(obj: Any) -> Iterator[str]:
     """:func:`dump_json`'s text in pieces, for :func:`write_json`. The object is made JSON-ready in one copy
-    (:func:`_plain`); ``dump_json`` was ``json.dumps`` of ``json.loads`` of ``json.dumps`` (three copies and the
-    text): writing a sweep's ``--json`` took 6.1 kB a run over the results' 1.5 kB, past the 4 kB a run
+    (:func:`gearctl.files.json_ready`); ``dump_json`` was ``json.dumps`` of ``json.loads`` of ``json.dumps`` (three
+    copies and the text): writing a sweep's ``--json`` took 6.1 kB a run over the results' 1.5 kB, past the 4 kB a run
     (``gearctl.sweep.ROW_BYTES``) its memory check allows for.
 
     Parameters
@@ -258,7 +232,7 @@ def iter_json(obj: Any) -> Iterator[str]:
     str
         Pieces of the text.
     """
-    return json.JSONEncoder(indent=2).iterencode(_plain(obj))
+    return json.JSONEncoder(indent=2).iterencode(json_ready(obj))
 
 
 def write_json(fh: Any, obj: Any) -> None:
