@@ -125,3 +125,44 @@ def within(seconds: float, fn: Callable[[], Any]) -> Any:
     t.join(seconds)
     assert not t.is_alive(), f"still waiting after {seconds:g} s"
     return box["out"]
+
+
+def as_json(obj: Any) -> Any:
+    """``obj`` as the CLI's ``--json`` writes it, read back (floats exact: repr round-trips)."""
+    from gearctl.cli.common import dump_json
+
+    return json.loads(dump_json(obj))
+
+
+def checkout_env() -> dict[str, str]:
+    """The environment with this checkout first on ``PYTHONPATH``: a child process imports the gearctl under test,
+    not an installed copy."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(gearctl.__file__).parents[1]),
+                                                                       os.environ.get("PYTHONPATH")]))}
+
+
+def signal_when_marked(argv: list[str], mark: Path, cwd: Path, sig: int = signal.SIGINT,
+                       second: float | None = None) -> tuple[int, str, str, float, int]:
+    """Run ``argv`` in a session of its own (this checkout's gearctl); once the file ``mark`` exists, ``sig`` to its
+    whole group (as a terminal's Ctrl-C; again, as SIGINT, ``second`` s later). Its exit code, stdout, stderr, the
+    seconds it took to end after the signal, and its session id."""
+    p = subprocess.Popen(argv, cwd=cwd, env=checkout_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not mark.exists() and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert mark.exists(), p.communicate(timeout=30)
+        t0 = time.monotonic()
+        os.killpg(p.pid, sig)
+        if second is not None:
+            time.sleep(second)
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGINT)
+        out, err = p.communicate(timeout=60)
+        took = time.monotonic() - t0
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(p.pid, signal.SIGKILL)
+        p.wait(timeout=30)
+    return p.returncode, out, err, took, p.pid

@@ -12,15 +12,13 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import os
 import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 import pytest
+from support import signal_when_marked
 
 import gearctl
 import gearctl.bench
@@ -171,36 +169,15 @@ sys.exit(main(sys.argv[2:]))
 """
 
 
-def _env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(gearctl.__file__).parents[1]),
-                                                                       os.environ.get("PYTHONPATH")]))}
-
-
 def _signal_after_two_runs(tmp_path: Path, jobs: str, sig: int, second: float | None = None) -> tuple[int, str, str]:
     """The bench (9 runs of 40 s: about 3 s in one process) in a session of its own; ``sig`` to its whole group once
     2 runs are in (again, as SIGINT, ``second`` s later)."""
     mark = tmp_path / "two.txt"
-    p = subprocess.Popen([sys.executable, "-c", _CHILD, str(mark), "bench", "shing1993_servo", "--controllers", "pid",
-                          "--plants", "improved,tvms", "--references", "sine,move,step", "--duration", "40",
-                          "--no-precision", "--jobs", jobs, "--quiet", "--json", str(tmp_path / "b.json"), "--out",
-                          str(tmp_path / "o")], cwd=tmp_path, env=_env(), stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
-        deadline = time.monotonic() + 60
-        while not mark.exists() and p.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.02)
-        assert mark.exists(), p.communicate(timeout=30)
-        os.killpg(p.pid, sig)
-        if second is not None:
-            time.sleep(second)
-            if p.poll() is None:
-                os.killpg(p.pid, signal.SIGINT)
-        out, err = p.communicate(timeout=60)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(p.pid, signal.SIGKILL)
-        p.wait(timeout=30)
-    return p.returncode, out, err
+    rc, out, err, _, _ = signal_when_marked(
+        [sys.executable, "-c", _CHILD, str(mark), "bench", "shing1993_servo", "--controllers", "pid", "--plants",
+         "improved,tvms", "--references", "sine,move,step", "--duration", "40", "--no-precision", "--jobs", jobs,
+         "--quiet", "--json", str(tmp_path / "b.json"), "--out", str(tmp_path / "o")], mark, tmp_path, sig, second)
+    return rc, out, err
 
 
 def _check_handed_over(tmp_path: Path, rc: int, out: str, err: str) -> dict[str, Any]:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from support import as_json
 
 import gearctl
 import gearctl.sweep
@@ -25,14 +26,6 @@ _ARGS = {"vary": ["backlash=0.5x:2x"], "runs": 6, "duration": 0.2}
 _GONE = [1, 4]
 
 
-def _as_json(obj: Any) -> Any:
-    from gearctl.cli.common import write_json
-
-    buf = io.StringIO()
-    write_json(buf, obj)
-    return json.loads(buf.getvalue())
-
-
 @pytest.fixture(scope="module")
 def whole() -> gearctl.sweep.SweepResult:
     return gearctl.sweep.sweep("shing1993_servo", "pid", engine="serial", **_ARGS)
@@ -40,7 +33,7 @@ def whole() -> gearctl.sweep.SweepResult:
 
 def _previous(whole: gearctl.sweep.SweepResult, gone: list[int] = _GONE) -> dict[str, Any]:
     """The whole sweep's JSON edited as if the runs ``gone`` had not finished (an interrupted sweep's)."""
-    data = _as_json(whole.as_dict())
+    data = as_json(whole.as_dict())
     data["runs"] = [r for r in data["runs"] if r["index"] not in gone]
     data["missing"] = list(gone)
     data["engine"]["interrupted"] = True
@@ -53,7 +46,7 @@ def _write(path: Path, data: dict[str, Any]) -> Path:
 
 
 def _same_sweep(resumed: Any, whole: Any) -> None:
-    a, b = _as_json(resumed), _as_json(whole)
+    a, b = as_json(resumed), as_json(whole)
     assert [r["index"] for r in a["runs"]] == list(range(len(b["runs"])))
     assert a["runs"] == b["runs"]  # the figures of every run, to the last bit, and their commands
     assert a["summary"] == b["summary"] and a["settings"] == b["settings"]
@@ -81,7 +74,7 @@ def test_the_draws_are_seeded_per_run_so_a_rerun_is_the_run_it_would_have_been(
     plan = gearctl.sweep.plan_sweep("shing1993_servo", "pid", **_ARGS)
     assert [(j[1], j[2]) for j in plan.jobs] == [(r["params"], r["seed"]) for r in whole.runs]
     alone = gearctl.sweep.sweep_task(plan.context, [plan.jobs[i] for i in _GONE])
-    assert _as_json(alone) == _as_json([whole.runs[i] for i in _GONE])
+    assert as_json(alone) == as_json([whole.runs[i] for i in _GONE])
 
 
 def test_resume_takes_the_result_of_an_interrupted_sweep_and_resumes_again(
@@ -115,7 +108,7 @@ def test_what_cannot_be_resumed_is_refused_in_one_line(tmp_path: Path, whole: ge
     assert "cannot read it: No such file or directory" in _refusal(tmp_path / "none.json")
     assert "not a gearctl sweep's JSON (expected settings, engine, summary and runs" in _refusal(
         _write(tmp_path / "bench.json", {"spec": {}, "runs": [], "precision": []}))
-    finished = _as_json(whole.as_dict())
+    finished = as_json(whole.as_dict())
     assert "the sweep finished (no missing runs: all 6 ran): nothing to resume" in _refusal(finished)
     other = _previous(whole)
     other["settings"]["gearctl"] = "0.0.9+0123456789ab"
@@ -141,7 +134,7 @@ def test_a_model_file_changed_since_the_sweep_is_refused(tmp_path: Path) -> None
     model = tmp_path / "servo.toml"
     shutil.copy(Path(gearctl.__file__).parents[1] / "models" / "shing1993_servo.toml", model)
     part = gearctl.sweep.sweep(str(model), "pid", engine="serial", vary=["backlash=0.5x:2x"], runs=2, duration=0.1)
-    prev = _as_json(part.as_dict())
+    prev = as_json(part.as_dict())
     assert set(prev["settings"]["files"]) == {"model", "controller"}
     prev["runs"], prev["missing"] = prev["runs"][:1], [1]
     gearctl.sweep.resume(prev, engine="serial")  # unchanged: resumed
@@ -186,7 +179,7 @@ def test_sweep_resume_refuses_the_options_that_set_the_runs(tmp_path: Path, whol
 
 def test_sweep_resume_of_a_finished_sweep_is_one_line_and_exit_2(tmp_path: Path,
                                                                  whole: gearctl.sweep.SweepResult) -> None:
-    prev = _write(tmp_path / "whole.json", _as_json(whole.as_dict()))
+    prev = _write(tmp_path / "whole.json", as_json(whole.as_dict()))
     rc, out, err = _cli(["sweep", "--resume", str(prev), "--quiet"])
     assert rc == 2 and out == ""
     assert err == (f"gearctl sweep: error: --resume {prev}: the sweep finished (no missing runs: all 6 ran): nothing "
@@ -198,7 +191,7 @@ def test_a_trains_factors_read_back_from_json_are_factors_again() -> None:
     # JSON they are plain numbers, and the runs.csv column of a resumed sweep must still be `backlash_factor`
     part = gearctl.sweep.sweep("servo_3stage_quanser_srv02", "pid", vary=["backlash=0.5x:2x"], runs=3, duration=0.1,
                                engine="serial")
-    prev = _as_json(part.as_dict())
+    prev = as_json(part.as_dict())
     prev["runs"], prev["missing"] = prev["runs"][:1], [1, 2]
     r = gearctl.sweep.resume(prev, engine="serial")
     assert all(isinstance(x["params"]["backlash"], gearctl.sweep.Scale) for x in r.runs)

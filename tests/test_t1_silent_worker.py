@@ -24,26 +24,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from support import subprocess_cluster
+from support import as_json, subprocess_cluster
 from support import within as _within
 
 import gearctl.parallel
 import gearctl.sweep
 from gearctl.cli import main
-from gearctl.cli.common import write_json
 
 _ARGS = {"vary": ["backlash=0.5x:2x"], "runs": 24, "duration": 0.5, "batch": 1}
 _CLI = ["sweep", "shing1993_servo", "pid", "--vary", "backlash=0.5x:2x", "--runs", "24", "--duration", "0.5",
         "--batch", "1", "--quiet"]
 
 
-
-
-def _as_json(obj: Any) -> Any:
-    """``obj`` as the CLI writes it, read back (floats exact: repr round-trips)."""
-    buf = io.StringIO()
-    write_json(buf, obj)
-    return json.loads(buf.getvalue())
 
 
 def _names(address: str) -> dict[str, str]:
@@ -96,7 +88,7 @@ def test_a_stopped_worker_is_dropped_and_the_sweep_ends_as_a_serial_run(
                                                    f"for 3 s holding "), err.getvalue()
     assert notes[0].endswith("task(s): dropped from the scheduler (removed), its tasks rerun on the other workers")
     got = json.loads(out.read_text())
-    want = _as_json(serial.as_dict())
+    want = as_json(serial.as_dict())
     assert got["runs"] == want["runs"]
     assert got["summary"] == want["summary"]
     assert "missing" not in got
@@ -152,7 +144,7 @@ def test_a_stopped_worker_under_a_nanny_is_restarted_by_it(
     assert r.engine["dropped"] == [{"worker": stopped, "tasks": r.engine["dropped"][0]["tasks"], "restarted": True}]
     assert names == ["n0", "w0"]  # a fresh n0 in place of the stopped one, which its nanny ended
     assert not psutil.pid_exists(worker_pid) or psutil.Process(worker_pid).status() == psutil.STATUS_ZOMBIE
-    assert _as_json(r.runs) == _as_json(serial.runs)
+    assert as_json(r.runs) == as_json(serial.runs)
 
 
 @pytest.mark.slow
@@ -178,7 +170,7 @@ def test_a_worker_stopped_and_resumed_within_the_timeout_is_not_dropped(
     assert not isinstance(r, BaseException), r
     assert getattr(stop, "stopped", False)
     assert "dropped" not in r.engine and left == 2
-    assert _as_json(r.runs) == _as_json(serial.runs)
+    assert as_json(r.runs) == as_json(serial.runs)
 
 
 @pytest.mark.slow
@@ -203,11 +195,11 @@ def test_a_lone_stopped_worker_hands_over_the_runs_finished(
                 rc = _within(40, lambda: main([*_CLI, "--scheduler", address, "--json", str(out)]))
         with contextlib.suppress(ProcessLookupError):
             os.killpg(procs[1].pid, signal.SIGCONT)
-    want = {r["index"]: r for r in _as_json(serial.runs)}
+    want = {r["index"]: r for r in as_json(serial.runs)}
     if via == "api":
         assert isinstance(got, gearctl.sweep.SweepIncomplete), got
         assert isinstance(got, gearctl.InputError) and got.field == "scheduler"
-        msg, data = str(got), _as_json(got.result.as_dict())
+        msg, data = str(got), as_json(got.result.as_dict())
     else:
         assert rc == 2
         lines = err.getvalue().splitlines()
@@ -222,7 +214,7 @@ def test_a_lone_stopped_worker_hands_over_the_runs_finished(
     assert f"; {len(missing)} of 24 runs did not finish (runs " in msg
     assert [want[r["index"]] for r in data["runs"]] == data["runs"]  # each finished run is the serial run's
     assert data["summary"]["runs"] == len(done)
-    assert data["settings"] == _as_json(serial.settings)
+    assert data["settings"] == as_json(serial.settings)
 
 
 class _Refusing:
@@ -315,8 +307,8 @@ def test_a_scheduler_lost_mid_sweep_hands_over_the_runs_finished(
                                                       **_ARGS))
     assert isinstance(got, gearctl.sweep.SweepIncomplete), got
     assert "the scheduler went away or cancelled them" in str(got)
-    data = _as_json(got.result.as_dict())
-    want = {r["index"]: r for r in _as_json(serial.runs)}
+    data = as_json(got.result.as_dict())
+    want = {r["index"]: r for r in as_json(serial.runs)}
     assert len(data["runs"]) >= 3 and sorted([r["index"] for r in data["runs"]] + data["missing"]) == list(range(24))
     assert all(want[r["index"]] == r for r in data["runs"])
     miss = data["missing"]
@@ -345,4 +337,4 @@ def test_a_worker_stopped_before_the_sweep_is_dropped_when_others_answer(
            f"before any run: dropped from the scheduler (removed)" in err.getvalue()
     got = json.loads(out.read_text())
     assert got["engine"]["dropped"] == [{"worker": stopped, "tasks": 0, "restarted": False}]
-    assert got["runs"] == _as_json(serial.runs)
+    assert got["runs"] == as_json(serial.runs)

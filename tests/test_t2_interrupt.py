@@ -14,14 +14,13 @@ import io
 import json
 import os
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import pytest
-from support import subprocess_cluster
+from support import as_json, signal_when_marked, subprocess_cluster
 
 import gearctl
 import gearctl.parallel
@@ -29,14 +28,6 @@ import gearctl.sweep
 from gearctl.cli import main
 
 _ARGS = {"vary": ["backlash=0.5x:2x"], "runs": 12, "duration": 0.2, "batch": 2}
-
-
-def _as_json(obj: Any) -> Any:
-    from gearctl.cli.common import write_json
-
-    buf = io.StringIO()
-    write_json(buf, obj)
-    return json.loads(buf.getvalue())
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +49,7 @@ def test_ctrl_c_in_a_serial_sweep_raises_a_keyboard_interrupt_carrying_the_runs_
     assert isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Exception)  # no `except Exception` eats it
     r = exc.result
     assert [x["index"] for x in r.runs] == [0, 1, 2, 3, 4, 5] and r.missing == (6, 7, 8, 9, 10, 11)
-    assert _as_json(r.runs) == _as_json(whole.runs[:6])
+    assert as_json(r.runs) == as_json(whole.runs[:6])
     assert r.summary == gearctl.sweep.summarize(r.runs, r.keys)
     assert r.engine["interrupted"] is True and r.as_dict()["missing"] == [6, 7, 8, 9, 10, 11]
     assert str(exc) == "interrupted: 6 of 12 runs finished, 6 did not"
@@ -121,7 +112,7 @@ def test_an_interrupted_sweep_writes_what_finished_and_exits_130(
         assert last.endswith("the summary above (no --json or --out given)") and len(lines) == 1
         return
     assert data["missing"] == list(gone) and data["engine"]["interrupted"] is True
-    assert data["runs"] == _as_json(partial.runs)
+    assert data["runs"] == as_json(partial.runs)
 
 
 def test_an_interrupted_sweep_names_the_worker_it_dropped_before(
@@ -218,40 +209,16 @@ sys.exit(main(sys.argv[2:]))
 """
 
 
-def _env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(gearctl.__file__).parents[1]),
-                                                                       os.environ.get("PYTHONPATH")]))}
-
-
 def _ctrl_c_after_some_runs(tmp_path: Path, extra: list[str], second: float | None = None,
                             sig: int = signal.SIGINT) -> tuple[int, str, str, float, int]:
     """Run the CLI sweep in a process of its own session; once 4 runs are in, SIGINT its whole group (as a
     terminal's Ctrl-C; again ``second`` seconds later); its exit code, stdout, stderr, the seconds it took to end
     and its session id."""
     mark = tmp_path / "four.txt"
-    p = subprocess.Popen([sys.executable, "-c", _CHILD, str(mark), "sweep", "shing1993_servo", "pid", "--vary",
-                          "backlash=0.5x:2x", "--runs", "4000", "--duration", "1", "--batch", "1", "--quiet",
-                          "--json", str(tmp_path / "s.json"), "--out", str(tmp_path / "o"), *extra],
-                         cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
-    try:
-        deadline = time.monotonic() + 60
-        while not mark.exists() and p.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert mark.exists(), p.communicate(timeout=30)
-        t0 = time.monotonic()
-        os.killpg(p.pid, sig)
-        if second is not None:
-            time.sleep(second)
-            if p.poll() is None:
-                os.killpg(p.pid, signal.SIGINT)
-        out, err = p.communicate(timeout=60)
-        took = time.monotonic() - t0
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(p.pid, signal.SIGKILL)
-        p.wait(timeout=30)
-    return p.returncode, out, err, took, p.pid
+    return signal_when_marked([sys.executable, "-c", _CHILD, str(mark), "sweep", "shing1993_servo", "pid", "--vary",
+                               "backlash=0.5x:2x", "--runs", "4000", "--duration", "1", "--batch", "1", "--quiet",
+                               "--json", str(tmp_path / "s.json"), "--out", str(tmp_path / "o"), *extra], mark,
+                              tmp_path, sig, second)
 
 
 def _check_handed_over(tmp_path: Path, rc: int, out: str, err: str) -> dict[str, Any]:
