@@ -8,6 +8,7 @@ Consideration", ISR TR 93-28 (1993), section 3.2 (the example pair).
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -16,6 +17,12 @@ import pytest
 from gearctl import GearModel, Plant, build_plant, load_model
 from gearctl.catalog import resolve
 from gearctl.kernel import compiled_available
+
+# A test run started in the background of a non-interactive shell (`cmd &`) inherits SIGINT ignored, and so does every
+# process it starts: the Ctrl-C tests then see their command run on (exit 0 for 130). Take Ctrl-C back; a child gets
+# the default disposition on exec, and Python's KeyboardInterrupt with it.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_configure(config: pytest.Config) -> None:
