@@ -1276,7 +1276,8 @@ def summarize(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[st
         ``runs``, ``ok``, ``failed`` (counts); ``rms_error`` and ``max_error``: {min, p5, median, p95,
         p99, max, mean} over the runs that ran to their end [rad]; ``fractions`` of all runs with a
         ``limit_cycle``, ``saturated`` actuator, ``impact_rate_high``, ``growing`` error, ``not_following``,
-        ``falling_back``, ``chattering`` torque, ``failed``, and ``diverged`` (failed or growing); ``worst``: the
+        ``falling_back``, ``chattering`` torque, ``failed``, and ``diverged`` (growing, or failed by divergence:
+        not every failed run diverged); ``worst``: the
         run of largest RMS error (index, params, figures, command); ``failures``: the first ten failed runs
         (index, params, message, command); ``sensitivity`` {key: {``rank_correlation``: Spearman's rho of the
         key with the RMS error, ``elasticity``: d ln(RMS) / d ln(key) from a joint least-squares fit of ln RMS on
@@ -1290,7 +1291,10 @@ def summarize(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[st
     mx = np.array([r["max_error"] for r in ok], dtype=float)
     flag = {k: sum(bool(r.get(k)) for r in runs) for k in FLAGS}
     failed = n - len(ok)
-    diverged = sum(r["status"] != "ok" or bool(r.get("growing")) for r in runs)
+    # a failed run diverged where its message says so (a run may fail otherwise: an event budget spent, a solver's
+    # fault); a run that ran to its end with a growing error counts too
+    diverged = sum(bool(r.get("growing")) or (r["status"] != "ok" and "diverged" in str(r.get("message", "")))
+                   for r in runs)
     out: dict[str, Any] = {"runs": n, "ok": len(ok), "failed": failed, "rms_error": _quantiles(rms),
                            "max_error": _quantiles(mx),
                            "fractions": {**{k: v / max(n, 1) for k, v in flag.items()}, "failed": failed / max(n, 1),

@@ -485,6 +485,10 @@ def test_a_failing_run_is_recorded_and_the_sweep_goes_on(monkeypatch: pytest.Mon
     s = res.summary
     assert (s["ok"], s["failed"], s["fractions"]["diverged"]) == (1, 1, 0.5)
     assert s["worst"]["index"] == 0 and s["failures"][0]["index"] == 1
+    # a run that failed another way (an event budget spent) failed, and did not diverge
+    other = {**bad, "message": "closed loop failed: event rate: the run's events come at a steady 2.8e+06 per s"}
+    s2 = gearctl.sweep.summarize([ok, other], res.keys)
+    assert (s2["failed"], s2["fractions"]["failed"], s2["fractions"]["diverged"]) == (1, 0.5, 0.0)
 
 
 def test_summary_quantiles_and_sensitivities() -> None:
