@@ -1279,7 +1279,9 @@ def summarize(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[st
         ``falling_back``, ``chattering`` torque, ``failed``, and ``diverged`` (growing, or failed by divergence:
         not every failed run diverged); ``worst``: the
         run of largest RMS error (index, params, figures, command); ``failures``: the first ten failed runs
-        (index, params, message, command); ``sensitivity`` {key: {``rank_correlation``: Spearman's rho of the
+        (index, params, message, command); with the ISO 230-2 test (``precision``), ``reversal_value``,
+        ``repeatability`` and ``accuracy``: their quantiles as ``rms_error``'s over the runs whose test ran [rad]
+        (None where none did); ``sensitivity`` {key: {``rank_correlation``: Spearman's rho of the
         key with the RMS error, ``elasticity``: d ln(RMS) / d ln(key) from a joint least-squares fit of ln RMS on
         the ln of every positive varied key (None where a key takes non-positive values)}}.
     """
@@ -1306,6 +1308,9 @@ def summarize(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[st
                         **({"estimate": w["estimate"]} if "estimate" in w else {})}
     else:
         out["worst"] = None
+    for k in ISO_FIGURES:  # with --precision: the ISO 230-2 figures over the runs whose test ran [rad]
+        if any(k in r for r in runs):
+            out[k] = _quantiles(np.array([np.nan if r.get(k) is None else r[k] for r in runs], dtype=float))
     out["failures"] = [{"index": r["index"], "params": r["params"], "message": r["message"], "command": r["command"]}
                        for r in runs if r["status"] != "ok"][:10]
     sens: dict[str, Any] = {}

@@ -24,10 +24,13 @@ def _json_bullet() -> str:
 
 def test_every_run_key_is_named_in_the_readme() -> None:
     named = set(re.findall(r"`([a-z_]+)`", _json_bullet())) | set(METRICS) | set(FLAGS)
+    iso = sweep("shing1993_servo", "pid", vary=["backlash=1x"], runs=1, duration=0.2, engine="serial", precision=True)
     runs = [*sweep("shing1993_servo", "deadzone_inverse", vary=["estimate_error=-0.1,0.1"], runs=2, grid=True,
-                   duration=0.2, engine="serial").runs,
-            *sweep("shing1993_servo", "pid", vary=["backlash=1x"], runs=1, duration=0.2, engine="serial",
-                   precision=True).runs]
+                   duration=0.2, engine="serial").runs, *iso.runs]
     keys = set().union(*runs)
     assert {"estimate", "precision_command", "reversal_value"} <= keys  # the cases the sweeps above exercise
     assert keys - named == set()
+    # the summary has the ISO figures the terminal prints (it printed them; the JSON had none)
+    for k in ("reversal_value", "repeatability", "accuracy"):
+        assert iso.summary[k]["median"] == iso.summary[k]["max"] == iso.runs[0][k] > 0
+        assert f"`{k}`" in _json_bullet()

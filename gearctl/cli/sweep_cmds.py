@@ -97,16 +97,11 @@ def _text(result: Any) -> list[str]:
         rho, el = sens["rank_correlation"], sens["elasticity"]
         lines.append(f"  sensitivity of RMS     {k}: rank correlation "
                      f"{'-' if rho is None else f'{rho:+.2f}'}" + ("" if el is None else f", elasticity {el:+.3g}"))
-    if st.get("precision"):
-        import numpy as np
-
-        iso = (("reversal_value", "reversal B"), ("repeatability", "repeatab. R"), ("accuracy", "accuracy A"))
-        for k, label in iso:
-            x = result.column(k)
-            x = x[np.isfinite(x)]
-            if x.size:
-                lines.append(f"  ISO 230-2 {label:<13}median {np.median(x) * 1e6:.4g} urad, max {x.max() * 1e6:.4g} "
-                             f"urad")
+    iso = (("reversal_value", "reversal B"), ("repeatability", "repeatab. R"), ("accuracy", "accuracy A"))
+    for k, label in iso:
+        q = s.get(k)
+        if q:
+            lines.append(f"  ISO 230-2 {label:<13}median {q['median'] * 1e6:.4g} urad, max {q['max'] * 1e6:.4g} urad")
     return lines
 
 
