@@ -159,6 +159,8 @@ class TrackingMetrics(_Mapping):
         Impacts on the front flanks.
     impacts_back : int
         Impacts on the back flanks.
+    impacts_per_stage : tuple of int
+        Impacts on each stage, motor side first (one entry for a pair).
     max_impact_velocity : float
         Largest relative velocity along the line of action at an impact [m/s] (0 without impacts).
     fallbacks : int
@@ -186,6 +188,7 @@ class TrackingMetrics(_Mapping):
     impacts: int
     impacts_front: int
     impacts_back: int
+    impacts_per_stage: tuple[int, ...]
     max_impact_velocity: float
     fallbacks: int
     overruns: int
@@ -413,6 +416,7 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
     TrackingMetrics
         ``rms_error``, ``max_error``, ``final_error`` [rad] (load angle ``r - theta_load``; final: at the last
         sample), ``impacts`` (count, all flanks and stages, exact), ``impacts_front``, ``impacts_back``,
+        ``impacts_per_stage``,
         ``max_impact_velocity`` [m/s] (relative velocity along the line of action), ``fallbacks``
         (count), ``overruns`` (solves over the controller's time budget),
         ``solve_time`` {``median``, ``p99``, ``max``} [s] or None for controllers that solve no
@@ -441,6 +445,8 @@ def tracking_metrics(res: ClosedLoopResult, *, settle: float | None = None) -> T
         impacts=front + back,
         impacts_front=front,
         impacts_back=back,
+        impacts_per_stage=tuple(int(v) for v in c["impacts_front"] + c["impacts_back"] + c["plastic_front"]
+                                + c["plastic_back"]),
         max_impact_velocity=float(np.max(c["max_impact_velocity"])) if len(c["max_impact_velocity"]) else 0.0,
         fallbacks=len(res.fallbacks),
         overruns=res.overruns,

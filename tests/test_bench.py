@@ -385,3 +385,13 @@ def test_a_folder_where_out_writes_a_file_is_refused_before_the_runs(tmp_path: P
     err = capsys.readouterr().err
     assert rc == 2 and f"{tmp_path / 'report.md'} is a folder" in err and err.count("\n") == 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.md"]
+
+
+def test_a_trains_bench_rows_count_the_impacts_per_stage() -> None:
+    # track --json gave them on a train, the bench's rows (and its JSON) did not: one figure, in TrackingMetrics
+    res = run_bench(tiny_spec(models=("servo_3stage_quanser_srv02",), controllers=("pid",), plants=("improved",),
+                              cross_design=False, duration=0.5, precision=False), jobs=1)
+    rows = [r for r in res["runs"] if r["model"] == "servo_3stage_quanser_srv02" and r["ok"]]
+    assert rows and all(len(r["impacts_per_stage"]) == 3 and sum(r["impacts_per_stage"]) == r["impacts"]
+                        for r in rows)
+    assert max(r["impacts"] for r in rows) > 0

@@ -112,10 +112,6 @@ def _cmd_track(args: argparse.Namespace) -> int:
                "backlash": plant.backlash if n == 1 else list(plant.backlashes), "seed": args.seed,
                "preview": ctrl.get("preview", 1), "ok": out.ok, "message": out.message, **m.as_dict()}
     summary["separated_past_flank"] = separated_past_flank(plant, plant.gaps(res.x), res.mode.reshape(n, -1))
-    if n > 1:
-        c = res.counts
-        summary["impacts_per_stage"] = [int(c["impacts_front"][i] + c["impacts_back"][i] + c["plastic_front"][i]
-                                            + c["plastic_back"][i]) for i in range(n)]
     warn("track", [f"{ctrl['name']}: {n}" for n in ctrl.get("design_notes", ())], kind="note")
     warn("track", unused_estimate(ctrl.get("kind"), args.estimate), kind="note")
     warn("track", ratio_changed(run.design.nominal, plant), kind="note")
