@@ -197,3 +197,14 @@ def test_a_trains_factors_read_back_from_json_are_factors_again() -> None:
     assert all(isinstance(x["params"]["backlash"], gearctl.sweep.Scale) for x in r.runs)
     assert r.table()[0][2] == "backlash_factor"
     _same_sweep(r.as_dict(), part.as_dict())
+
+
+def test_a_previous_sweep_too_large_to_read_is_refused_with_the_figure(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, whole: gearctl.sweep.SweepResult) -> None:
+    prev = _write(tmp_path / "prev.json", _previous(whole))
+    size = prev.stat().st_size
+    monkeypatch.setattr(gearctl.sweep, "available_memory", lambda: 4 * size)  # half of it: 2 x the text, < 4 x
+    with pytest.raises(gearctl.InputError, match=r"GB of JSON would take about .* GB to read, more than half the "
+                                                 r"memory available") as info:
+        gearctl.sweep.resume(prev, engine="serial")
+    assert info.value.field == "resume"
