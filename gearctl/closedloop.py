@@ -414,7 +414,7 @@ def simulate_closed_loop(
         xs_l.append(xn)
         mode_l.append(modes.tolist())
         if status != 0:
-            last, message = i + 1, kn.budget_message() if status == 3 else Kernel.status_message(status)
+            last, message = i + 1, kn.run_message(status)
             break
         if max(map(abs, xn[w:])) >= DIVERGENCE_LIMIT or xn[w] != xn[w]:  # (a NaN fails the second test)
             last, message = i + 1, f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s at t = {t[i + 1]:.4g} s"

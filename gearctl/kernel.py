@@ -1021,6 +1021,21 @@ class Kernel:
         """
         return _STATUS.get(status, f"status {status}")
 
+    def run_message(self, status: int) -> str:
+        """Words for a status of this kernel's run: :meth:`budget_message` for a spent event budget (3), else
+        :meth:`status_message`.
+
+        Parameters
+        ----------
+        status : int
+            The code :meth:`advance` returned.
+
+        Returns
+        -------
+        str
+        """
+        return self.budget_message() if status == _ST_EVENTS else self.status_message(status)
+
     def budget_message(self) -> str:
         """Words for status 3 (the run's event budget spent), from the events located so far.
 

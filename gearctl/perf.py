@@ -81,7 +81,7 @@ def _run_gearctl(plant: Plant, x0: np.ndarray, n: int, dt: float,
         u1, u2 = ctrl(i, xs[-1])
         status = advance(u1, u2 + tl, dt)
         if status:
-            raise RuntimeError(kn.budget_message() if status == 3 else Kernel.status_message(status))
+            raise RuntimeError(kn.run_message(status))
         xs.append(xk.tolist())
     return np.array(xs).T
 

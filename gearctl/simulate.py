@@ -389,7 +389,7 @@ def _result(plant: Plant, kn: Kernel, t: NDArray, x: NDArray, u: NDArray, mode: 
     diverged = status == 0 and not np.all(np.abs(x[w:, -1]) < DIVERGENCE_LIMIT)
     ok = status == 0 and not diverged
     message = "ok" if ok else (f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s" if diverged
-                               else kn.budget_message() if status == 3 else Kernel.status_message(status))
+                               else kn.run_message(status))
     return SimulationResult(
         t=t, x=x, u=u, s=_squeeze(plant.gaps(x)), mode=_squeeze(mode), force=_squeeze(mesh_force(plant, x, mode, dys)),
         event_log=kn.event_log, counts=kn.counts, max_penetration=kn.max_penetration, success=ok, message=message,

@@ -1060,7 +1060,7 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     task_bytes = loop_bytes(ctx.design.nominal, ctx.duration, design_controller(ctx.design).Ts)
     eng = Engine(workers=workers, scheduler=scheduler, client=client, task_bytes=task_bytes)
     try:
-        _run_on(eng, plan, rows, info, batch, progress)
+        _run_on(eng, plan, rows, at, info, batch, progress)
     except KeyboardInterrupt:  # Ctrl-C (after the cluster's tasks were cancelled and it was closed, below)
         if not any(r is not None for r in rows):
             raise
@@ -1071,14 +1071,13 @@ def _run_jobs(plan: SweepPlan, *, engine: str, workers: int | None, scheduler: s
     return rows, info  # type: ignore[return-value]
 
 
-def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], info: dict[str, Any],
-            batch: int | None, progress: Callable[[int, int], Any] | None) -> None:
-    """Run ``plan``'s jobs on ``eng``'s cluster into ``rows`` (by index) and ``info``; close ``eng`` at the end,
-    whatever ends it (a Ctrl-C too: the cluster's tasks cancelled first)."""
+def _run_on(eng: Engine, plan: SweepPlan, rows: list[dict[str, Any] | None], at: Mapping[int, int],
+            info: dict[str, Any], batch: int | None, progress: Callable[[int, int], Any] | None) -> None:
+    """Run ``plan``'s jobs on ``eng``'s cluster into ``rows`` (run index -> position: ``at``) and ``info``; close
+    ``eng`` at the end, whatever ends it (a Ctrl-C too: the cluster's tasks cancelled first)."""
     from distributed import KilledWorker
 
     jobs, n, done = plan.jobs, len(plan.jobs), 0
-    at = {job[0]: k for k, job in enumerate(jobs)}  # a run's position in rows, by its index
     futures: dict[Any, Any] = {}
     try:
         w, threads = eng.workers, eng.threads
@@ -1664,8 +1663,9 @@ def resume(previous: SweepResult | Mapping[str, Any] | str | Path, *, workers: i
         raise _refuse(what, f"written by gearctl {st['gearctl']}, this is {code_id()} (version+code hash): its "
                             f"settings and figures may not mean the same here; resume it with that gearctl, or run "
                             f"the whole sweep again")
-    differ = ", ".join(f"{k} {v} (this process: {numerics_versions().get(k, 'not reported')})"
-                       for k, v in sorted(dict(st["numerics"]).items()) if numerics_versions().get(k) != v)
+    here = numerics_versions()
+    differ = ", ".join(f"{k} {v} (this process: {here.get(k, 'not reported')})"
+                       for k, v in sorted(dict(st["numerics"]).items()) if here.get(k) != v)
     if differ:
         raise _refuse(what, f"run on {differ}: the runs rerun here would differ in their last digits; resume it "
                             f"where the sweep ran, or run the whole sweep again")

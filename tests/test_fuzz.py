@@ -724,7 +724,7 @@ FOUND_CASES = {
         "mode is the complex pair (23.7 Hz, damping ratio 0.26)")),
     "undamped_mesh_stick_slip_chatter": Found("undamped_mesh_stick_slip_chatter.toml", (
         ("track", "MODEL", "pid", "--reference", "move", "--duration", "0.1"),), 30.0,
-        "event cascade (the 12000-model draw, model 8744; open): a backlash-free 30 um-module pair with damping_ratio "
+        "event cascade (the 12000-model draw, model 8744): a backlash-free 30 um-module pair with damping_ratio "
         "2.2e-16 (a 717 kHz mesh that never rings down) and stick-slip load friction (0.316 N m) under a load torque "
         "of 0.352 N m: the mesh mode turns the load's speed through zero twice a cycle, each a stick or a slip event, "
         "216 104 by t = 0.076 s, and the run stops at its event budget with the Zeno cascade's message under every "

@@ -211,7 +211,7 @@ def simulate_compiled(plant: Any, controller: Controller, ref: Any, duration: fl
     message = "ok"
     if L.status:
         status = int(L.status)
-        message = kn.budget_message() if status == 3 else Kernel.status_message(status)
+        message = kn.run_message(status)
     elif L.diverged:
         message = f"diverged: |omega| > {DIVERGENCE_LIMIT:.0e} rad/s at t = {t[last]:.4g} s"
     for i in np.flatnonzero(~np.isfinite(cmd[:last])):
